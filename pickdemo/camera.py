@@ -1,0 +1,154 @@
+"""Pinhole camera maths as small pure functions: intrinsics, extrinsics, projection, depth, noise.
+
+Conventions: camera frame as in OpenCV (x right, y down, z forward along the optical axis); pixel
+(u, v) with u along image columns and v along rows, integer values at pixel centres. Depth is
+z-depth along the optical axis (not ray length), in metres. ``T_world_cam`` maps camera-frame points
+into the world frame. The renderer-side code (``pickdemo.sim.render``) builds its OpenGL matrices
+from the same numbers, so what is rendered and what is back-projected agree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo.geometry import Pose
+
+#: Depth noise model of the paper's eq. (8) (Kinect / Xtion): sigma_z = 1.45e-3 z^2, z and sigma in m.
+KINECT_NOISE_COEFF = 1.45e-3
+
+# OpenGL's camera looks down -z with y up; OpenCV's looks down +z with y down.
+_GL_FROM_CV = np.diag([1.0, -1.0, -1.0])
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics (pixels)."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @staticmethod
+    def from_fov(
+        width: int, height: int, fov_x_deg: float, fov_y_deg: float, *, cx: float | None = None, cy: float | None = None
+    ) -> Intrinsics:
+        """Intrinsics of a camera with the given horizontal and vertical fields of view.
+
+        ``fx = (W / 2) / tan(fov_x / 2)`` (the paper's eqs. 1-4 with ``P = 2 tan(angle / 2)``). The
+        principal point defaults to the image centre ``((W - 1) / 2, (H - 1) / 2)``.
+        """
+        fx = (width / 2.0) / np.tan(np.radians(fov_x_deg) / 2.0)
+        fy = (height / 2.0) / np.tan(np.radians(fov_y_deg) / 2.0)
+        return Intrinsics(
+            width=width,
+            height=height,
+            fx=float(fx),
+            fy=float(fy),
+            cx=float((width - 1) / 2.0 if cx is None else cx),
+            cy=float((height - 1) / 2.0 if cy is None else cy),
+        )
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The 3x3 camera matrix K."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+
+def look_at_pose(position: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0, 0.0, 1.0)) -> Pose:
+    """``T_world_cam`` of a camera at ``position`` whose optical axis points at ``target``."""
+    position = np.asarray(position, dtype=float)
+    z = np.asarray(target, dtype=float) - position
+    z /= np.linalg.norm(z)
+    up = np.asarray(up, dtype=float)
+    if abs(float(np.dot(z, up))) > 0.999:  # looking straight along "up": pick another reference
+        up = np.array([1.0, 0.0, 0.0])
+    x = np.cross(z, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return Pose(position, np.column_stack([x, y, z]))
+
+
+def project(points_cam: np.ndarray, K: Intrinsics) -> np.ndarray:
+    """Project (N, 3) camera-frame points to (N, 2) pixel coordinates (eqs. 5-6 inverted)."""
+    p = np.atleast_2d(points_cam)
+    return np.column_stack([K.fx * p[:, 0] / p[:, 2] + K.cx, K.fy * p[:, 1] / p[:, 2] + K.cy])
+
+
+def backproject(uv: np.ndarray, z_m: np.ndarray, K: Intrinsics) -> np.ndarray:
+    """Paper eqs. (5)-(7): pixel (u, v) with z-depth z to a camera-frame point (N, 3), metres."""
+    uv = np.atleast_2d(uv)
+    z = np.asarray(z_m, dtype=float).reshape(-1)
+    return np.column_stack([z * (uv[:, 0] - K.cx) / K.fx, z * (uv[:, 1] - K.cy) / K.fy, z])
+
+
+def backproject_image(depth_m: np.ndarray, K: Intrinsics) -> np.ndarray:
+    """Back-project a whole (H, W) depth image into an (H, W, 3) camera-frame point image."""
+    h, w = depth_m.shape
+    u = (np.arange(w, dtype=float) - K.cx) / K.fx
+    v = (np.arange(h, dtype=float) - K.cy) / K.fy
+    return np.stack([depth_m * u[None, :], depth_m * v[:, None], depth_m], axis=-1)
+
+
+def pixel_rays_cam(uv: np.ndarray, K: Intrinsics) -> np.ndarray:
+    """Directions (N, 3) of the rays through pixels, scaled so that their z component is 1."""
+    uv = np.atleast_2d(uv)
+    return np.column_stack([(uv[:, 0] - K.cx) / K.fx, (uv[:, 1] - K.cy) / K.fy, np.ones(len(uv))])
+
+
+def depth_from_buffer(zbuf: np.ndarray, near_m: float, far_m: float) -> np.ndarray:
+    """Metric z-depth from an OpenGL depth buffer in [0, 1] (non-linear)."""
+    zbuf = np.asarray(zbuf, dtype=np.float64)
+    return far_m * near_m / (far_m - (far_m - near_m) * zbuf)
+
+
+def kinect_sigma_m(z_m: np.ndarray | float) -> np.ndarray:
+    """Standard deviation of a depth reading (paper eq. 8): ``1.45e-3 z^2``, metres."""
+    return KINECT_NOISE_COEFF * np.square(z_m)
+
+
+def add_kinect_noise(depth_m: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A noisy copy of a depth image, independent Gaussian per pixel with eq. (8)'s deviation."""
+    noise = rng.standard_normal(depth_m.shape)
+    return depth_m + kinect_sigma_m(depth_m) * noise
+
+
+def opengl_view_matrix(T_world_cam: Pose) -> list[float]:
+    """Column-major 4x4 OpenGL view matrix (world -> GL camera) for pybullet."""
+    R_gl = T_world_cam.rotation @ _GL_FROM_CV  # world <- GL camera
+    view = np.eye(4)
+    view[:3, :3] = R_gl.T
+    view[:3, 3] = -R_gl.T @ T_world_cam.position
+    return [float(v) for v in view.T.reshape(-1)]
+
+
+def opengl_projection_matrix(K: Intrinsics, near_m: float, far_m: float) -> list[float]:
+    """Column-major 4x4 OpenGL projection of a symmetric frustum with K's focal lengths.
+
+    The renderer decides at which pixel the optical axis lands (its pixel-centre convention); the
+    simulator side measures that and sets ``K.cx``, ``K.cy`` to match (``pickdemo.sim.render``).
+    """
+    right = (K.width / 2.0) / K.fx * near_m
+    top = (K.height / 2.0) / K.fy * near_m
+    proj = np.zeros((4, 4))
+    proj[0, 0] = near_m / right
+    proj[1, 1] = near_m / top
+    proj[2, 2] = -(far_m + near_m) / (far_m - near_m)
+    proj[2, 3] = -2.0 * far_m * near_m / (far_m - near_m)
+    proj[3, 2] = -1.0
+    return [float(v) for v in proj.T.reshape(-1)]
+
+
+@dataclass(frozen=True)
+class RGBDFrame:
+    """One camera frame: what a real robot's driver would hand over, and nothing more."""
+
+    rgb: np.ndarray  # (H, W, 3) uint8
+    depth_m: np.ndarray  # (H, W) float64, z-depth in m; inf or nan where there is no return
+    intrinsics: Intrinsics
+    T_world_cam: Pose
+    time_s: float  # simulated time at which it was taken

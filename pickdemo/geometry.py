@@ -1,0 +1,84 @@
+"""Rigid poses that cross stage boundaries, with SE(3) maths delegated to Pinocchio.
+
+Angles follow the paper: yaw ("trend") about world z, pitch about y, roll ("flip") about x, composed
+as ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (Pinocchio's rpy convention).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A rigid transform: ``p_parent = rotation @ p_child + position`` (metres)."""
+
+    position: np.ndarray  # (3,) m
+    rotation: np.ndarray  # (3, 3)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "position", _frozen(np.reshape(self.position, 3)))
+        object.__setattr__(self, "rotation", _frozen(np.reshape(self.rotation, (3, 3))))
+
+    @staticmethod
+    def identity() -> Pose:
+        return Pose(np.zeros(3), np.eye(3))
+
+    @staticmethod
+    def from_xyz_rpy(position: np.ndarray, *, roll: float = 0.0, pitch: float = 0.0, yaw: float = 0.0) -> Pose:
+        """Build a pose from a position (m) and roll, pitch, yaw (rad)."""
+        return Pose(np.asarray(position, dtype=float), pin.rpy.rpyToMatrix(roll, pitch, yaw))
+
+    @staticmethod
+    def from_se3(m: pin.SE3) -> Pose:
+        return Pose(m.translation.copy(), m.rotation.copy())
+
+    def to_se3(self) -> pin.SE3:
+        return pin.SE3(np.array(self.rotation), np.array(self.position))
+
+    def __matmul__(self, other: Pose) -> Pose:
+        return Pose.from_se3(self.to_se3() * other.to_se3())
+
+    def inverse(self) -> Pose:
+        return Pose.from_se3(self.to_se3().inverse())
+
+    def transform_points(self, points: np.ndarray) -> np.ndarray:
+        """Map (N, 3) points from the child frame into the parent frame."""
+        return np.asarray(points) @ self.rotation.T + self.position
+
+    @property
+    def rpy(self) -> np.ndarray:
+        """(roll, pitch, yaw) in rad."""
+        return pin.rpy.matrixToRpy(np.array(self.rotation))
+
+    @property
+    def quaternion_xyzw(self) -> np.ndarray:
+        return pin.Quaternion(np.array(self.rotation)).coeffs().copy()
+
+    @staticmethod
+    def from_quaternion_xyzw(position: np.ndarray, quat_xyzw: np.ndarray) -> Pose:
+        x, y, z, w = (float(v) for v in quat_xyzw)
+        return Pose(np.asarray(position, dtype=float), pin.Quaternion(w, x, y, z).normalized().matrix())
+
+    def to_dict(self) -> dict[str, list[float] | float]:
+        roll, pitch, yaw = self.rpy
+        return {
+            "position_m": [float(v) for v in self.position],
+            "yaw_deg": float(np.degrees(yaw)),
+            "pitch_deg": float(np.degrees(pitch)),
+            "roll_deg": float(np.degrees(roll)),
+        }
+
+
+def wrap_angle(angle_rad: float | np.ndarray, period_rad: float = 2.0 * np.pi) -> float | np.ndarray:
+    """Wrap an angle into [-period/2, period/2)."""
+    return (np.asarray(angle_rad) + period_rad / 2.0) % period_rad - period_rad / 2.0

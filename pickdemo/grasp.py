@@ -1,0 +1,105 @@
+"""Grasp planning: a top-down parallel-jaw grasp from the pose estimate, with the poses around it.
+
+Pure: no simulator. The hand's fingers close along its y axis; a top-down TCP orientation is
+``Rz(psi) Rx(pi)``, whose y axis points along ``(sin psi, -cos psi, 0)``. The grasp closes across
+the object's narrower side; of the equivalent hand angles (the hand is symmetric under a half turn,
+a square box under a quarter turn) the one nearest the home angle is chosen, keeping joint 7 far
+from its limits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo import robot_model as rm
+from pickdemo.geometry import Pose, wrap_angle
+from pickdemo.perception import PoseEstimate, TargetModel
+
+FINGER_PAD_HALF_HEIGHT_M = 0.00925  # the rubber tip is 18.5 mm tall, centred on the TCP
+
+
+class GraspPlanningError(RuntimeError):
+    """No feasible grasp for this estimate (for example an object wider than the open gripper)."""
+
+
+@dataclass(frozen=True)
+class GraspParams:
+    """Distances in m."""
+
+    pregrasp_height_m: float = 0.10  # above the grasp, for a straight vertical approach
+    transport_height_m: float = 0.12  # lift above the grasp height before moving sideways
+    max_grasp_depth_m: float = 0.025  # how far below the top face the pads' centre goes
+    min_tcp_height_m: float = 0.012  # keeps the finger tips off the table
+    place_clearance_m: float = 0.004  # release this far above the table
+    retreat_height_m: float = 0.10
+    width_margin_m: float = 0.01  # the open gripper must exceed the object by this much
+
+    def __post_init__(self) -> None:
+        if min(self.pregrasp_height_m, self.transport_height_m, self.retreat_height_m) <= 0:
+            raise ValueError("heights must be positive")
+
+
+@dataclass(frozen=True)
+class GraspPlan:
+    """TCP poses of a pick and place, all top-down, in the world frame."""
+
+    pregrasp: Pose
+    grasp: Pose
+    lift: Pose
+    place_above: Pose
+    place: Pose
+    retreat: Pose
+    object_width_m: float  # expected width between the fingers when closed on the object
+    hand_yaw_rad: float
+
+
+def top_down(position: np.ndarray, yaw_rad: float) -> Pose:
+    """A TCP pose pointing straight down, rotated ``yaw_rad`` about world z."""
+    return Pose.from_xyz_rpy(position, roll=np.pi, yaw=yaw_rad)
+
+
+def hand_yaw_for(estimate: PoseEstimate, model: TargetModel) -> tuple[float, float]:
+    """Hand angle (rad) that closes across the narrower side, and the width there (m)."""
+    if model.shape == "cylinder":
+        return 0.0, model.size[0]
+    obj_yaw = float(estimate.pose.rpy[2])
+    sx, sy = model.size[0], model.size[1]
+    # Finger axis along the object's x axis when x is the narrower side, else along its y axis.
+    psi = obj_yaw + np.pi / 2.0 if sx <= sy else obj_yaw
+    period = np.pi / 2.0 if abs(sx - sy) < 1e-9 else np.pi
+    return float(wrap_angle(psi, period)), min(sx, sy)
+
+
+def plan_grasp(
+    estimate: PoseEstimate, model: TargetModel, place_xy: tuple[float, float], params: GraspParams | None = None
+) -> GraspPlan:
+    """All TCP poses of the pick and place from the estimated pose of the target."""
+    params = params or GraspParams()
+    psi, width = hand_yaw_for(estimate, model)
+    if width > 2.0 * rm.FINGER_MAX_M - params.width_margin_m:
+        raise GraspPlanningError(
+            f"object is {width * 1e3:.0f} mm wide; the gripper opens to {2e3 * rm.FINGER_MAX_M:.0f} mm"
+        )
+    center = estimate.pose.position
+    top_z = center[2] + model.height_m / 2.0
+    depth = min(params.max_grasp_depth_m, model.height_m / 2.0)
+    grasp_z = max(top_z - depth, params.min_tcp_height_m)
+    bottom_z = center[2] - model.height_m / 2.0
+    grasp_above_bottom = grasp_z - bottom_z
+
+    grasp_p = np.array([center[0], center[1], grasp_z])
+    up = np.array([0.0, 0.0, 1.0])
+    place_p = np.array([place_xy[0], place_xy[1], grasp_above_bottom + params.place_clearance_m])
+    carry_z = grasp_z + params.transport_height_m
+    return GraspPlan(
+        pregrasp=top_down(grasp_p + params.pregrasp_height_m * up, psi),
+        grasp=top_down(grasp_p, psi),
+        lift=top_down(np.array([grasp_p[0], grasp_p[1], carry_z]), psi),
+        place_above=top_down(np.array([place_p[0], place_p[1], max(carry_z, place_p[2] + 0.05)]), psi),
+        place=top_down(place_p, psi),
+        retreat=top_down(place_p + params.retreat_height_m * up, psi),
+        object_width_m=float(width),
+        hand_yaw_rad=psi,
+    )

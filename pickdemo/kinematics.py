@@ -1,0 +1,122 @@
+"""Inverse kinematics of the Panda's seven arm joints with Pinocchio (damped least squares).
+
+Pure: no simulator. The model is the same URDF that the simulator loads, with the two finger joints
+locked (``buildReducedModel``). Joint limits are respected by projecting every iterate; when a solve
+from the seed does not converge, it restarts from random configurations drawn with the caller's RNG.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from pickdemo import robot_model as rm
+from pickdemo.geometry import Pose
+
+
+@dataclass(frozen=True)
+class IKParams:
+    """Solver settings; tolerances in m and rad."""
+
+    max_iterations: int = 300
+    tolerance_m: float = 1e-5
+    tolerance_rad: float = 1e-4
+    damping: float = 1e-6
+    step: float = 1.0
+    restarts: int = 8
+    limit_margin_rad: float = 0.02  # stay this far inside the joint limits
+
+    def __post_init__(self) -> None:
+        if self.max_iterations < 1 or self.restarts < 0 or self.damping <= 0 or not 0 < self.step <= 1:
+            raise ValueError("invalid IK parameters")
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """The outcome of one IK solve. ``q`` is the best configuration found, even on failure."""
+
+    success: bool
+    q: np.ndarray  # (7,) rad
+    position_error_m: float
+    rotation_error_rad: float
+    iterations: int
+    restarts_used: int
+    reason: str = ""
+
+
+class PandaKinematics:
+    """Forward and inverse kinematics of the arm's TCP (``panda_hand_tcp``)."""
+
+    def __init__(self) -> None:
+        full = pin.buildModelFromUrdf(str(rm.panda_files().urdf))
+        lock = [full.getJointId(n) for n in rm.FINGER_JOINTS]
+        q_ref = pin.neutral(full)
+        self.model = pin.buildReducedModel(full, lock, q_ref)
+        self.data = self.model.createData()
+        self.tcp_id = self.model.getFrameId(rm.TCP_FRAME)
+        if self.model.nq != 7:
+            raise RuntimeError(f"expected 7 arm joints after locking the fingers, got {self.model.nq}")
+        self.lower = self.model.lowerPositionLimit.copy()
+        self.upper = self.model.upperPositionLimit.copy()
+
+    def forward(self, q: np.ndarray) -> Pose:
+        """World pose of the TCP at configuration q (the robot's base is the world frame)."""
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        return Pose.from_se3(self.data.oMf[self.tcp_id])
+
+    def within_limits(self, q: np.ndarray) -> bool:
+        return bool(np.all(q >= self.lower - 1e-9) and np.all(q <= self.upper + 1e-9))
+
+    def _solve_from(self, target: pin.SE3, q0: np.ndarray, params: IKParams) -> tuple[np.ndarray, float, float, int]:
+        model, data = self.model, self.data
+        lo = self.lower + params.limit_margin_rad
+        hi = self.upper - params.limit_margin_rad
+        q = np.clip(q0, lo, hi)
+        err = np.zeros(6)
+        for it in range(1, params.max_iterations + 1):
+            pin.framesForwardKinematics(model, data, q)
+            iMd = data.oMf[self.tcp_id].actInv(target)
+            err = pin.log(iMd).vector  # in the TCP frame
+            if np.linalg.norm(err[:3]) < params.tolerance_m and np.linalg.norm(err[3:]) < params.tolerance_rad:
+                return q, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])), it
+            J = pin.computeFrameJacobian(model, data, q, self.tcp_id, pin.LOCAL)
+            J = -pin.Jlog6(iMd.inverse()) @ J
+            v = -J.T @ np.linalg.solve(J @ J.T + params.damping * np.eye(6), err)
+            q = np.clip(pin.integrate(model, q, params.step * v), lo, hi)
+        return q, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])), params.max_iterations
+
+    def solve(self, target: Pose, q_seed: np.ndarray, rng: np.random.Generator, params: IKParams | None = None) -> IKResult:
+        """Joint angles that put the TCP at ``target``; restarts from random configurations if needed."""
+        params = params or IKParams()
+        goal = target.to_se3()
+        best: tuple[np.ndarray, float, float, int] | None = None
+        starts = [np.asarray(q_seed, dtype=float)]
+        for attempt in range(params.restarts + 1):
+            if attempt >= len(starts):
+                starts.append(rng.uniform(self.lower, self.upper))
+            q, e_pos, e_rot, its = self._solve_from(goal, starts[attempt], params)
+            if best is None or e_pos + e_rot < best[1] + best[2]:
+                best = (q, e_pos, e_rot, its)
+            if e_pos < params.tolerance_m and e_rot < params.tolerance_rad:
+                return IKResult(True, q, e_pos, e_rot, its, attempt)
+        assert best is not None
+        q, e_pos, e_rot, its = best
+        return IKResult(
+            False,
+            q,
+            e_pos,
+            e_rot,
+            its,
+            params.restarts,
+            reason=f"no solution within tolerance after {params.restarts + 1} starts "
+            f"(best: {e_pos * 1e3:.1f} mm, {np.degrees(e_rot):.2f} deg)",
+        )
+
+
+@functools.cache
+def panda_kinematics() -> PandaKinematics:
+    """One shared, lazily built kinematics model per process (loading the URDF costs a few ms)."""
+    return PandaKinematics()

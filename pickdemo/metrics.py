@@ -1,0 +1,77 @@
+"""Scoring an episode against the truth. Pure: poses and numbers in, scores out.
+
+The simulator's true poses reach this module and the labels only, never the controller.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo.geometry import Pose, wrap_angle
+from pickdemo.perception import PoseEstimate
+from pickdemo.result import PerceptionScore
+
+
+def yaw_error_deg(estimated: Pose, true: Pose, symmetry_rad: float) -> float | None:
+    """Absolute yaw error (deg) modulo the object's symmetry; None for a rotationally symmetric one."""
+    if symmetry_rad <= 0.0:
+        return None
+    d = wrap_angle(float(estimated.rpy[2]) - float(true.rpy[2]), symmetry_rad)
+    return float(abs(np.degrees(d)))
+
+
+def position_nees(estimate: PoseEstimate, true: Pose) -> float:
+    """Normalised estimation error squared of the 3-D position (expected value 3 when honest)."""
+    e = estimate.pose.position - true.position
+    return float(e @ np.linalg.solve(estimate.position_cov, e))
+
+
+def score_perception(estimate: PoseEstimate, true: Pose) -> PerceptionScore:
+    return PerceptionScore(
+        estimated_pose=estimate.to_dict(),
+        true_pose=true.to_dict(),
+        position_error_mm=float(np.linalg.norm(estimate.pose.position - true.position) * 1e3),
+        yaw_error_deg=yaw_error_deg(estimate.pose, true, estimate.yaw_symmetry_rad),
+        position_nees=position_nees(estimate, true),
+    )
+
+
+@dataclass(frozen=True)
+class PlaceOutcome:
+    lifted_m: float  # how far the target rose above its start at most
+    place_error_m: float  # horizontal distance of its final centre from the place position
+    upright: bool  # ended on its base (tilt below 10 deg, centre at its resting height)
+    at_rest: bool
+    success: bool
+    reason: str  # why it failed, or ""
+
+
+def score_place(
+    *,
+    start: Pose,
+    max_z_m: float,
+    final: Pose,
+    final_speed_m_s: float,
+    place_xy: tuple[float, float],
+    height_m: float,
+    lift_height_m: float,
+    place_tolerance_m: float,
+) -> PlaceOutcome:
+    """Success: rose at least ``lift_height_m``, ended within tolerance of the place position, at rest."""
+    lifted = max_z_m - float(start.position[2])
+    err = float(np.hypot(final.position[0] - place_xy[0], final.position[1] - place_xy[1]))
+    tilt = float(np.degrees(np.arccos(np.clip(final.rotation[2, 2], -1.0, 1.0))))
+    upright = tilt < 10.0 and abs(float(final.position[2]) - height_m / 2.0) < 0.01
+    at_rest = final_speed_m_s < 0.01
+    reason = ""
+    if lifted < lift_height_m:
+        reason = f"target rose {lifted * 1e3:.1f} mm, less than {lift_height_m * 1e3:.0f} mm"
+    elif err > place_tolerance_m:
+        reason = f"target ended {err * 1e3:.1f} mm from the place position (tolerance {place_tolerance_m * 1e3:.0f} mm)"
+    elif not upright:
+        reason = f"target did not end upright on the table (tilt {tilt:.1f} deg, z {final.position[2] * 1e3:.1f} mm)"
+    elif not at_rest:
+        reason = f"target still moving at {final_speed_m_s:.3f} m/s"
+    return PlaceOutcome(lifted, err, upright, at_rest, reason == "", reason)

@@ -1,0 +1,522 @@
+"""Perception: the target's pose from one RGB-D frame, by the paper's method (``shared/paper``).
+
+Pure: arrays in, dataclasses out. It reads only what a real robot has: the RGB image, the metric
+depth image, the intrinsics and the camera pose, plus the task's description of the target (its
+colour, shape and size, as a pick order or a CAD model would give them). Nothing from the simulator.
+
+Steps (equation numbers as in the paper):
+
+1. Segment the target: pixels above the table plane (z = 0) whose colour matches the target's.
+2. Shi-Tomasi feature points on the target's image, refined to sub-pixel.
+3. For every feature (and, vectorised, for every pixel) the 3x3 Gaussian mixture of depth and colour,
+   eqs. (9)-(12), weights 1/4, 1/8, 1/16.
+4. Back-projection, eqs. (5)-(7), and each point's position covariance, eq. (14), in the camera
+   frame, then rotated into the world frame.
+5. The pose, our design since the paper leaves it open: the object's top face is a plane fitted to
+   the mixture points weighted by their eq. (14) covariances (giving height, pitch and roll with
+   their covariance); the feature points are fused onto that plane along their covariance (the
+   Gaussian conditioned on the plane); the face's outline, intersected with the plane, fixes the
+   centre and yaw through a rectangle (box) or ellipse (cylinder) fit, to which the fused feature
+   points near the model's vertices add their weight. The centre is the top face's centre moved
+   half the object's height along the face's normal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from pickdemo.camera import Intrinsics, RGBDFrame, backproject_image, kinect_sigma_m, pixel_rays_cam
+from pickdemo.geometry import Pose
+
+#: Eqs. (9)-(12): weight 1/4 at the feature, 1/8 on the four edge neighbours, 1/16 on the diagonals.
+MIXTURE_KERNEL = np.array([[1.0, 2.0, 1.0], [2.0, 4.0, 2.0], [1.0, 2.0, 1.0]]) / 16.0
+#: The paper's feature-location uncertainty (eq. 14): one pixel.
+SIGMA_UV_PX = 1.0
+#: Constant colour deviation sigma_c of eq. (12), in 8-bit units.
+SIGMA_COLOR = 2.0
+
+
+class PerceptionError(RuntimeError):
+    """The target could not be found or measured in the frame."""
+
+
+@dataclass(frozen=True)
+class PerceptionParams:
+    """Tuning of the perception stage, validated when built."""
+
+    min_height_m: float = 0.006  # a pixel belongs to an object when this far above the table
+    color_cos_min: float = 0.985  # cosine between a pixel's colour and the target's
+    min_target_px: int = 30
+    max_features: int = 40
+    feature_quality: float = 0.05
+    feature_min_distance_px: int = 3
+    face_color_tol: float = 12.0  # 8-bit units: how far a top-face pixel's colour may stray
+    face_depth_sigmas: float = 3.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.color_cos_min <= 1.0:
+            raise ValueError("color_cos_min must be in (0, 1]")
+        if self.min_height_m <= 0.0 or self.min_target_px < 3 or self.max_features < 1:
+            raise ValueError("min_height_m, min_target_px and max_features must be positive")
+
+
+@dataclass(frozen=True)
+class TargetModel:
+    """What the task says about the target: shape, size (m) and nominal colour (0-1)."""
+
+    shape: str  # "box" | "cylinder"
+    size: tuple[float, ...]  # box: x, y, z; cylinder: diameter, height
+    color: tuple[float, float, float]
+
+    @property
+    def height_m(self) -> float:
+        return self.size[2] if self.shape == "box" else self.size[1]
+
+
+@dataclass(frozen=True)
+class FeaturePoint:
+    """One Shi-Tomasi feature after the Gaussian mixture: p = [x, y, z, r, g, b] with covariance (eq. 13)."""
+
+    uv: np.ndarray  # (2,) px
+    mean_cam: np.ndarray  # (3,) m, camera frame (eqs. 5-7)
+    cov_cam: np.ndarray  # (3, 3) m^2 (eq. 14)
+    mean_world: np.ndarray  # (3,) m
+    cov_world: np.ndarray  # (3, 3) m^2
+    rgb: np.ndarray  # (3,) mixture colour (eq. 11)
+    rgb_var: np.ndarray  # (3,) its variances (eq. 12)
+
+
+@dataclass(frozen=True)
+class PoseEstimate:
+    """The target's pose with its uncertainty."""
+
+    pose: Pose  # world pose of the object's centre
+    position_cov: np.ndarray  # (3, 3) m^2
+    rpy_cov: np.ndarray  # (3, 3) rad^2 of (roll, pitch, yaw)
+    yaw_symmetry_rad: float  # the model looks the same after this rotation about its axis (0: any)
+    top_face_size_m: tuple[float, float]  # measured extents of the top face (box) or diameter twice
+    n_features: int
+    n_face_pixels: int
+    features: tuple[FeaturePoint, ...] = field(repr=False, default=())
+
+    def to_dict(self) -> dict[str, object]:
+        d = self.pose.to_dict()
+        d["position_std_mm"] = [float(v) for v in 1e3 * np.sqrt(np.diag(self.position_cov))]
+        d["yaw_std_deg"] = float(np.degrees(np.sqrt(self.rpy_cov[2, 2])))
+        d["n_features"] = self.n_features
+        d["n_face_pixels"] = self.n_face_pixels
+        return d
+
+
+# ------------------------------------------------------------------------------- the paper's maths
+def mixture_moments(mu: np.ndarray, var: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """Eqs. (9)-(12) for every pixel at once: mean and variance of the 3x3 Gaussian mixture.
+
+    ``mu`` (H, W) holds each pixel's mean, ``var`` its variance (array or constant). Returns
+    ``mu_mix = sum w_i mu_i`` and ``var_mix = sum w_i (var_i + mu_i^2) - mu_mix^2``. Borders replicate.
+    """
+    mu = np.asarray(mu, dtype=np.float64)
+    second = np.asarray(var, dtype=np.float64) + mu * mu
+    second = np.broadcast_to(second, mu.shape).astype(np.float64)
+    m = cv2.filter2D(mu, cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    s = cv2.filter2D(second, cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    return m, np.maximum(s - m * m, 0.0)
+
+
+def mixture_at(mu: np.ndarray, var: np.ndarray | float, u: int, v: int) -> tuple[float, float]:
+    """Eqs. (9)-(10) at one pixel (u, v), written out over its 3x3 window (for checking by hand)."""
+    mu = np.asarray(mu, dtype=np.float64)
+    win = mu[v - 1 : v + 2, u - 1 : u + 2]
+    var_win = np.broadcast_to(np.asarray(var, dtype=np.float64), mu.shape)[v - 1 : v + 2, u - 1 : u + 2]
+    mean = float(np.sum(MIXTURE_KERNEL * win))
+    return mean, float(np.sum(MIXTURE_KERNEL * (var_win + win * win)) - mean * mean)
+
+
+def point_covariance(u: float, v: float, mu_z: float, var_z: float, fx: float, fy: float, cx: float, cy: float,
+                     sigma_u: float = SIGMA_UV_PX, sigma_v: float = SIGMA_UV_PX) -> np.ndarray:
+    """Eq. (14): the 3x3 covariance of a back-projected point, camera frame (m^2).
+
+    With ``x = z (u - cx) / fx`` and ``y = z (v - cy) / fy`` (non-square pixels use fx, fy where the
+    paper writes f), u, v and z independent.
+    """
+    du, dv = u - cx, v - cy
+    sxx = (var_z * du * du + sigma_u**2 * mu_z**2) / fx**2
+    syy = (var_z * dv * dv + sigma_v**2 * mu_z**2) / fy**2
+    sxy = var_z * du * dv / (fx * fy)
+    sxz = var_z * du / fx
+    syz = var_z * dv / fy
+    return np.array([[sxx, sxy, sxz], [sxy, syy, syz], [sxz, syz, var_z]])
+
+
+# -------------------------------------------------------------------------------------- segmentation
+def world_points(frame: RGBDFrame) -> np.ndarray:
+    """(H, W, 3) world coordinates of every pixel (nan where there is no depth)."""
+    depth = np.where(np.isfinite(frame.depth_m), frame.depth_m, np.nan)
+    pts = backproject_image(depth, frame.intrinsics)
+    return pts @ frame.T_world_cam.rotation.T + frame.T_world_cam.position
+
+
+def color_match(rgb: np.ndarray, color: tuple[float, float, float], cos_min: float) -> np.ndarray:
+    """Pixels whose colour points the same way as ``color`` in RGB space (robust to shading)."""
+    c = np.asarray(color, dtype=np.float64)
+    c = c / np.linalg.norm(c)
+    x = rgb.astype(np.float64)
+    norm = np.linalg.norm(x, axis=-1)
+    cos = (x @ c) / np.maximum(norm, 1e-9)
+    return (cos >= cos_min) & (norm > 20.0)
+
+
+def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParams, pts_world: np.ndarray) -> np.ndarray:
+    """Binary mask of the target: above the table, of its colour, the largest such blob."""
+    above = np.nan_to_num(pts_world[..., 2], nan=-1.0) > params.min_height_m
+    mask = (above & color_match(frame.rgb, model.color, params.color_cos_min)).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    if n <= 1:
+        raise PerceptionError("no pixel above the table has the target's colour")
+    best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    if stats[best, cv2.CC_STAT_AREA] < params.min_target_px:
+        raise PerceptionError(f"target blob too small ({stats[best, cv2.CC_STAT_AREA]} px)")
+    return labels == best
+
+
+def top_face_mask(frame: RGBDFrame, mask: np.ndarray, pts_world: np.ndarray, params: PerceptionParams) -> np.ndarray:
+    """The target's top face: the region of one uniform colour that holds its highest points.
+
+    Flat faces under a directional light render in one colour each, so the face's edges are crisp
+    in RGB (which has no noise) where they would be blurred in depth.
+    """
+    z = pts_world[..., 2]
+    zs = z[mask]
+    zs = zs[np.isfinite(zs)]
+    top = np.quantile(zs, 0.9)
+    sigma = float(kinect_sigma_m(np.nanmedian(frame.depth_m[mask])))
+    high = mask & (np.nan_to_num(z, nan=-1.0) > top - params.face_depth_sigmas * sigma)
+    face_rgb = np.median(frame.rgb[high].astype(np.float64), axis=0)
+    close = np.linalg.norm(frame.rgb.astype(np.float64) - face_rgb, axis=-1) <= params.face_color_tol
+    face = (mask & close).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(face, connectivity=4)
+    if n <= 1:
+        raise PerceptionError("the target's top face was not found")
+    best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    return labels == best
+
+
+# -------------------------------------------------------------------------------------- features
+def shi_tomasi_features(frame: RGBDFrame, mask: np.ndarray, params: PerceptionParams) -> np.ndarray:
+    """Shi-Tomasi corners on the target (sub-pixel refined), (N, 2) in (u, v) px; the work is on a crop."""
+    ys, xs = np.nonzero(mask)
+    pad = 6
+    h, w = mask.shape
+    y0, y1 = max(int(ys.min()) - pad, 0), min(int(ys.max()) + pad + 1, h)
+    x0, x1 = max(int(xs.min()) - pad, 0), min(int(xs.max()) + pad + 1, w)
+    gray = cv2.cvtColor(np.ascontiguousarray(frame.rgb[y0:y1, x0:x1]), cv2.COLOR_RGB2GRAY)
+    roi = cv2.dilate(mask[y0:y1, x0:x1].astype(np.uint8), np.ones((5, 5), np.uint8))
+    corners = cv2.goodFeaturesToTrack(
+        gray,
+        maxCorners=params.max_features,
+        qualityLevel=params.feature_quality,
+        minDistance=params.feature_min_distance_px,
+        mask=roi,
+        blockSize=3,
+        useHarrisDetector=False,
+    )
+    if corners is None:
+        return np.zeros((0, 2))
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 20, 0.01)
+    corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (2, 2), (-1, -1), criteria)
+    return corners.reshape(-1, 2).astype(np.float64) + np.array([x0, y0], dtype=np.float64)
+
+
+def measure_features(
+    frame: RGBDFrame, uv: np.ndarray, mu_z: np.ndarray, var_z: np.ndarray, *, offset: tuple[int, int] = (0, 0)
+) -> tuple[FeaturePoint, ...]:
+    """Eqs. (9)-(14) at each feature: mixture depth and colour, back-projection, covariance.
+
+    ``offset`` is added to the reported pixel coordinates (for features found on a crop).
+    """
+    K = frame.intrinsics
+    R = frame.T_world_cam.rotation
+    rgb = frame.rgb.astype(np.float64)
+    out = []
+    for u, v in uv:
+        iu, iv = int(round(u)), int(round(v))
+        if not (1 <= iu < K.width - 1 and 1 <= iv < K.height - 1):
+            continue
+        z, vz = float(mu_z[iv, iu]), float(var_z[iv, iu])
+        if not np.isfinite(z) or not np.isfinite(vz):
+            continue
+        col, col_var = [], []
+        for ch in range(3):
+            m, s = mixture_at(rgb[..., ch], SIGMA_COLOR**2, iu, iv)
+            col.append(m)
+            col_var.append(s)
+        mean_cam = np.array([z * (u - K.cx) / K.fx, z * (v - K.cy) / K.fy, z])
+        cov_cam = point_covariance(u, v, z, vz, K.fx, K.fy, K.cx, K.cy)
+        out.append(
+            FeaturePoint(
+                uv=np.array([u + offset[0], v + offset[1]]),
+                mean_cam=mean_cam,
+                cov_cam=cov_cam,
+                mean_world=frame.T_world_cam.transform_points(mean_cam[None])[0],
+                cov_world=R @ cov_cam @ R.T,
+                rgb=np.array(col),
+                rgb_var=np.array(col_var),
+            )
+        )
+    return tuple(out)
+
+
+# -------------------------------------------------------------------------------------- pose fit
+def fit_plane_weighted(
+    points: np.ndarray, weights: np.ndarray
+) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """Weighted least-squares plane ``z = a x + b y + c`` through (N, 3) points.
+
+    Returns the unit normal (z up), the plane's height at the weighted centroid's (x, y), the 3x3
+    covariance of (a, b, height), and the weighted centroid.
+    """
+    w = weights / weights.sum()
+    centroid = (w[:, None] * points).sum(axis=0)
+    d = points - centroid
+    A = np.column_stack([d[:, 0], d[:, 1], np.ones(len(d))])
+    W = weights[:, None]
+    normal_eq = A.T @ (W * A)
+    sol = np.linalg.solve(normal_eq, A.T @ (weights * d[:, 2]))
+    resid = d[:, 2] - A @ sol
+    # Scale the information by the observed residual spread when it exceeds the model's (chi2/dof).
+    dof = max(len(points) - 3, 1)
+    scale = max(float((weights * resid * resid).sum()) / dof, 1.0)
+    cov = np.linalg.inv(normal_eq) * scale
+    a, b = sol[0], sol[1]
+    normal = np.array([-a, -b, 1.0])
+    normal /= np.linalg.norm(normal)
+    return normal, float(centroid[2] + sol[2]), cov, centroid
+
+
+def _plane_basis(normal: np.ndarray) -> np.ndarray:
+    """Columns e1, e2, n: an orthonormal frame whose first axis is world x projected on the plane."""
+    e1 = np.array([1.0, 0.0, 0.0]) - normal[0] * normal
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(normal, e1)
+    return np.column_stack([e1, e2, normal])
+
+
+def intersect_rays_plane(frame: RGBDFrame, uv: np.ndarray, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """World points where the pixels' rays meet the plane through ``point`` with ``normal``."""
+    T = frame.T_world_cam
+    rays = pixel_rays_cam(uv, frame.intrinsics) @ T.rotation.T
+    t = ((point - T.position) @ normal) / (rays @ normal)
+    return T.position + t[:, None] * rays
+
+
+def outline_pixels(mask: np.ndarray) -> np.ndarray:
+    """Pixel coordinates (N, 2) of the region's boundary, each moved half a pixel outwards.
+
+    The boundary pixel's centre lies half a pixel inside the true edge on average; moving it
+    outwards along the local outward normal of the contour removes that bias.
+    """
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    c = max(contours, key=len).reshape(-1, 2).astype(np.float64)
+    if len(c) < 5:
+        return c
+    tangent = np.roll(c, -2, axis=0) - np.roll(c, 2, axis=0)
+    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
+    norm = np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = np.where(norm > 0, normal / np.maximum(norm, 1e-12), 0.0)
+    # OpenCV's outer contours run so that this normal points outwards; check with the centroid.
+    if np.mean(np.sum((c - c.mean(axis=0)) * normal, axis=1)) < 0:
+        normal = -normal
+    return c + 0.5 * normal
+
+
+def crop_frame(frame: RGBDFrame, x0: int, y0: int, x1: int, y1: int) -> RGBDFrame:
+    """A frame cut to columns x0:x1 and rows y0:y1, with the principal point moved to match."""
+    K = frame.intrinsics
+    Kc = Intrinsics(width=x1 - x0, height=y1 - y0, fx=K.fx, fy=K.fy, cx=K.cx - x0, cy=K.cy - y0)
+    return RGBDFrame(
+        rgb=frame.rgb[y0:y1, x0:x1],
+        depth_m=frame.depth_m[y0:y1, x0:x1],
+        intrinsics=Kc,
+        T_world_cam=frame.T_world_cam,
+        time_s=frame.time_s,
+    )
+
+
+def _target_roi(frame: RGBDFrame, model: TargetModel, params: PerceptionParams, pad: int = 8) -> tuple[int, int, int, int]:
+    """Bounding box of every pixel of the target's colour (cheap, on the whole frame), padded."""
+    cand = color_match(frame.rgb, model.color, params.color_cos_min)
+    ys, xs = np.nonzero(cand)
+    if len(xs) < params.min_target_px:
+        raise PerceptionError(f"only {len(xs)} pixels have the target's colour")
+    h, w = cand.shape
+    return (max(int(xs.min()) - pad, 0), max(int(ys.min()) - pad, 0), min(int(xs.max()) + pad + 1, w),
+            min(int(ys.max()) + pad + 1, h))
+
+
+def _fit_face_plane(
+    frame: RGBDFrame, pixels: np.ndarray, mu_z: np.ndarray, var_z: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Weighted plane through the mixture points (eqs. 5-9) of the given pixels.
+
+    Each point is weighted by the inverse of its variance along the vertical, which is eq. (14)'s
+    covariance projected: for a point on the ray ``d`` (z component 1 in the camera) that is
+    ``var_z * (R d)_z^2``. Returns the unit normal, a point on the plane and the plane's covariance.
+    """
+    K = frame.intrinsics
+    vs, us = np.nonzero(pixels)
+    z = mu_z[vs, us]
+    keep = np.isfinite(z)
+    vs, us, z = vs[keep], us[keep], z[keep]
+    if len(z) < 6:
+        raise PerceptionError(f"too few depth readings on the target's top face ({len(z)})")
+    rays = np.column_stack([(us - K.cx) / K.fx, (vs - K.cy) / K.fy, np.ones(len(z))])
+    pts = frame.T_world_cam.transform_points(rays * z[:, None])
+    ray_z = rays @ frame.T_world_cam.rotation[2]
+    var_vert = np.maximum(var_z[vs, us] * ray_z**2, 1e-14)
+    normal, height, cov, centroid = fit_plane_weighted(pts, 1.0 / var_vert)
+    return normal, np.array([centroid[0], centroid[1], height]), cov
+
+
+def _fit_outline(
+    xy: np.ndarray, model: TargetModel
+) -> tuple[np.ndarray, float, tuple[float, float]]:
+    """Centre (2,), in-plane yaw (rad) and measured size of the top face from its outline points."""
+    if model.shape == "box":
+        (cx2, cy2), (w2, h2), ang = cv2.minAreaRect(xy.astype(np.float32))
+        yaw = float(np.radians(ang))
+        if (w2 < h2) == (model.size[0] >= model.size[1]):
+            yaw += np.pi / 2.0
+            w2, h2 = h2, w2
+        center, yaw = _refine_rectangle(xy, np.array([cx2, cy2], dtype=np.float64), yaw, model.size[0], model.size[1])
+        return center, yaw, (float(w2), float(h2))
+    (cx2, cy2), (a2, b2), _ = cv2.fitEllipse(xy.astype(np.float32))
+    center = _refine_circle(xy, np.array([cx2, cy2], dtype=np.float64), model.size[0] / 2.0)
+    return center, 0.0, (float(a2), float(b2))
+
+
+def _inside_model(xy: np.ndarray, center: np.ndarray, yaw: float, model: TargetModel, margin_m: float) -> np.ndarray:
+    """Which plane points lie inside the model's top face shrunk by ``margin_m``."""
+    d = xy - center
+    if model.shape == "cylinder":
+        return np.linalg.norm(d, axis=1) < model.size[0] / 2.0 - margin_m
+    c, s = np.cos(yaw), np.sin(yaw)
+    lx, ly = d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c
+    return (np.abs(lx) < model.size[0] / 2.0 - margin_m) & (np.abs(ly) < model.size[1] / 2.0 - margin_m)
+
+
+def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None) -> PoseEstimate:
+    """The target's pose from one frame (see the module docstring for the method)."""
+    params = params or PerceptionParams()
+    x0, y0, x1, y1 = _target_roi(frame, model, params)
+    f = crop_frame(frame, x0, y0, x1, y1)
+    K = f.intrinsics
+    pts = world_points(f)
+    mask = segment_target(f, model, params, pts)
+    face = top_face_mask(f, mask, pts, params)
+
+    # Eqs. (9)-(10) for every pixel, with eq. (8) as each pixel's own variance.
+    depth = np.where(np.isfinite(f.depth_m), f.depth_m, np.nan)
+    mu_z, var_z = mixture_moments(depth, np.square(kinect_sigma_m(depth)))
+
+    # Pass 1: plane from the face pixels whose whole 3x3 window lies on the face (no edge mixing).
+    inner = cv2.erode(face.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    normal, plane_point, plane_cov = _fit_face_plane(f, inner if inner.sum() >= 6 else face, mu_z, var_z)
+
+    outline_uv = outline_pixels(face)
+    mask_v, mask_u = np.nonzero(mask)
+    mask_uv = np.column_stack([mask_u, mask_v]).astype(np.float64)
+    px_m = float(np.nanmedian(depth[face])) / K.fx  # one pixel's footprint, m
+    for _ in range(2):
+        B = _plane_basis(normal)
+        xy = (intersect_rays_plane(f, outline_uv, normal, plane_point) - plane_point) @ B[:, :2]
+        center2, yaw_face, size_face = _fit_outline(xy, model)
+        # Pass 2: re-select the face's pixels by where their rays meet the plane, not by their own
+        # (noisy) depth, so that the plane is free of selection bias; then refit.
+        mxy = (intersect_rays_plane(f, mask_uv, normal, plane_point) - plane_point) @ B[:, :2]
+        inside = _inside_model(mxy, center2, yaw_face, model, margin_m=2.5 * px_m)
+        sel = np.zeros_like(mask)
+        sel[mask_v[inside], mask_u[inside]] = True
+        if sel.sum() >= 6:
+            normal, plane_point, plane_cov = _fit_face_plane(f, sel, mu_z, var_z)
+    B = _plane_basis(normal)
+    xy = (intersect_rays_plane(f, outline_uv, normal, plane_point) - plane_point) @ B[:, :2]
+    center2, yaw_face, size_face = _fit_outline(xy, model)
+    symmetry = 0.0 if model.shape == "cylinder" else (np.pi / 2.0 if abs(model.size[0] - model.size[1]) < 1e-9 else np.pi)
+
+    # Shi-Tomasi features with the paper's mixture (eqs. 9-12) and covariance (eqs. 13-14).
+    uv = shi_tomasi_features(f, mask, params)
+    features = measure_features(f, uv, mu_z, var_z, offset=(x0, y0))
+
+    top_center = plane_point + B[:, :2] @ center2
+    center = top_center - normal * (model.height_m / 2.0)
+    x_axis = B[:, :2] @ np.array([np.cos(yaw_face), np.sin(yaw_face)])
+    R = np.column_stack([x_axis, np.cross(normal, x_axis), normal])
+
+    # Uncertainty. Along the normal: the plane fit. In the plane: each outline point's position is
+    # quantised to a pixel (variance footprint^2 / 12); a fit over n points along the perimeter
+    # gives roughly that over n/4 per direction.
+    n_out = max(len(xy), 4)
+    var_edge = px_m**2 / 12.0
+    var_xy = var_edge / (n_out / 4.0)
+    pos_cov = B @ np.diag([var_xy, var_xy, plane_cov[2, 2]]) @ B.T
+    tilt_var = float(max(plane_cov[0, 0], plane_cov[1, 1]))
+    side = float(min(model.size[0], model.size[1])) if model.shape == "box" else 1.0
+    yaw_var = 0.0 if model.shape == "cylinder" else var_edge / (n_out / 4.0) * 12.0 / side**2
+    return PoseEstimate(
+        pose=Pose(center, R),
+        position_cov=pos_cov,
+        rpy_cov=np.diag([tilt_var, tilt_var, yaw_var]),
+        yaw_symmetry_rad=symmetry,
+        top_face_size_m=size_face,
+        n_features=len(features),
+        n_face_pixels=int(face.sum()),
+        features=features,
+    )
+
+
+def _refine_rectangle(xy: np.ndarray, center: np.ndarray, yaw: float, sx: float, sy: float,
+                      iterations: int = 10) -> tuple[np.ndarray, float]:
+    """Least-squares fit of a rectangle of known size to outline points (Gauss-Newton on centre, yaw).
+
+    Each point is assigned to its nearest side; residual is its signed distance to that side.
+    """
+    c = center.copy()
+    th = float(yaw)
+    hx, hy = sx / 2.0, sy / 2.0
+    for _ in range(iterations):
+        ct, st = np.cos(th), np.sin(th)
+        d = xy - c
+        lx = d[:, 0] * ct + d[:, 1] * st
+        ly = -d[:, 0] * st + d[:, 1] * ct
+        # Nearest side: compare normalised distances to the x-sides and y-sides.
+        on_x = np.abs(np.abs(lx) - hx) < np.abs(np.abs(ly) - hy)
+        sgn_x, sgn_y = np.sign(lx), np.sign(ly)
+        r = np.where(on_x, np.abs(lx) - hx, np.abs(ly) - hy)
+        # Jacobians of r w.r.t. (cx, cy, th).
+        dlx = np.column_stack([-ct * np.ones_like(lx), -st * np.ones_like(lx), ly])
+        dly = np.column_stack([st * np.ones_like(ly), -ct * np.ones_like(ly), -lx])
+        J = np.where(on_x[:, None], sgn_x[:, None] * dlx, sgn_y[:, None] * dly)
+        step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        c = c + step[:2]
+        th = th + step[2]
+        if np.linalg.norm(step) < 1e-9:
+            break
+    return c, th
+
+
+def _refine_circle(xy: np.ndarray, center: np.ndarray, radius: float, iterations: int = 10) -> np.ndarray:
+    """Least-squares centre of a circle of known radius through outline points."""
+    c = center.copy()
+    for _ in range(iterations):
+        d = xy - c
+        dist = np.linalg.norm(d, axis=1)
+        r = dist - radius
+        J = -d / np.maximum(dist[:, None], 1e-12)
+        step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        c = c + step
+        if np.linalg.norm(step) < 1e-10:
+            break
+    return c

@@ -1,0 +1,230 @@
+"""Scenario files: the TOML schema, its validation, and how names resolve to files.
+
+A scenario describes a scene (camera, table, objects), the task (which object to pick, where to
+place it) and the success criteria. It is validated when loaded; a bad file raises
+:class:`ScenarioError` whose message is one line naming the file and the offending key.
+"""
+
+from __future__ import annotations
+
+import sys
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+PositiveFloat = Annotated[float, Field(gt=0.0)]
+UnitFloat = Annotated[float, Field(ge=0.0, le=1.0)]
+Vec2 = tuple[float, float]
+Vec3 = tuple[float, float, float]
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be used; the message is one line naming the file and key."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class CameraSpec(_Model):
+    """A fixed RGB-D camera. Defaults match the paper's Xtion Pro Live (57 x 43 deg, 640x480)."""
+
+    position: Vec3 = (1.1, 0.0, 0.75)  # m, world frame
+    look_at: Vec3 = (0.5, 0.0, 0.0)  # m, world frame
+    width: Annotated[int, Field(ge=16, le=4096)] = 640  # px
+    height: Annotated[int, Field(ge=16, le=4096)] = 480  # px
+    fov_deg: tuple[Annotated[float, Field(gt=1.0, lt=170.0)], Annotated[float, Field(gt=1.0, lt=170.0)]] = (
+        57.0,
+        43.0,
+    )  # horizontal, vertical
+    depth_noise: Literal["none", "kinect"] = "kinect"
+    near_m: PositiveFloat = 0.1
+    far_m: PositiveFloat = 3.0
+
+    @model_validator(mode="after")
+    def _check(self) -> CameraSpec:
+        if sum((a - b) ** 2 for a, b in zip(self.position, self.look_at, strict=True)) < 1e-6:
+            raise ValueError("look_at must differ from position")
+        if self.far_m <= self.near_m:
+            raise ValueError("far_m must exceed near_m")
+        return self
+
+
+class TableSpec(_Model):
+    """The table; its top surface is the world plane z = 0 and the robot stands on it at the origin."""
+
+    size: tuple[PositiveFloat, PositiveFloat] = (1.4, 1.2)  # m, x and y extents
+    center: Vec2 = (0.45, 0.0)  # m, x, y of the table's centre
+    color: tuple[UnitFloat, UnitFloat, UnitFloat] = (0.55, 0.42, 0.30)
+    friction: Annotated[float, Field(ge=0.0)] = 0.8
+
+
+class ObjectSpec(_Model):
+    """One object on the table: a box or an upright cylinder."""
+
+    name: Annotated[str, Field(min_length=1)]
+    shape: Literal["box", "cylinder"]
+    size: tuple[PositiveFloat, ...]  # box: x, y, z extents; cylinder: diameter, height (m)
+    color: tuple[UnitFloat, UnitFloat, UnitFloat]
+    mass: PositiveFloat = 0.1  # kg
+    friction: Annotated[float, Field(ge=0.0)] = 0.9
+    position: Vec2 | None = None  # m, x, y on the table
+    position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
+    yaw_deg: float | None = None
+    yaw_range_deg: Vec2 | None = None
+    target: bool = False
+
+    @model_validator(mode="after")
+    def _check(self) -> ObjectSpec:
+        expected = 3 if self.shape == "box" else 2
+        if len(self.size) != expected:
+            raise ValueError(f"size of a {self.shape} needs {expected} values, got {len(self.size)}")
+        if (self.position is None) == (self.position_range is None):
+            raise ValueError("give exactly one of position, position_range")
+        if self.yaw_deg is not None and self.yaw_range_deg is not None:
+            raise ValueError("give at most one of yaw_deg, yaw_range_deg")
+        if self.position_range is not None:
+            for lo, hi in self.position_range:
+                if lo > hi:
+                    raise ValueError("position_range bounds must be [min, max]")
+        if self.yaw_range_deg is not None and self.yaw_range_deg[0] > self.yaw_range_deg[1]:
+            raise ValueError("yaw_range_deg must be [min, max]")
+        return self
+
+    @property
+    def height_m(self) -> float:
+        return self.size[2] if self.shape == "box" else self.size[1]
+
+
+class PlaceSpec(_Model):
+    position: Vec2  # m, x, y on the table where the target is to be put down
+
+
+class SuccessSpec(_Model):
+    lift_height: PositiveFloat = 0.05  # m the target must rise
+    place_tolerance: PositiveFloat = 0.02  # m, horizontal distance to the place position
+
+
+class MotionSpec(_Model):
+    """Motion limits: the Panda's datasheet limits scaled by these factors."""
+
+    velocity_scale: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
+    acceleration_scale: Annotated[float, Field(gt=0.0, le=1.0)] = 0.3
+    jerk_scale: Annotated[float, Field(gt=0.0, le=1.0)] = 0.1
+
+
+class SimSpec(_Model):
+    time_step_s: Annotated[float, Field(gt=0.0, le=1.0 / 240.0)] = 1.0 / 240.0
+    max_sim_time_s: PositiveFloat = 60.0  # simulated-time budget of one episode
+
+
+class Scenario(_Model):
+    """A whole scenario file, validated."""
+
+    name: Annotated[str, Field(min_length=1)]
+    description: str = ""
+    camera: CameraSpec = CameraSpec()
+    table: TableSpec = TableSpec()
+    objects: tuple[ObjectSpec, ...]
+    place: PlaceSpec
+    success: SuccessSpec = SuccessSpec()
+    motion: MotionSpec = MotionSpec()
+    sim: SimSpec = SimSpec()
+
+    @model_validator(mode="after")
+    def _check(self) -> Scenario:
+        if not self.objects:
+            raise ValueError("at least one object is needed")
+        targets = [o for o in self.objects if o.target]
+        if len(targets) != 1:
+            raise ValueError(f"exactly one object must have target = true, found {len(targets)}")
+        names = [o.name for o in self.objects]
+        if len(set(names)) != len(names):
+            raise ValueError("object names must be unique")
+        return self
+
+    @property
+    def target(self) -> ObjectSpec:
+        return next(o for o in self.objects if o.target)
+
+
+def _format_loc(loc: tuple[int | str, ...], data: object) -> str:
+    parts: list[str] = []
+    node = data
+    for item in loc:
+        if isinstance(item, int):
+            name = None
+            if isinstance(node, list) and 0 <= item < len(node) and isinstance(node[item], dict):
+                name = node[item].get("name")
+            parts[-1] = f"{parts[-1]}[{item}]" + (f"({name})" if name else "") if parts else f"[{item}]"
+            node = node[item] if isinstance(node, list) and 0 <= item < len(node) else None
+        else:
+            parts.append(str(item))
+            node = node.get(item) if isinstance(node, dict) else None
+    return ".".join(parts) or "(top level)"
+
+
+def parse_scenario(data: dict, *, source: str = "<scenario>") -> Scenario:
+    """Validate a scenario given as a parsed TOML table."""
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = tuple(x for x in err["loc"] if not (isinstance(x, str) and x.startswith("function-")))
+        msg = err["msg"].removeprefix("Value error, ")
+        extra = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+        raise ScenarioError(f"{source}: {_format_loc(loc, data)}: {msg}{extra}") from None
+
+
+def builtin_scenario_dirs() -> list[Path]:
+    """Where scenario names are looked up: the installed package first, then a source checkout."""
+    dirs = []
+    try:
+        packaged = resources.files("pickdemo") / "scenarios"
+        dirs.append(Path(str(packaged)))
+    except (ModuleNotFoundError, TypeError):  # pragma: no cover
+        pass
+    dirs.append(Path(__file__).resolve().parent.parent / "scenarios")
+    return [d for d in dirs if d.is_dir()]
+
+
+def list_scenarios() -> list[str]:
+    names: set[str] = set()
+    for d in builtin_scenario_dirs():
+        names.update(p.stem for p in d.glob("*.toml"))
+    return sorted(names)
+
+
+def resolve_scenario_path(name_or_path: str | Path) -> Path:
+    """A path to a file, or the name of a shipped scenario (``pick_cube``)."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists() or len(path.parts) > 1:
+        if not path.is_file():
+            raise ScenarioError(f"{path}: no such scenario file")
+        return path
+    for d in builtin_scenario_dirs():
+        candidate = d / f"{path.name}.toml"
+        if candidate.is_file():
+            return candidate
+    known = ", ".join(list_scenarios()) or "none found"
+    raise ScenarioError(f"{name_or_path}: unknown scenario (known: {known})")
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load and validate a scenario by name or path; raises :class:`ScenarioError` on bad input."""
+    path = resolve_scenario_path(name_or_path)
+    try:
+        with path.open("rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: invalid TOML: {exc}") from None
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
+    return parse_scenario(data, source=str(path))

@@ -1,0 +1,205 @@
+"""The simulated world: one PyBullet client owning the Panda, the table and the scenario's objects.
+
+The :class:`Scene` is the only owner of the physics client; the renderer and the controller are
+handed it. Bodies, joints and links are looked up by name. The true poses it can report are for the
+metrics and labels only: the controller never asks for them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pybullet as p
+from pybullet_utils.bullet_client import BulletClient
+
+from pickdemo import robot_model as rm
+from pickdemo.geometry import Pose
+from pickdemo.layout import Placement
+from pickdemo.scenario import ObjectSpec, Scenario
+
+TABLE_THICKNESS_M = 0.05
+FINGER_FRICTION = 1.0  # measured: 1.0 with 20 N holds a 5 cm cube with ~1 mm slip
+
+
+def cylinder_mesh(radius: float, height: float, segments: int = 64) -> tuple[list, list, list]:
+    """Vertices, normals and triangle indices of a closed cylinder about z, centred at the origin.
+
+    Caps have their own vertices with normals along z, so they render flat; the side's vertices
+    have radial normals, so it renders smooth.
+    """
+    angles = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
+    ring = np.column_stack([np.cos(angles), np.sin(angles)])
+    verts: list[list[float]] = []
+    normals: list[list[float]] = []
+    indices: list[int] = []
+
+    def add(v: list[float], n: list[float]) -> int:
+        verts.append(v)
+        normals.append(n)
+        return len(verts) - 1
+
+    for z, up in ((height / 2.0, 1.0), (-height / 2.0, -1.0)):
+        centre = add([0.0, 0.0, z], [0.0, 0.0, up])
+        rim = [add([radius * x, radius * y, z], [0.0, 0.0, up]) for x, y in ring]
+        for i in range(segments):
+            j = (i + 1) % segments
+            indices += [centre, rim[i], rim[j]] if up > 0 else [centre, rim[j], rim[i]]
+    top = [add([radius * x, radius * y, height / 2.0], [x, y, 0.0]) for x, y in ring]
+    bottom = [add([radius * x, radius * y, -height / 2.0], [x, y, 0.0]) for x, y in ring]
+    for i in range(segments):
+        j = (i + 1) % segments
+        indices += [bottom[i], bottom[j], top[j], bottom[i], top[j], top[i]]
+    return verts, normals, indices
+
+
+@dataclass(frozen=True)
+class JointState:
+    """What the robot's encoders report."""
+
+    arm_q: np.ndarray  # (7,) rad
+    arm_dq: np.ndarray  # (7,) rad/s
+    fingers_m: np.ndarray  # (2,) m, each finger's opening from the centre
+
+
+class Scene:
+    """A PyBullet world built from a scenario and a sampled layout."""
+
+    def __init__(self, scenario: Scenario, layout: tuple[Placement, ...], *, gui: bool = False) -> None:
+        self.scenario = scenario
+        self.client = BulletClient(connection_mode=p.GUI if gui else p.DIRECT)
+        c = self.client
+        if gui:
+            c.configureDebugVisualizer(p.COV_ENABLE_GUI, 0)
+        c.setGravity(0.0, 0.0, -9.81)
+        c.setTimeStep(scenario.sim.time_step_s)
+        c.setPhysicsEngineParameter(numSolverIterations=150, deterministicOverlappingPairs=1)
+        self.time_step_s = scenario.sim.time_step_s
+        self.steps = 0
+        self.bodies: dict[str, int] = {}
+        self._build_table()
+        self._build_robot()
+        specs = {o.name: o for o in scenario.objects}
+        for placement in layout:
+            self._build_object(specs[placement.name], placement.pose)
+
+    # ----------------------------------------------------------------------------------- building
+    def _build_table(self) -> None:
+        c, t = self.client, self.scenario.table
+        half = [t.size[0] / 2.0, t.size[1] / 2.0, TABLE_THICKNESS_M / 2.0]
+        col = c.createCollisionShape(p.GEOM_BOX, halfExtents=half)
+        vis = c.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[*t.color, 1.0])
+        body = c.createMultiBody(0.0, col, vis, basePosition=[t.center[0], t.center[1], -TABLE_THICKNESS_M / 2.0])
+        c.changeDynamics(body, -1, lateralFriction=t.friction)
+        self.bodies["table"] = body
+
+    def _build_robot(self) -> None:
+        c = self.client
+        flags = p.URDF_USE_INERTIA_FROM_FILE
+        robot = c.loadURDF(str(rm.lean_urdf_path()), basePosition=[0, 0, 0], useFixedBase=True, flags=flags)
+        self.bodies["robot"] = robot
+        self.joint_index: dict[str, int] = {}
+        self.link_index: dict[str, int] = {}
+        for j in range(c.getNumJoints(robot)):
+            info = c.getJointInfo(robot, j)
+            self.joint_index[info[1].decode()] = j
+            self.link_index[info[12].decode()] = j
+        self.arm_joints = [self.joint_index[n] for n in rm.ARM_JOINTS]
+        self.finger_joints = [self.joint_index[n] for n in rm.FINGER_JOINTS]
+        self.finger_links = [self.link_index[n] for n in rm.FINGER_LINKS]
+        self.tcp_link = self.link_index[rm.TCP_FRAME]
+        for j, q in zip(self.arm_joints, rm.HOME_Q, strict=True):
+            c.resetJointState(robot, j, float(q))
+        for j in self.finger_joints:
+            c.resetJointState(robot, j, rm.FINGER_MAX_M)
+        for link in self.finger_links:
+            c.changeDynamics(robot, link, lateralFriction=FINGER_FRICTION, spinningFriction=0.001)
+        # The real gripper couples its fingers mechanically (the URDF's <mimic>, which PyBullet
+        # ignores). Without the coupling a held object drifts sideways with both fingers in transit.
+        gear = c.createConstraint(
+            robot, self.finger_joints[0], robot, self.finger_joints[1], p.JOINT_GEAR, [0, 1, 0], [0, 0, 0], [0, 0, 0]
+        )
+        c.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=50)
+        # Hold the home pose until the controller takes over.
+        c.setJointMotorControlArray(robot, self.arm_joints, p.POSITION_CONTROL, targetPositions=list(rm.HOME_Q))
+        c.setJointMotorControlArray(
+            robot, self.finger_joints, p.POSITION_CONTROL, targetPositions=[rm.FINGER_MAX_M] * 2, forces=[20.0, 20.0]
+        )
+
+    def _build_object(self, spec: ObjectSpec, pose: Pose) -> None:
+        c = self.client
+        if spec.shape == "box":
+            half = [s / 2.0 for s in spec.size]
+            col = c.createCollisionShape(p.GEOM_BOX, halfExtents=half)
+            vis = c.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[*spec.color, 1.0])
+        else:
+            radius, height = spec.size[0] / 2.0, spec.size[1]
+            col = c.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=height)
+            # PyBullet's own cylinder visual renders 1 mm taller than its collision shape (measured)
+            # and smooth-shades the rim; a mesh of the exact size with flat caps renders true.
+            verts, normals, indices = cylinder_mesh(radius, height)
+            vis = c.createVisualShape(
+                p.GEOM_MESH, vertices=verts, normals=normals, indices=indices, rgbaColor=[*spec.color, 1.0]
+            )
+        body = c.createMultiBody(
+            spec.mass, col, vis, basePosition=list(pose.position), baseOrientation=list(pose.quaternion_xyzw)
+        )
+        c.changeDynamics(body, -1, lateralFriction=spec.friction, spinningFriction=0.001, rollingFriction=0.0001)
+        self.bodies[spec.name] = body
+
+    # ---------------------------------------------------------------------------------- stepping
+    @property
+    def sim_time_s(self) -> float:
+        return self.steps * self.time_step_s
+
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.client.stepSimulation()
+        self.steps += n
+
+    # --------------------------------------------------------------------- what the robot senses
+    def joint_state(self) -> JointState:
+        c, robot = self.client, self.bodies["robot"]
+        arm = c.getJointStates(robot, self.arm_joints)
+        fingers = c.getJointStates(robot, self.finger_joints)
+        return JointState(
+            arm_q=np.array([s[0] for s in arm]),
+            arm_dq=np.array([s[1] for s in arm]),
+            fingers_m=np.array([s[0] for s in fingers]),
+        )
+
+    def finger_contacts(self) -> tuple[int, int]:
+        """Number of contact points on each finger with anything but the robot (a tactile sense)."""
+        c, robot = self.client, self.bodies["robot"]
+        counts = []
+        for link in self.finger_links:
+            pts = c.getContactPoints(bodyA=robot, linkIndexA=link)
+            counts.append(sum(1 for pt in pts if pt[2] != robot))
+        return counts[0], counts[1]
+
+    # ------------------------------------------------------------ ground truth: metrics and labels only
+    def true_pose(self, name: str) -> Pose:
+        pos, quat = self.client.getBasePositionAndOrientation(self.bodies[name])
+        return Pose.from_quaternion_xyzw(np.array(pos), np.array(quat))
+
+    def true_speed(self, name: str) -> float:
+        lin, ang = self.client.getBaseVelocity(self.bodies[name])
+        return float(np.linalg.norm(lin))
+
+    def true_tcp_pose(self) -> Pose:
+        state = self.client.getLinkState(self.bodies["robot"], self.tcp_link, computeForwardKinematics=True)
+        return Pose.from_quaternion_xyzw(np.array(state[4]), np.array(state[5]))
+
+    def close(self) -> None:
+        if self.client is not None:
+            try:
+                self.client.disconnect()
+            except p.error:  # already gone
+                pass
+            self.client = None  # type: ignore[assignment]
+
+    def __enter__(self) -> Scene:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
