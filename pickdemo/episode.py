@@ -254,6 +254,8 @@ def run_episode(
         failure = exc.failure
     except StepBudgetExceeded as exc:
         failure = Failure(Stage.TIMEOUT, str(exc))
+    except Exception as exc:  # noqa: BLE001 - one bad episode must not take a batch down
+        failure = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0])
     finally:
         sim_time = scene.sim_time_s if scene is not None else 0.0
         if scene is not None:

@@ -17,6 +17,7 @@ from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose
 from pickdemo.layout import Placement
 from pickdemo.scenario import ObjectSpec, Scenario
+from pickdemo.sim import quiet_c_stdout
 
 TABLE_THICKNESS_M = 0.05
 FINGER_FRICTION = 1.0  # measured: 1.0 with 20 N holds a 5 cm cube with ~1 mm slip
@@ -67,7 +68,8 @@ class Scene:
 
     def __init__(self, scenario: Scenario, layout: tuple[Placement, ...], *, gui: bool = False) -> None:
         self.scenario = scenario
-        self.client = BulletClient(connection_mode=p.GUI if gui else p.DIRECT)
+        with quiet_c_stdout():
+            self.client = BulletClient(connection_mode=p.GUI if gui else p.DIRECT)
         c = self.client
         if gui:
             c.configureDebugVisualizer(p.COV_ENABLE_GUI, 0)

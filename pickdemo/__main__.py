@@ -1,0 +1,5 @@
+import sys
+
+from pickdemo.cli import main
+
+sys.exit(main())
