@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from ruckig import InputParameter, Result, Ruckig, Trajectory
+from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from pickdemo import robot_model as rm
 
@@ -76,7 +76,7 @@ def plan_joint_motion(q_start: np.ndarray, q_goal: np.ndarray, limits: Limits, d
     traj = Trajectory(dof)
     try:
         result = Ruckig(dof).calculate(inp, traj)
-    except RuntimeError as exc:  # ruckig raises on invalid input
+    except (RuntimeError, RuckigError) as exc:  # ruckig raises on invalid input
         raise TrajectoryError(str(exc)) from None
     if result not in (Result.Working, Result.Finished):
         raise TrajectoryError(f"Ruckig returned {result}")

@@ -1,0 +1,58 @@
+"""Grasp planning: across the narrower side, the hand angle nearest home, the gripper's width."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pickdemo.geometry import Pose
+from pickdemo.grasp import GraspPlanningError, hand_yaw_for, plan_grasp
+from pickdemo.perception import PoseEstimate, TargetModel
+
+
+def _estimate(yaw_deg: float, z: float = 0.025) -> PoseEstimate:
+    return PoseEstimate(
+        pose=Pose.from_xyz_rpy([0.5, 0.0, z], yaw=np.radians(yaw_deg)),
+        position_cov=np.eye(3) * 1e-8,
+        rpy_cov=np.eye(3) * 1e-6,
+        yaw_symmetry_rad=np.pi,
+        top_face_size_m=(0.05, 0.03),
+        n_features=10,
+        n_face_pixels=100,
+    )
+
+
+def _finger_axis(psi: float) -> np.ndarray:
+    return np.array([np.sin(psi), -np.cos(psi)])  # the hand's y axis for Rz(psi) Rx(pi)
+
+
+@pytest.mark.parametrize("yaw_deg", [-80.0, -30.0, 0.0, 25.0, 60.0, 89.0])
+def test_closes_across_the_narrow_side(yaw_deg: float) -> None:
+    model = TargetModel("box", (0.06, 0.03, 0.04), (1.0, 0.0, 0.0))  # narrow along the object's y
+    psi, width = hand_yaw_for(_estimate(yaw_deg), model)
+    obj_y = np.array([-np.sin(np.radians(yaw_deg)), np.cos(np.radians(yaw_deg))])
+    assert abs(abs(_finger_axis(psi) @ obj_y) - 1.0) < 1e-9
+    assert width == 0.03
+    assert abs(psi) <= np.pi / 2 + 1e-9
+
+
+def test_square_box_uses_quarter_turn_symmetry() -> None:
+    model = TargetModel("box", (0.05, 0.05, 0.05), (1.0, 0.0, 0.0))
+    psi, _ = hand_yaw_for(_estimate(80.0), model)
+    assert abs(psi) <= np.pi / 4 + 1e-9
+
+
+def test_plan_heights() -> None:
+    model = TargetModel("box", (0.05, 0.05, 0.05), (1.0, 0.0, 0.0))
+    plan = plan_grasp(_estimate(10.0), model, (0.45, 0.3))
+    assert plan.grasp.position[2] == pytest.approx(0.025)  # 25 mm below the top of a 50 mm cube
+    assert plan.pregrasp.position[2] == pytest.approx(0.125)
+    assert plan.place.position[:2] == pytest.approx([0.45, 0.3])
+    assert plan.place.position[2] == pytest.approx(0.025 + 0.004)
+    assert plan.grasp.rotation[2, 2] == pytest.approx(-1.0)
+
+
+def test_too_wide_for_the_gripper() -> None:
+    model = TargetModel("box", (0.09, 0.09, 0.05), (1.0, 0.0, 0.0))
+    with pytest.raises(GraspPlanningError, match="wide"):
+        plan_grasp(_estimate(0.0), model, (0.45, 0.3))
