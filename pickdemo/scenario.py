@@ -12,7 +12,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -81,11 +81,18 @@ class ObjectSpec(_Model):
     yaw_range_deg: Vec2 | None = None
     target: bool = False
 
+    @field_validator("size")
+    @classmethod
+    def _check_size(cls, size: tuple[float, ...], info: ValidationInfo) -> tuple[float, ...]:
+        shape = info.data.get("shape")
+        expected = {"box": 3, "cylinder": 2}.get(shape or "", len(size))
+        if len(size) != expected:
+            what = "x, y, z extents" if shape == "box" else "diameter, height"
+            raise ValueError(f"a {shape} needs {expected} values ({what}), got {len(size)}")
+        return size
+
     @model_validator(mode="after")
     def _check(self) -> ObjectSpec:
-        expected = 3 if self.shape == "box" else 2
-        if len(self.size) != expected:
-            raise ValueError(f"size of a {self.shape} needs {expected} values, got {len(self.size)}")
         if (self.position is None) == (self.position_range is None):
             raise ValueError("give exactly one of position, position_range")
         if self.yaw_deg is not None and self.yaw_range_deg is not None:

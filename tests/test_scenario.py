@@ -1,0 +1,79 @@
+"""Scenario files: the shipped ones load; bad ones give one line naming the file and the key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from pickdemo.scenario import ScenarioError, list_scenarios, load_scenario
+
+GOOD = """
+name = "t"
+[[objects]]
+name = "cube"
+shape = "box"
+size = [0.05, 0.05, 0.05]
+color = [0.85, 0.1, 0.1]
+position = [0.5, 0.0]
+target = true
+[place]
+position = [0.45, 0.3]
+"""
+
+
+def test_shipped_scenarios_load() -> None:
+    names = list_scenarios()
+    assert {"pick_cube", "pick_cylinder"} <= set(names)
+    for name in names:
+        sc = load_scenario(name)
+        assert sc.name == name
+        assert sc.target.target
+
+
+def test_issue_keys_of_pick_cube() -> None:
+    sc = load_scenario("pick_cube")
+    assert sc.camera.fov_deg == (57.0, 43.0) and sc.camera.depth_noise == "kinect"
+    assert sc.target.position_range == ((0.4, 0.6), (-0.15, 0.15))
+    assert sc.success.lift_height == 0.05 and sc.success.place_tolerance == 0.02
+
+
+def test_load_by_path(tmp_path: Path) -> None:
+    f = tmp_path / "mine.toml"
+    f.write_text(GOOD)
+    assert load_scenario(f).name == "t"
+    assert load_scenario(str(f)).target.name == "cube"
+
+
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (lambda s: s.replace("[0.05, 0.05, 0.05]", "[0.05, 0.05]"), "objects[0](cube).size"),
+        (lambda s: s.replace('shape = "box"', 'shape = "sphere"'), "objects[0](cube).shape"),
+        (lambda s: s.replace("target = true", "target = false"), "target = true"),
+        (lambda s: s + "\n[camera]\nfov_deg = [57.0, 200.0]\n", "camera.fov_deg"),
+        (lambda s: s + "\n[camera]\ndepht_noise = \"kinect\"\n", "camera.depht_noise"),
+        (lambda s: s.replace("[place]\nposition = [0.45, 0.3]", "[place]"), "place.position"),
+        (lambda s: s.replace('name = "t"', 'name = "t'), "invalid TOML"),
+        (lambda s: s.replace("position = [0.5, 0.0]", ""), "position"),
+    ],
+)
+def test_bad_input_is_one_line_naming_file_and_key(tmp_path: Path, edit, expected: str) -> None:
+    f = tmp_path / "bad.toml"
+    f.write_text(edit(GOOD))
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(f)
+    msg = str(err.value)
+    assert "\n" not in msg
+    assert str(f) in msg
+    assert expected in msg
+
+
+def test_unknown_name_lists_known() -> None:
+    with pytest.raises(ScenarioError, match="unknown scenario.*pick_cube"):
+        load_scenario("no_such_scenario")
+
+
+def test_missing_file() -> None:
+    with pytest.raises(ScenarioError, match="no such scenario file"):
+        load_scenario("does/not/exist.toml")
