@@ -7,13 +7,14 @@ stderr, no traceback).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
 from pathlib import Path
 
 from pickdemo.result import EpisodeResult
-from pickdemo.scenario import ScenarioError, list_scenarios, load_scenario
+from pickdemo.scenario import ScenarioError, list_scenarios, load_scenario, resolve_scenario_path
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -36,6 +37,11 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, help="directory to write result.json into")
     run.add_argument("--gui", action="store_true", help="open the PyBullet window (needs a display)")
     run.add_argument("--quiet", action="store_true", help="print only the summary line")
+    bench = sub.add_parser("bench", help="run many seeded episodes and summarise them")
+    bench.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario names or paths")
+    bench.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-49 or 0-9,20 (default 0-19)")
+    bench.add_argument("--out", type=Path, help="directory for episodes.jsonl and summary.json")
+    bench.add_argument("--min-success", type=float, default=0.0, help="exit 1 if any scenario's rate is below")
     sub.add_parser("list", help="list the shipped scenarios")
     return parser
 
@@ -87,12 +93,52 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return EXIT_OK if result.success else EXIT_FAILED
 
 
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from pickdemo import bench
+
+    try:
+        seeds = bench.parse_seeds(args.seeds)
+    except ValueError as exc:
+        raise UsageError(f"--seeds: {exc}") from None
+    if not 0.0 <= args.min_success <= 1.0:
+        raise UsageError("--min-success must be in [0, 1]")
+    paths = [str(resolve_scenario_path(s)) for s in args.scenarios]
+    for p in paths:
+        load_scenario(p)  # validate every scenario before running anything
+    jobs = [bench.Job(p, seed) for p in paths for seed in seeds]
+    jsonl = None
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        jsonl = args.out / "episodes.jsonl"
+        jsonl.write_text("")
+    results = []
+    for i, r in enumerate(bench.run_jobs(jobs), 1):
+        results.append(r)
+        if jsonl is not None:
+            bench.write_jsonl_line(jsonl, r)
+        status = "ok  " if r["success"] else f"FAIL {r['failure']['stage']}: {r['failure']['reason']}"
+        pe = r["perception"]["position_error_mm"] if r["perception"] else float("nan")
+        print(f"[{i}/{len(jobs)}] {r['scenario']} seed {r['seed']}: {status} (pose {pe:.2f} mm, "
+              f"{r['wall_time_s']:.2f} s)", flush=True)
+    summary = bench.summarise(results)
+    print(bench.format_summary(summary))
+    if args.out is not None:
+        (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    low = [n for n, s in summary.items() if s["success_rate"] < args.min_success]
+    if low:
+        print(f"success rate below {args.min_success:.2f}: {', '.join(low)}")
+        return EXIT_FAILED
+    return EXIT_OK
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = _build_parser()
     try:
         args = parser.parse_args(argv)
         if args.command == "run":
             return _cmd_run(args)
+        if args.command == "bench":
+            return _cmd_bench(args)
         if args.command == "list":
             print("\n".join(list_scenarios()))
             return EXIT_OK
