@@ -121,16 +121,23 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
     lines = []
     for name, s in summary.items():
         lo, hi = s["success_rate_wilson95"]
-        lines.append(f"{name}: {s['successes']}/{s['episodes']} succeeded "
-                     f"({100 * s['success_rate']:.1f} %, Wilson 95 % [{100 * lo:.1f}, {100 * hi:.1f}])")
+        lines.append(
+            f"{name}: {s['successes']}/{s['episodes']} succeeded "
+            f"({100 * s['success_rate']:.1f} %, Wilson 95 % [{100 * lo:.1f}, {100 * hi:.1f}])"
+        )
         if s["failures_by_stage"]:
-            lines.append("  failures: " + ", ".join(f"{k} {v}" for k, v in s["failures_by_stage"].items())
-                         + f" (seeds {s['failed_seeds']})")
+            lines.append(
+                "  failures: "
+                + ", ".join(f"{k} {v}" for k, v in s["failures_by_stage"].items())
+                + f" (seeds {s['failed_seeds']})"
+            )
         for key, unit in (("position_error_mm", "mm"), ("yaw_error_deg", "deg"), ("place_error_mm", "mm")):
             st = s[key]
             if st:
-                lines.append(f"  {key[:-3].replace('_', ' ')}: median {st['median']:.3f} {unit}, "
-                             f"p95 {st['p95']:.3f}, max {st['max']:.3f} (n={st['n']})")
+                lines.append(
+                    f"  {key[:-3].replace('_', ' ')}: median {st['median']:.3f} {unit}, "
+                    f"p95 {st['p95']:.3f}, max {st['max']:.3f} (n={st['n']})"
+                )
         wt = s["wall_time_s"]
         rtf = s["real_time_factor"]
         lines.append(f"  wall time per episode: median {wt['median']:.2f} s; real-time factor {rtf:.1f}x")

@@ -52,7 +52,8 @@ def _summary(result: EpisodeResult) -> str:
     if result.perception is not None:
         yaw = result.perception.yaw_error_deg
         parts.append(
-            f"pose error {result.perception.position_error_mm:.2f} mm" + (f", yaw {yaw:.2f} deg" if yaw is not None else "")
+            f"pose error {result.perception.position_error_mm:.2f} mm"
+            + (f", yaw {yaw:.2f} deg" if yaw is not None else "")
         )
     if result.place_error_mm is not None:
         parts.append(f"place error {result.place_error_mm:.1f} mm")
@@ -118,8 +119,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             bench.write_jsonl_line(jsonl, r)
         status = "ok  " if r["success"] else f"FAIL {r['failure']['stage']}: {r['failure']['reason']}"
         pe = r["perception"]["position_error_mm"] if r["perception"] else float("nan")
-        print(f"[{i}/{len(jobs)}] {r['scenario']} seed {r['seed']}: {status} (pose {pe:.2f} mm, "
-              f"{r['wall_time_s']:.2f} s)", flush=True)
+        print(
+            f"[{i}/{len(jobs)}] {r['scenario']} seed {r['seed']}: {status} (pose {pe:.2f} mm, "
+            f"{r['wall_time_s']:.2f} s)",
+            flush=True,
+        )
     summary = bench.summarise(results)
     print(bench.format_summary(summary))
     if args.out is not None:

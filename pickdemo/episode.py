@@ -10,10 +10,10 @@ order, so one seed makes one episode, bit for bit.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -90,7 +90,12 @@ def run_episode(
     wall0 = time.perf_counter()
     rngs = spawn_rngs(seed)
     model = target_model(scenario)
-    record: dict[str, Any] = {"perception": None, "place_error_mm": None, "lift_height_mm": None, "grasp_width_mm": None}
+    record: dict[str, Any] = {
+        "perception": None,
+        "place_error_mm": None,
+        "lift_height_mm": None,
+        "grasp_width_mm": None,
+    }
     phases: list[dict[str, Any]] = []
     failure: Failure | None = None
     scene = None
@@ -110,7 +115,9 @@ def run_episode(
         max_steps = int(round(scenario.sim.max_sim_time_s / scene.time_step_s))
         ctl = Controller(scene, max_steps=max_steps)
         kin = panda_kinematics()
-        limits = Limits.panda(scenario.motion.velocity_scale, scenario.motion.acceleration_scale, scenario.motion.jerk_scale)
+        limits = Limits.panda(
+            scenario.motion.velocity_scale, scenario.motion.acceleration_scale, scenario.motion.jerk_scale
+        )
         slow = limits.scaled(options.careful_speed)
         dt = scene.time_step_s
         target_name = scenario.target.name
@@ -184,8 +191,11 @@ def run_episode(
                     "home": motion(q_retreat, rm.HOME_Q, limits),
                 }
             total = sum(s.duration_s for s in segments.values())
-            phase("plan", f"grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg, 6 IK solves, {len(segments)} "
-                  f"Ruckig segments, {total:.2f} s of motion")
+            phase(
+                "plan",
+                f"grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg, 6 IK solves, {len(segments)} "
+                f"Ruckig segments, {total:.2f} s of motion",
+            )
             # ---------------------------------------------------------------- approach
             with timer("approach"):
                 ctl.gripper(rm.FINGER_MAX_M, max_steps=120)
@@ -200,7 +210,9 @@ def run_episode(
             if ok:
                 phase("grasp", f"holding: fingers at {opening * 1e3:.1f} mm, contact on both")
                 break
-            reason = f"fingers closed to {opening * 1e3:.1f} mm (expected {plan.object_width_m * 1e3:.0f} mm): nothing held"
+            reason = (
+                f"fingers closed to {opening * 1e3:.1f} mm (expected {plan.object_width_m * 1e3:.0f} mm): nothing held"
+            )
             if attempt == MAX_ATTEMPTS:
                 raise EpisodeFailure(Stage.GRASP, reason)
             phase("grasp", f"missed ({reason}); backing off to look again")

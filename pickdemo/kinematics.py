@@ -88,7 +88,9 @@ class PandaKinematics:
             q = np.clip(pin.integrate(model, q, params.step * v), lo, hi)
         return q, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])), params.max_iterations
 
-    def solve(self, target: Pose, q_seed: np.ndarray, rng: np.random.Generator, params: IKParams | None = None) -> IKResult:
+    def solve(
+        self, target: Pose, q_seed: np.ndarray, rng: np.random.Generator, params: IKParams | None = None
+    ) -> IKResult:
         """Joint angles that put the TCP at ``target``; restarts from random configurations if needed."""
         params = params or IKParams()
         goal = target.to_se3()

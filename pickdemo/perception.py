@@ -142,8 +142,18 @@ def mixture_at(mu: np.ndarray, var: np.ndarray | float, u: int, v: int) -> tuple
     return mean, float(np.sum(MIXTURE_KERNEL * (var_win + win * win)) - mean * mean)
 
 
-def point_covariance(u: float, v: float, mu_z: float, var_z: float, fx: float, fy: float, cx: float, cy: float,
-                     sigma_u: float = SIGMA_UV_PX, sigma_v: float = SIGMA_UV_PX) -> np.ndarray:
+def point_covariance(
+    u: float,
+    v: float,
+    mu_z: float,
+    var_z: float,
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    sigma_u: float = SIGMA_UV_PX,
+    sigma_v: float = SIGMA_UV_PX,
+) -> np.ndarray:
     """Eq. (14): the 3x3 covariance of a back-projected point, camera frame (m^2).
 
     With ``x = z (u - cx) / fx`` and ``y = z (v - cy) / fy`` (non-square pixels use fx, fy where the
@@ -275,9 +285,7 @@ def measure_features(
 
 
 # -------------------------------------------------------------------------------------- pose fit
-def fit_plane_weighted(
-    points: np.ndarray, weights: np.ndarray
-) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+def fit_plane_weighted(points: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """Weighted least-squares plane ``z = a x + b y + c`` through (N, 3) points.
 
     Returns the unit normal (z up), the plane's height at the weighted centroid's (x, y), the 3x3
@@ -363,8 +371,12 @@ def _target_roi(
     if len(xs) * stride * stride < params.min_target_px:
         raise PerceptionError(f"only about {len(xs) * stride * stride} pixels have the target's colour")
     h, w = frame.rgb.shape[:2]
-    return (max(int(xs.min()) * stride - pad, 0), max(int(ys.min()) * stride - pad, 0),
-            min(int(xs.max()) * stride + stride + pad, w), min(int(ys.max()) * stride + stride + pad, h))
+    return (
+        max(int(xs.min()) * stride - pad, 0),
+        max(int(ys.min()) * stride - pad, 0),
+        min(int(xs.max()) * stride + stride + pad, w),
+        min(int(ys.max()) * stride + stride + pad, h),
+    )
 
 
 def _fit_face_plane(
@@ -414,7 +426,9 @@ def _fit_outline(
     return center, 0.0, (float(a2), float(b2)), cov
 
 
-def condition_on_plane(mean: np.ndarray, cov: np.ndarray, normal: np.ndarray, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def condition_on_plane(
+    mean: np.ndarray, cov: np.ndarray, normal: np.ndarray, point: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """A point's Gaussian (mean, cov) conditioned on lying on the plane ``normal . (x - point) = 0``.
 
     ``mean - cov n (n . (mean - point)) / (n^T cov n)``, ``cov - cov n n^T cov / (n^T cov n)``: a
@@ -483,7 +497,7 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
     uv = shi_tomasi_features(f, mask, params)
     features = measure_features(f, uv, mu_z, var_z, offset=(x0, y0))
     feat_xy, feat_var = [], []
-    residuals = (_rectangle_residuals if model.shape == "box" else _circle_residuals)
+    residuals = _rectangle_residuals if model.shape == "box" else _circle_residuals
     for fp in features:
         m3, c3 = condition_on_plane(fp.mean_world, fp.cov_world, normal, plane_point)
         p2 = (m3 - plane_point) @ B[:, :2]
@@ -499,10 +513,15 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
             feat_var.append(var)
     n_used = len(feat_xy)
     all_xy = np.vstack([xy, *([np.array(feat_xy)] if feat_xy else [])])
-    weights = np.concatenate([np.full(len(xy), 1.0 / var_edge), 1.0 / np.array(feat_var)]) if feat_xy else \
-        np.full(len(xy), 1.0 / var_edge)
+    weights = (
+        np.concatenate([np.full(len(xy), 1.0 / var_edge), 1.0 / np.array(feat_var)])
+        if feat_xy
+        else np.full(len(xy), 1.0 / var_edge)
+    )
     center2, yaw_face, size_face, fit_cov = _fit_outline(all_xy, model, weights, init=(center2, yaw_face))
-    symmetry = 0.0 if model.shape == "cylinder" else (np.pi / 2.0 if abs(model.size[0] - model.size[1]) < 1e-9 else np.pi)
+    symmetry = (
+        0.0 if model.shape == "cylinder" else (np.pi / 2.0 if abs(model.size[0] - model.size[1]) < 1e-9 else np.pi)
+    )
 
     top_center = plane_point + B[:, :2] @ center2
     center = top_center - normal * (model.height_m / 2.0)
@@ -532,8 +551,9 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
     )
 
 
-def _gauss_newton(residual_jacobian, x0: np.ndarray, weights: np.ndarray, iterations: int = 15,
-                  tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray]:
+def _gauss_newton(
+    residual_jacobian, x0: np.ndarray, weights: np.ndarray, iterations: int = 15, tol: float = 1e-10
+) -> tuple[np.ndarray, np.ndarray]:
     """Weighted Gauss-Newton; returns the solution and its covariance.
 
     The covariance is ``(J^T W J)^-1``, scaled up by the reduced chi-square of the residuals when
@@ -583,8 +603,9 @@ def _circle_residuals(xy: np.ndarray, radius: float):
     return f
 
 
-def _refine_rectangle(xy: np.ndarray, center: np.ndarray, yaw: float, sx: float, sy: float,
-                      weights: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+def _refine_rectangle(
+    xy: np.ndarray, center: np.ndarray, yaw: float, sx: float, sy: float, weights: np.ndarray | None = None
+) -> tuple[np.ndarray, float, np.ndarray]:
     """Weighted least-squares rectangle of known size through outline points.
 
     Each point is assigned to its nearest side; its residual is its signed distance to that side.
@@ -595,8 +616,9 @@ def _refine_rectangle(xy: np.ndarray, center: np.ndarray, yaw: float, sx: float,
     return x[:2], float(x[2]), cov
 
 
-def _refine_circle(xy: np.ndarray, center: np.ndarray, radius: float,
-                   weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _refine_circle(
+    xy: np.ndarray, center: np.ndarray, radius: float, weights: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Weighted least-squares centre of a circle of known radius; returns it and its 2x2 covariance."""
     w = np.ones(len(xy)) if weights is None else weights
     return _gauss_newton(_circle_residuals(xy, radius), np.asarray(center, dtype=np.float64), w)

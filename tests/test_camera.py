@@ -38,8 +38,11 @@ def test_backproject_by_hand() -> None:
 
 @settings(max_examples=200, deadline=None)
 @given(
-    x=st.floats(-1.0, 1.0), y=st.floats(-1.0, 1.0), z=st.floats(0.2, 3.0),
-    fx=st.floats(200.0, 1200.0), fy=st.floats(200.0, 1200.0),
+    x=st.floats(-1.0, 1.0),
+    y=st.floats(-1.0, 1.0),
+    z=st.floats(0.2, 3.0),
+    fx=st.floats(200.0, 1200.0),
+    fy=st.floats(200.0, 1200.0),
 )
 def test_project_backproject_round_trip(x: float, y: float, z: float, fx: float, fy: float) -> None:
     K = Intrinsics(width=640, height=480, fx=fx, fy=fy, cx=320.0, cy=239.0)

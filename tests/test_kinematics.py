@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose

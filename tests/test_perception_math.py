@@ -12,8 +12,8 @@ from pickdemo.perception import (
     MIXTURE_KERNEL,
     TargetModel,
     _fit_outline,
-    condition_on_plane,
     _refine_circle,
+    condition_on_plane,
     fit_plane_weighted,
     mixture_at,
     mixture_moments,
@@ -104,8 +104,12 @@ def test_weighted_plane_fit_recovers_tilt() -> None:
 
 def _rectangle_outline(cx: float, cy: float, yaw: float, sx: float, sy: float, n: int = 60) -> np.ndarray:
     t = np.linspace(-0.5, 0.5, n)
-    sides = [np.column_stack([np.full(n, sx / 2), t * sy]), np.column_stack([np.full(n, -sx / 2), t * sy]),
-             np.column_stack([t * sx, np.full(n, sy / 2)]), np.column_stack([t * sx, np.full(n, -sy / 2)])]
+    sides = [
+        np.column_stack([np.full(n, sx / 2), t * sy]),
+        np.column_stack([np.full(n, -sx / 2), t * sy]),
+        np.column_stack([t * sx, np.full(n, sy / 2)]),
+        np.column_stack([t * sx, np.full(n, -sy / 2)]),
+    ]
     pts = np.vstack(sides)
     R = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
     return pts @ R.T + np.array([cx, cy])
@@ -139,7 +143,7 @@ def test_rectangle_fit_covariance_matches_scatter() -> None:
         c, yaw, _, cov = _fit_outline(xy, model, np.full(120, 1.0 / sigma**2))
         errs.append([c[0], c[1], yaw - 0.3])
         covs.append(cov)
-    nees = [e @ np.linalg.solve(C, e) for e, C in zip(np.array(errs), covs)]
+    nees = [e @ np.linalg.solve(C, e) for e, C in zip(np.array(errs), covs, strict=True)]
     assert 2.4 < np.mean(nees) < 3.6  # chi-square with 3 degrees of freedom
 
 

@@ -52,7 +52,7 @@ def test_load_by_path(tmp_path: Path) -> None:
         (lambda s: s.replace('shape = "box"', 'shape = "sphere"'), "objects[0](cube).shape"),
         (lambda s: s.replace("target = true", "target = false"), "target = true"),
         (lambda s: s + "\n[camera]\nfov_deg = [57.0, 200.0]\n", "camera.fov_deg"),
-        (lambda s: s + "\n[camera]\ndepht_noise = \"kinect\"\n", "camera.depht_noise"),
+        (lambda s: s + '\n[camera]\ndepht_noise = "kinect"\n', "camera.depht_noise"),
         (lambda s: s.replace("[place]\nposition = [0.45, 0.3]", "[place]"), "place.position"),
         (lambda s: s.replace('name = "t"', 'name = "t'), "invalid TOML"),
         (lambda s: s.replace("position = [0.5, 0.0]", ""), "position"),

@@ -26,8 +26,15 @@ def tile_scene():
     from pickdemo.sim.scene import Scene
 
     objects = [
-        {"name": f"tile{i}", "shape": "box", "size": [0.04, 0.04, TILE], "color": [0.2, 0.3, 0.9],
-         "position": list(xy), "yaw_deg": 15.0 * i, "target": i == 0}
+        {
+            "name": f"tile{i}",
+            "shape": "box",
+            "size": [0.04, 0.04, TILE],
+            "color": [0.2, 0.3, 0.9],
+            "position": list(xy),
+            "yaw_deg": 15.0 * i,
+            "target": i == 0,
+        }
         for i, xy in enumerate(SPOTS)
     ]
     scenario = parse_scenario({"name": "tiles", "objects": objects, "place": {"position": [0.4, 0.3]}})

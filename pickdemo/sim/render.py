@@ -81,10 +81,14 @@ class Camera:
             depth = noisy
         rgb.setflags(write=False)
         depth.setflags(write=False)
-        return RGBDFrame(rgb=rgb, depth_m=depth, intrinsics=self.intrinsics, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s)
+        return RGBDFrame(
+            rgb=rgb, depth_m=depth, intrinsics=self.intrinsics, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s
+        )
 
     def capture_labels(self, scene: Scene) -> tuple[RGBDFrame, np.ndarray]:
         """A noise-free frame and its segmentation (body ids): for tests and labels, never for control."""
         rgb, depth, seg = self._render(scene)
-        frame = RGBDFrame(rgb=rgb, depth_m=depth, intrinsics=self.intrinsics, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s)
+        frame = RGBDFrame(
+            rgb=rgb, depth_m=depth, intrinsics=self.intrinsics, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s
+        )
         return frame, seg
