@@ -25,7 +25,14 @@ from pickdemo.metrics import score_perception, score_place
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
 from pickdemo.result import EpisodeFailure, EpisodeResult, Failure, PerceptionScore, Stage
 from pickdemo.scenario import Scenario
-from pickdemo.trajectory import JointTrajectory, Limits, TrajectoryError, plan_joint_motion
+from pickdemo.trajectory import (
+    CartesianLimits,
+    JointTrajectory,
+    Limits,
+    TrajectoryError,
+    plan_cartesian_line,
+    plan_joint_motion,
+)
 
 PhaseCallback = Callable[[str, str], None]
 
@@ -41,7 +48,8 @@ class EpisodeOptions:
     perception: PerceptionParams = PerceptionParams()
     grasp: GraspParams = GraspParams()
     ik: IKParams = IKParams()
-    careful_speed: float = 0.4  # scale of the limits for the last centimetres of approach and place
+    approach: CartesianLimits = CartesianLimits(velocity=0.10, acceleration=0.5, jerk=5.0)
+    transport: CartesianLimits = CartesianLimits(velocity=0.25, acceleration=1.0, jerk=10.0)
 
 
 def spawn_rngs(seed: int) -> dict[str, np.random.Generator]:
@@ -118,7 +126,6 @@ def run_episode(
         limits = Limits.panda(
             scenario.motion.velocity_scale, scenario.motion.acceleration_scale, scenario.motion.jerk_scale
         )
-        slow = limits.scaled(options.careful_speed)
         dt = scene.time_step_s
         target_name = scenario.target.name
 
@@ -146,6 +153,12 @@ def run_episode(
                 return plan_joint_motion(q0, q1, lim, dt)
             except TrajectoryError as exc:
                 raise EpisodeFailure(Stage.TRAJECTORY, str(exc)) from None
+
+        def line(name: str, q0: np.ndarray, goal, cart: CartesianLimits) -> JointTrajectory:
+            try:
+                return plan_cartesian_line(kin, q0, goal, cart, limits, dt, rngs["ik"])
+            except TrajectoryError as exc:
+                raise EpisodeFailure(Stage.TRAJECTORY, f"{name}: {exc}") from None
 
         def holding(plan: GraspPlan) -> tuple[bool, float]:
             js = scene.joint_state()
@@ -176,20 +189,20 @@ def run_episode(
                     raise EpisodeFailure(Stage.GRASP_PLANNING, str(exc)) from None
                 q_now = scene.joint_state().arm_q
                 q_pre = solve("pre-grasp", plan.pregrasp, q_now)
-                q_grasp = solve("grasp", plan.grasp, q_pre)
-                q_lift = solve("lift", plan.lift, q_grasp)
-                q_above = solve("above place", plan.place_above, q_lift)
-                q_place = solve("place", plan.place, q_above)
-                q_retreat = solve("retreat", plan.retreat, q_place)
-                segments = {
-                    "to_pregrasp": motion(q_now, q_pre, limits),
-                    "descend": motion(q_pre, q_grasp, slow),
-                    "lift": motion(q_grasp, q_lift, slow),
-                    "transport": motion(q_lift, q_above, limits),
-                    "lower": motion(q_above, q_place, slow),
-                    "retreat": motion(q_place, q_retreat, slow),
-                    "home": motion(q_retreat, rm.HOME_Q, limits),
-                }
+                segments = {"to_pregrasp": motion(q_now, q_pre, limits)}
+                # Near the table the TCP moves on straight lines; each starts where the last ends.
+                chain = (
+                    ("descend", plan.grasp, options.approach),
+                    ("lift", plan.lift, options.approach),
+                    ("transport", plan.place_above, options.transport),
+                    ("lower", plan.place, options.approach),
+                    ("retreat", plan.retreat, options.approach),
+                )
+                q_end = q_pre
+                for name, goal, cart in chain:
+                    segments[name] = line(name, q_end, goal, cart)
+                    q_end = segments[name].positions[-1]
+                segments["home"] = motion(q_end, rm.HOME_Q, limits)
             total = sum(s.duration_s for s in segments.values())
             phase(
                 "plan",
@@ -218,8 +231,9 @@ def run_episode(
             phase("grasp", f"missed ({reason}); backing off to look again")
             with timer("approach"):
                 ctl.gripper(rm.FINGER_MAX_M, max_steps=120)
-                ctl.follow(motion(scene.joint_state().arm_q, q_pre, slow))
-                ctl.follow(motion(q_pre, rm.HOME_Q, limits))
+                back = line("back off", scene.joint_state().arm_q, plan.pregrasp, options.approach)
+                ctl.follow(back)
+                ctl.follow(motion(back.positions[-1], rm.HOME_Q, limits))
         assert plan is not None
         # -------------------------------------------------------------------- lift
         with timer("lift"):

@@ -7,6 +7,7 @@ metrics and labels only: the controller never asks for them.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,6 +69,7 @@ class Scene:
 
     def __init__(self, scenario: Scenario, layout: tuple[Placement, ...], *, gui: bool = False) -> None:
         self.scenario = scenario
+        self.gui = gui
         with quiet_c_stdout():
             self.client = BulletClient(connection_mode=p.GUI if gui else p.DIRECT)
         c = self.client
@@ -157,6 +159,8 @@ class Scene:
     def step(self, n: int = 1) -> None:
         for _ in range(n):
             self.client.stepSimulation()
+            if self.gui:  # pace the window for a human; never affects the simulation's outcome
+                time.sleep(self.time_step_s)
         self.steps += n
 
     # --------------------------------------------------------------------- what the robot senses
