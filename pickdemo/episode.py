@@ -206,8 +206,8 @@ def run_episode(
             total = sum(s.duration_s for s in segments.values())
             phase(
                 "plan",
-                f"grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg, 6 IK solves, {len(segments)} "
-                f"Ruckig segments, {total:.2f} s of motion",
+                f"grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg; {len(segments)} Ruckig segments "
+                f"({len(segments) - 2} straight lines), {total:.2f} s of motion",
             )
             # ---------------------------------------------------------------- approach
             with timer("approach"):
