@@ -2,9 +2,11 @@
 
 Pure: no simulator. The hand's fingers close along its y axis; a top-down TCP orientation is
 ``Rz(psi) Rx(pi)``, whose y axis points along ``(sin psi, -cos psi, 0)``. The grasp closes across
-the object's narrower side; of the equivalent hand angles (the hand is symmetric under a half turn,
-a square box under a quarter turn) the one nearest the home angle is chosen, keeping joint 7 far
-from its limits.
+the object's narrower side. Of the equivalent hand angles (the hand is symmetric under a half turn,
+a square box under a quarter turn) the one that keeps joint 7 nearest the middle of its range over
+the whole pick and place is chosen: for a top-down Panda, ``q7 ~ pi/4 + q1 - psi`` with
+``q1 ~ atan2(y, x)``, so the hand angle is centred on ``pi/4 + q1`` averaged over the grasp and the
+place. The hand keeps its angle while carrying, so joint 7 turns by the change of q1 on the way.
 """
 
 from __future__ import annotations
@@ -60,16 +62,22 @@ def top_down(position: np.ndarray, yaw_rad: float) -> Pose:
     return Pose.from_xyz_rpy(position, roll=np.pi, yaw=yaw_rad)
 
 
-def hand_yaw_for(estimate: PoseEstimate, model: TargetModel) -> tuple[float, float]:
-    """Hand angle (rad) that closes across the narrower side, and the width there (m)."""
+def joint7_centre_yaw(*xy: tuple[float, float]) -> float:
+    """The hand angle (rad) that puts joint 7 mid-range, on average over the given TCP positions."""
+    q1 = np.mean([np.arctan2(y, x) for x, y in xy])
+    return float(np.pi / 4.0 + q1)
+
+
+def hand_yaw_for(estimate: PoseEstimate, model: TargetModel, centre_rad: float = 0.0) -> tuple[float, float]:
+    """Hand angle (rad) that closes across the narrower side, nearest ``centre_rad``; the width (m)."""
     if model.shape == "cylinder":
-        return 0.0, model.size[0]
+        return float(centre_rad), model.size[0]
     obj_yaw = float(estimate.pose.rpy[2])
     sx, sy = model.size[0], model.size[1]
     # Finger axis along the object's x axis when x is the narrower side, else along its y axis.
     psi = obj_yaw + np.pi / 2.0 if sx <= sy else obj_yaw
     period = np.pi / 2.0 if abs(sx - sy) < 1e-9 else np.pi
-    return float(wrap_angle(psi, period)), min(sx, sy)
+    return float(centre_rad + wrap_angle(psi - centre_rad, period)), min(sx, sy)
 
 
 def plan_grasp(
@@ -77,7 +85,8 @@ def plan_grasp(
 ) -> GraspPlan:
     """All TCP poses of the pick and place from the estimated pose of the target."""
     params = params or GraspParams()
-    psi, width = hand_yaw_for(estimate, model)
+    centre = joint7_centre_yaw(tuple(estimate.pose.position[:2]), tuple(place_xy))
+    psi, width = hand_yaw_for(estimate, model, centre)
     if width > 2.0 * rm.FINGER_MAX_M - params.width_margin_m:
         raise GraspPlanningError(
             f"object is {width * 1e3:.0f} mm wide; the gripper opens to {2e3 * rm.FINGER_MAX_M:.0f} mm"

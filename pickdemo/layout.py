@@ -14,7 +14,6 @@ from pickdemo.geometry import Pose
 from pickdemo.scenario import ObjectSpec, Scenario
 
 MAX_DRAWS = 200
-CLEARANCE_M = 0.01
 
 
 class LayoutError(ValueError):
@@ -57,7 +56,7 @@ def sample_layout(scenario: Scenario, rng: np.random.Generator) -> tuple[Placeme
         r = footprint_radius_m(obj)
         for _ in range(MAX_DRAWS):
             xy, yaw = _draw(obj, rng)
-            if all(np.linalg.norm(xy - q) >= r + rq + CLEARANCE_M for q, rq in placed):
+            if all(np.linalg.norm(xy - q) >= r + rq + scenario.layout.clearance_m for q, rq in placed):
                 break
         else:
             raise LayoutError(f"objects.{obj.name}: no free spot found in {MAX_DRAWS} draws")

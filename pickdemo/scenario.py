@@ -127,6 +127,10 @@ class MotionSpec(_Model):
     jerk_scale: Annotated[float, Field(gt=0.0, le=1.0)] = 0.1
 
 
+class LayoutSpec(_Model):
+    clearance_m: Annotated[float, Field(ge=0.0)] = 0.01  # free space between objects' footprints
+
+
 class SimSpec(_Model):
     time_step_s: Annotated[float, Field(gt=0.0, le=1.0 / 240.0)] = 1.0 / 240.0
     max_sim_time_s: PositiveFloat = 60.0  # simulated-time budget of one episode
@@ -137,11 +141,13 @@ class Scenario(_Model):
 
     name: Annotated[str, Field(min_length=1)]
     description: str = ""
+    tags: tuple[str, ...] = ()  # e.g. "suite": run by `pickdemo bench` when no scenario is named
     camera: CameraSpec = CameraSpec()
     table: TableSpec = TableSpec()
     objects: tuple[ObjectSpec, ...]
     place: PlaceSpec
     success: SuccessSpec = SuccessSpec()
+    layout: LayoutSpec = LayoutSpec()
     motion: MotionSpec = MotionSpec()
     sim: SimSpec = SimSpec()
 

@@ -33,13 +33,27 @@ def test_closes_across_the_narrow_side(yaw_deg: float) -> None:
     obj_y = np.array([-np.sin(np.radians(yaw_deg)), np.cos(np.radians(yaw_deg))])
     assert abs(abs(_finger_axis(psi) @ obj_y) - 1.0) < 1e-9
     assert width == 0.03
-    assert abs(psi) <= np.pi / 2 + 1e-9
+    assert abs(psi) <= np.pi / 2 + 1e-9  # centred on 0 when no centre is given
 
 
 def test_square_box_uses_quarter_turn_symmetry() -> None:
     model = TargetModel("box", (0.05, 0.05, 0.05), (1.0, 0.0, 0.0))
     psi, _ = hand_yaw_for(_estimate(80.0), model)
     assert abs(psi) <= np.pi / 4 + 1e-9
+
+
+def test_hand_angle_keeps_joint7_mid_range_over_grasp_and_place() -> None:
+    """Regression (pick_box seed 5): carrying to y = 0.3 must not drive joint 7 past its limit."""
+    from pickdemo import robot_model as rm
+    from pickdemo.kinematics import panda_kinematics
+
+    kin = panda_kinematics()
+    model = TargetModel("box", (0.07, 0.035, 0.04), (0.0, 0.0, 1.0))
+    for yaw in np.linspace(-90.0, 90.0, 13):
+        plan = plan_grasp(_estimate(yaw, z=0.02), model, (0.45, 0.3))
+        for pose in (plan.grasp, plan.place):
+            res = kin.solve(pose, rm.HOME_Q, np.random.default_rng(0))
+            assert res.success and abs(res.q[6]) < 2.5, (yaw, res.q[6])
 
 
 def test_plan_heights() -> None:
