@@ -1,25 +1,59 @@
-"""Many seeded episodes: run them, stream each result as it finishes, summarise.
+"""Many seeded episodes: run them in parallel, stream each result as it finishes, summarise, gate.
 
-``python -m pickdemo bench SCENARIO [...] --seeds 0-49 [--out DIR] [--min-success 0.95]``
+``python -m pickdemo bench [SCENARIO ...] --seeds 0-199 [--workers N] [--out DIR] [--resume]``
 
-Each finished episode is appended to ``DIR/episodes.jsonl`` at once (the same object as its
-``result.json``), so an interrupted run loses nothing; ``DIR/summary.json`` holds the statistics.
+- Each scenario x seed is one job; a job runs one episode in a worker process (a pebble process
+  pool, or Ray tasks with ``--executor ray``). An episode is self-contained and seeded, so the
+  results are the same whatever the number of workers or the executor.
+- Each finished episode is appended to ``DIR/episodes.jsonl`` at once (the same object as its
+  ``result.json``); ``--resume`` skips the episodes already there, so an interrupted run loses
+  nothing and none is run twice.
+- A job that raises, kills its worker or overruns the wall-clock guard becomes a failed result with
+  stage ``error`` or ``timeout``; the batch goes on. (An episode that overruns its *simulated*
+  time budget ends itself with stage ``timeout``.)
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import statistics
+import time
+import xml.etree.ElementTree as ET
 from collections import Counter
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import TimeoutError as FutureTimeout
+from concurrent.futures import as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from pickdemo.result import Stage
 
+DEFAULT_GUARD_S = 300.0  # wall-clock guard of one episode (a typical one takes 1-2 s)
 
+JobFn = Callable[["Job"], dict[str, Any]]
+
+
+class BenchError(ValueError):
+    """Bad bench input (a one-line message)."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """One episode to run: which scenario file (and its name), which seed."""
+
+    scenario_path: str
+    scenario_name: str
+    seed: int
+
+    @property
+    def key(self) -> tuple[str, int]:
+        return (self.scenario_name, self.seed)
+
+
+# ------------------------------------------------------------------------------------ small pieces
 def parse_seeds(text: str) -> list[int]:
     """``"0-49"``, ``"3"``, ``"0-9,20,30-31"`` -> a sorted list of distinct seeds."""
     seeds: set[int] = set()
@@ -27,19 +61,22 @@ def parse_seeds(text: str) -> list[int]:
         part = part.strip()
         if not part:
             continue
-        if "-" in part:
-            lo, hi = part.split("-", 1)
-            a, b = int(lo), int(hi)
-            if a < 0 or b < a:
-                raise ValueError(f"bad seed range {part!r}")
-            seeds.update(range(a, b + 1))
-        else:
-            s = int(part)
-            if s < 0:
-                raise ValueError(f"bad seed {part!r}")
-            seeds.add(s)
+        try:
+            if "-" in part:
+                lo, hi = part.split("-", 1)
+                a, b = int(lo), int(hi)
+                if a < 0 or b < a:
+                    raise ValueError
+                seeds.update(range(a, b + 1))
+            else:
+                s = int(part)
+                if s < 0:
+                    raise ValueError
+                seeds.add(s)
+        except ValueError:
+            raise BenchError(f"bad seeds {part!r} (use e.g. 0-49 or 0-9,20)") from None
     if not seeds:
-        raise ValueError("no seeds given")
+        raise BenchError("no seeds given")
     return sorted(seeds)
 
 
@@ -67,6 +104,159 @@ def _stats(values: list[float]) -> dict[str, float] | None:
     return {"median": q(0.5), "p95": q(0.95), "max": v[-1], "mean": statistics.fmean(v), "n": len(v)}
 
 
+def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> dict[str, Any]:
+    """The result object of a job that produced none (it raised, crashed or hung)."""
+    return {
+        "scenario": job.scenario_name,
+        "seed": job.seed,
+        "success": False,
+        "failure": {"stage": stage.value, "reason": reason},
+        "perception": None,
+        "place_error_mm": None,
+        "lift_height_mm": None,
+        "grasp_width_mm": None,
+        "sim_time_s": 0.0,
+        "wall_time_s": wall_time_s,
+        "stage_wall_times_s": {},
+        "phases": [],
+    }
+
+
+def run_job(job: Job) -> dict[str, Any]:
+    """Run one episode (in a worker) and return its result dict."""
+    from pickdemo.episode import run_episode
+    from pickdemo.scenario import load_scenario
+
+    t0 = time.perf_counter()
+    try:
+        scenario = load_scenario(job.scenario_path)
+    except Exception as exc:  # noqa: BLE001 - a job must always come back with a result
+        return failed_result(job, Stage.ERROR, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
+    return run_episode(scenario, job.seed).to_dict()
+
+
+# --------------------------------------------------------------------------------------- executors
+class LocalExecutor:
+    """Worker processes on this machine (pebble), each episode under a wall-clock guard.
+
+    A worker whose episode overruns the guard is killed and replaced; a worker that dies (a crash in
+    native code) is replaced too. Neither stops the batch.
+    """
+
+    def __init__(self, workers: int, guard_s: float = DEFAULT_GUARD_S, fn: JobFn = run_job) -> None:
+        if workers < 1:
+            raise BenchError("--workers must be at least 1")
+        self.workers, self.guard_s, self.fn = workers, guard_s, fn
+
+    def run(self, jobs: list[Job]) -> Iterator[dict[str, Any]]:
+        from pebble import ProcessExpired, ProcessPool
+
+        with ProcessPool(max_workers=self.workers) as pool:
+            futures = {pool.schedule(self.fn, args=(job,), timeout=self.guard_s): job for job in jobs}
+            started = time.perf_counter()
+            try:
+                for fut in as_completed(futures):
+                    job = futures[fut]
+                    try:
+                        yield fut.result()
+                    except FutureTimeout:
+                        yield failed_result(
+                            job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {self.guard_s:g} s", self.guard_s
+                        )
+                    except ProcessExpired as exc:
+                        yield failed_result(
+                            job, Stage.ERROR, f"worker died (exit code {exc.exitcode})", time.perf_counter() - started
+                        )
+                    except Exception as exc:  # noqa: BLE001 - one bad episode must not take the batch down
+                        reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
+                        yield failed_result(job, Stage.ERROR, reason, time.perf_counter() - started)
+            finally:
+                pool.stop()
+
+
+class RayExecutor:
+    """Ray tasks on an existing cluster (``address``) or a local Ray instance.
+
+    At most as many tasks are in flight as the cluster has CPUs, so a task starts when it is
+    submitted and the wall-clock guard can be measured from then; an overrunning task is cancelled.
+    The cluster's nodes need pickdemo installed (as they need any task's code).
+    """
+
+    def __init__(
+        self, address: str | None, guard_s: float = DEFAULT_GUARD_S, fn: JobFn = run_job, num_cpus: int | None = None
+    ) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise BenchError("--executor ray needs Ray: pip install 'pickdemo[ray]'") from None
+        self.ray = ray
+        if not ray.is_initialized():
+            kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+            if address is not None:
+                kwargs["address"] = address
+            elif num_cpus is not None:
+                kwargs["num_cpus"] = num_cpus
+            ray.init(**kwargs)
+        self.guard_s = guard_s
+        self.remote_fn = ray.remote(num_cpus=1, max_retries=0)(fn)
+
+    def run(self, jobs: list[Job]) -> Iterator[dict[str, Any]]:
+        ray = self.ray
+        slots = max(1, int(ray.cluster_resources().get("CPU", 1)))
+        queue = list(jobs)
+        in_flight: dict[Any, tuple[Job, float]] = {}
+        while queue or in_flight:
+            while queue and len(in_flight) < slots:
+                job = queue.pop(0)
+                in_flight[self.remote_fn.remote(job)] = (job, time.perf_counter())
+            done, _ = ray.wait(list(in_flight), num_returns=1, timeout=1.0)
+            for ref in done:
+                job, t0 = in_flight.pop(ref)
+                try:
+                    yield ray.get(ref)
+                except Exception as exc:  # noqa: BLE001 - a task that raised or whose worker died
+                    reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
+                    yield failed_result(job, Stage.ERROR, reason, time.perf_counter() - t0)
+            now = time.perf_counter()
+            for ref, (job, t0) in list(in_flight.items()):
+                if now - t0 > self.guard_s:
+                    ray.cancel(ref, force=True)
+                    del in_flight[ref]
+                    yield failed_result(
+                        job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {self.guard_s:g} s", now - t0
+                    )
+
+
+# ----------------------------------------------------------------------------------- result files
+def load_episodes(path: Path) -> list[dict[str, Any]]:
+    """Results already in ``episodes.jsonl``, each (scenario, seed) once.
+
+    A line cut short by a kill is dropped, and the file is rewritten with the good lines only, so
+    that appending after it keeps one object per line.
+    """
+    if not path.exists():
+        return []
+    good: dict[tuple[str, int], dict[str, Any]] = {}
+    for line in path.read_text().splitlines():
+        if not line.strip():
+            continue
+        try:
+            r = json.loads(line)
+            key = (r["scenario"], int(r["seed"]))
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
+            continue
+        good.setdefault(key, r)
+    path.write_text("".join(json.dumps(r, allow_nan=False) + "\n" for r in good.values()))
+    return list(good.values())
+
+
+def append_episode(path: Path, result: dict[str, Any]) -> None:
+    with path.open("a") as fh:
+        fh.write(json.dumps(result, allow_nan=False) + "\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
 def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Per-scenario statistics of result dicts (as in ``episodes.jsonl``)."""
     by_scenario: dict[str, list[dict[str, Any]]] = {}
@@ -86,7 +276,8 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "successes": ok,
             "success_rate": ok / n,
             "success_rate_wilson95": [lo, hi],
-            "failures_by_stage": {s.value: stages.get(s.value, 0) for s in Stage if stages.get(s.value, 0)},
+            "seeds": sorted(r["seed"] for r in rs),
+            "failures_by_stage": {s.value: stages[s.value] for s in Stage if stages.get(s.value)},
             "failed_seeds": sorted(r["seed"] for r in rs if not r["success"]),
             "position_error_mm": _stats([p["position_error_mm"] for p in perc]),
             "yaw_error_deg": _stats([p["yaw_error_deg"] for p in perc if p["yaw_error_deg"] is not None]),
@@ -97,24 +288,15 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     return out
 
 
-@dataclass(frozen=True)
-class Job:
-    scenario_path: str
-    seed: int
-
-
-def run_job(job: Job) -> dict[str, Any]:
-    """Run one episode and return its result dict. Never raises for a bad episode."""
-    from pickdemo.episode import run_episode
-    from pickdemo.scenario import load_scenario
-
-    return run_episode(load_scenario(job.scenario_path), job.seed).to_dict()
-
-
-def run_jobs(jobs: list[Job]) -> Iterator[dict[str, Any]]:
-    """Results in the order they finish (sequential here)."""
-    for job in jobs:
-        yield run_job(job)
+def _seed_ranges(seeds: list[int]) -> str:
+    parts, i = [], 0
+    while i < len(seeds):
+        j = i
+        while j + 1 < len(seeds) and seeds[j + 1] == seeds[j] + 1:
+            j += 1
+        parts.append(str(seeds[i]) if i == j else f"{seeds[i]}-{seeds[j]}")
+        i = j + 1
+    return ",".join(parts)
 
 
 def format_summary(summary: dict[str, dict[str, Any]]) -> str:
@@ -122,29 +304,106 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
     for name, s in summary.items():
         lo, hi = s["success_rate_wilson95"]
         lines.append(
-            f"{name}: {s['successes']}/{s['episodes']} succeeded "
-            f"({100 * s['success_rate']:.1f} %, Wilson 95 % [{100 * lo:.1f}, {100 * hi:.1f}])"
+            f"{name}: {s['successes']}/{s['episodes']} succeeded ({100 * s['success_rate']:.1f} %, "
+            f"Wilson 95 % [{100 * lo:.1f}, {100 * hi:.1f}]) over seeds {_seed_ranges(s['seeds'])}"
         )
         if s["failures_by_stage"]:
-            lines.append(
-                "  failures: "
-                + ", ".join(f"{k} {v}" for k, v in s["failures_by_stage"].items())
-                + f" (seeds {s['failed_seeds']})"
-            )
-        for key, unit in (("position_error_mm", "mm"), ("yaw_error_deg", "deg"), ("place_error_mm", "mm")):
+            by_stage = ", ".join(f"{k} {v}" for k, v in s["failures_by_stage"].items())
+            lines.append(f"  failures: {by_stage} (seeds {s['failed_seeds']})")
+        for key, label, unit in (
+            ("position_error_mm", "pose error", "mm"),
+            ("yaw_error_deg", "yaw error", "deg"),
+            ("place_error_mm", "place error", "mm"),
+        ):
             st = s[key]
             if st:
-                lines.append(
-                    f"  {key[:-3].replace('_', ' ')}: median {st['median']:.3f} {unit}, "
-                    f"p95 {st['p95']:.3f}, max {st['max']:.3f} (n={st['n']})"
-                )
-        wt = s["wall_time_s"]
-        rtf = s["real_time_factor"]
-        lines.append(f"  wall time per episode: median {wt['median']:.2f} s; real-time factor {rtf:.1f}x")
+                med, p95, mx = st["median"], st["p95"], st["max"]
+                lines.append(f"  {label}: median {med:.3f} {unit}, p95 {p95:.3f}, max {mx:.3f} (n={st['n']})")
+        wt, rtf = s["wall_time_s"], s["real_time_factor"]
+        rtf_text = f"{rtf:.1f}x" if rtf is not None else "n/a"
+        lines.append(f"  wall time per episode: median {wt['median']:.2f} s; real-time factor {rtf_text}")
     return "\n".join(lines)
 
 
-def write_jsonl_line(path: Path, result: dict[str, Any]) -> None:
-    with path.open("a") as fh:
-        fh.write(json.dumps(result, allow_nan=False) + "\n")
-        fh.flush()
+def junit_xml(results: Iterable[dict[str, Any]]) -> str:
+    """JUnit XML: one test suite per scenario, one test case per episode, the failure as message."""
+    by_scenario: dict[str, list[dict[str, Any]]] = {}
+    for r in results:
+        by_scenario.setdefault(r["scenario"], []).append(r)
+    root = ET.Element("testsuites", name="pickdemo bench")
+    for name, rs in sorted(by_scenario.items()):
+        rs = sorted(rs, key=lambda r: r["seed"])
+        failures = sum(1 for r in rs if not r["success"])
+        suite = ET.SubElement(
+            root, "testsuite", name=name, tests=str(len(rs)), failures=str(failures), errors="0",
+            time=f"{sum(r['wall_time_s'] for r in rs):.3f}",
+        )  # fmt: skip
+        for r in rs:
+            case = ET.SubElement(
+                suite,
+                "testcase",
+                classname=f"pickdemo.{name}",
+                name=f"seed {r['seed']}",
+                time=f"{r['wall_time_s']:.3f}",
+            )
+            if not r["success"]:
+                f = r["failure"] or {"stage": "unknown", "reason": ""}
+                msg = f"{f['stage']}: {f['reason']}"
+                ET.SubElement(case, "failure", message=msg, type=f["stage"]).text = msg
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+# ------------------------------------------------------------------------------------------ driver
+@dataclass(frozen=True)
+class BenchOutcome:
+    results: list[dict[str, Any]]  # every episode of the batch, resumed ones included
+    summary: dict[str, dict[str, Any]]
+    ran: int  # episodes run by this call
+    skipped: int  # episodes found done already (--resume)
+
+
+def run_bench(
+    jobs: list[Job],
+    executor: LocalExecutor | RayExecutor,
+    *,
+    out_dir: Path | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    on_result: Callable[[dict[str, Any]], None] | None = None,
+) -> BenchOutcome:
+    """Run the jobs not done yet, streaming each result to ``out_dir/episodes.jsonl`` as it finishes."""
+    from tqdm import tqdm
+
+    done: list[dict[str, Any]] = []
+    jsonl = None
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        jsonl = out_dir / "episodes.jsonl"
+        if resume:
+            done = load_episodes(jsonl)
+        elif jsonl.exists() and jsonl.stat().st_size > 0:
+            raise BenchError(f"{jsonl} exists: pass --resume to continue that run, or remove it")
+        else:
+            jsonl.write_text("")
+    wanted = {j.key for j in jobs}
+    done = [r for r in done if (r["scenario"], r["seed"]) in wanted]
+    done_keys = {(r["scenario"], r["seed"]) for r in done}
+    todo = [j for j in jobs if j.key not in done_keys]
+    results = list(done)
+    ok = sum(1 for r in results if r["success"])
+    bar = tqdm(total=len(jobs), initial=len(done), disable=not progress, unit="ep", dynamic_ncols=True,
+               mininterval=0.5 if os.isatty(2) else 10.0)  # fmt: skip
+    try:
+        for r in executor.run(todo):
+            if jsonl is not None:
+                append_episode(jsonl, r)
+            results.append(r)
+            ok += bool(r["success"])
+            bar.update(1)
+            bar.set_postfix_str(f"success {100 * ok / len(results):.1f} %", refresh=False)
+            if on_result is not None:
+                on_result(r)
+    finally:
+        bar.close()
+    return BenchOutcome(results=results, summary=summarise(results), ran=len(results) - len(done), skipped=len(done))

@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from pickdemo.result import EpisodeResult
-from pickdemo.scenario import ScenarioError, list_scenarios, load_scenario, resolve_scenario_path
+from pickdemo.scenario import ScenarioError, list_scenarios, load_scenario, resolve_scenario_path, suite_scenarios
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -37,11 +37,26 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, help="directory to write result.json into")
     run.add_argument("--gui", action="store_true", help="open the PyBullet window (needs a display)")
     run.add_argument("--quiet", action="store_true", help="print only the summary line")
-    bench = sub.add_parser("bench", help="run many seeded episodes and summarise them")
-    bench.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario names or paths")
-    bench.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-49 or 0-9,20 (default 0-19)")
+    bench = sub.add_parser(
+        "bench",
+        help="run many seeded episodes in parallel and gate on the success rate",
+        description="Runs every scenario x seed as an episode in parallel workers, streams each result to "
+        "DIR/episodes.jsonl, prints and writes a summary. Exit 1 when a scenario's success rate is below "
+        "--min-success.",
+    )
+    bench.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="names or paths (default: the suite)")
+    bench.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-199 or 0-9,20 (default 0-19)")
+    bench.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)")
+    bench.add_argument("--min-success", type=float, default=0.0, help="exit 1 if a scenario's success rate is below")
     bench.add_argument("--out", type=Path, help="directory for episodes.jsonl and summary.json")
-    bench.add_argument("--min-success", type=float, default=0.0, help="exit 1 if any scenario's rate is below")
+    bench.add_argument("--junit", type=Path, help="write JUnit XML (one test case per episode) to this file")
+    bench.add_argument("--resume", action="store_true", help="skip the episodes already in DIR/episodes.jsonl")
+    bench.add_argument("--executor", choices=("local", "ray"), default="local", help="worker processes or Ray tasks")
+    bench.add_argument("--address", help="Ray cluster address (default: RAY_ADDRESS, else a local Ray instance)")
+    bench.add_argument(
+        "--episode-timeout", type=float, default=300.0, help="wall-clock guard per episode, s (default 300)"
+    )
+    bench.add_argument("--no-progress", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list the shipped scenarios")
     return parser
 
@@ -99,39 +114,71 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     try:
         seeds = bench.parse_seeds(args.seeds)
-    except ValueError as exc:
+    except bench.BenchError as exc:
         raise UsageError(f"--seeds: {exc}") from None
     if not 0.0 <= args.min_success <= 1.0:
         raise UsageError("--min-success must be in [0, 1]")
-    paths = [str(resolve_scenario_path(s)) for s in args.scenarios]
-    for p in paths:
-        load_scenario(p)  # validate every scenario before running anything
-    jobs = [bench.Job(p, seed) for p in paths for seed in seeds]
-    jsonl = None
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        jsonl = args.out / "episodes.jsonl"
-        jsonl.write_text("")
-    results = []
-    for i, r in enumerate(bench.run_jobs(jobs), 1):
-        results.append(r)
-        if jsonl is not None:
-            bench.write_jsonl_line(jsonl, r)
-        status = "ok  " if r["success"] else f"FAIL {r['failure']['stage']}: {r['failure']['reason']}"
-        pe = r["perception"]["position_error_mm"] if r["perception"] else float("nan")
-        print(
-            f"[{i}/{len(jobs)}] {r['scenario']} seed {r['seed']}: {status} (pose {pe:.2f} mm, "
-            f"{r['wall_time_s']:.2f} s)",
-            flush=True,
+    if args.workers < 1:
+        raise UsageError("--workers must be at least 1")
+    if args.episode_timeout <= 0:
+        raise UsageError("--episode-timeout must be positive")
+    if args.resume and args.out is None:
+        raise UsageError("--resume needs --out DIR (where episodes.jsonl is)")
+    names = args.scenarios or suite_scenarios()
+    if not names:
+        raise UsageError("no scenario given and none is tagged 'suite'")
+    jobs, seen = [], {}
+    for name in names:
+        path = resolve_scenario_path(name)
+        scenario = load_scenario(path)  # validate every scenario before running anything
+        if scenario.name in seen and seen[scenario.name] != path.resolve():
+            raise UsageError(f"two scenarios are named {scenario.name!r}: {seen[scenario.name]} and {path}")
+        seen[scenario.name] = path.resolve()
+        jobs += [bench.Job(str(path.resolve()), scenario.name, seed) for seed in seeds]
+    jobs = list({j.key: j for j in jobs}.values())
+
+    if args.executor == "ray":
+        executor = bench.RayExecutor(args.address, args.episode_timeout, num_cpus=args.workers)
+    else:
+        executor = bench.LocalExecutor(min(args.workers, len(jobs)), args.episode_timeout)
+
+    def on_result(r: dict) -> None:
+        if not r["success"]:
+            from tqdm import tqdm
+
+            tqdm.write(f"FAIL {r['scenario']} seed {r['seed']}: {r['failure']['stage']}: {r['failure']['reason']}")
+
+    print(
+        f"pickdemo bench: {len(names)} scenario(s) x {len(seeds)} seed(s) = {len(jobs)} episodes, "
+        f"{args.executor} executor" + (f", {executor.workers} workers" if args.executor == "local" else ""),
+        flush=True,
+    )
+    t0 = time.perf_counter()
+    try:
+        outcome = bench.run_bench(
+            jobs, executor, out_dir=args.out, resume=args.resume, progress=not args.no_progress, on_result=on_result
         )
-    summary = bench.summarise(results)
-    print(bench.format_summary(summary))
+    except bench.BenchError as exc:
+        raise UsageError(str(exc)) from None
+    elapsed = time.perf_counter() - t0
+    print(bench.format_summary(outcome.summary))
+    print(
+        f"ran {outcome.ran} episode(s) in {elapsed:.1f} s"
+        + (f", {outcome.skipped} already done" if outcome.skipped else "")
+    )
     if args.out is not None:
-        (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    low = [n for n, s in summary.items() if s["success_rate"] < args.min_success]
+        (args.out / "summary.json").write_text(json.dumps(outcome.summary, indent=2) + "\n")
+        print(f"wrote {args.out / 'episodes.jsonl'} and {args.out / 'summary.json'}")
+    if args.junit is not None:
+        args.junit.parent.mkdir(parents=True, exist_ok=True)
+        args.junit.write_text(bench.junit_xml(outcome.results))
+        print(f"wrote {args.junit}")
+    low = [n for n, s in outcome.summary.items() if s["success_rate"] < args.min_success]
     if low:
-        print(f"success rate below {args.min_success:.2f}: {', '.join(low)}")
+        print(f"GATE FAILED: success rate below {args.min_success:.2f} for {', '.join(low)}")
         return EXIT_FAILED
+    if args.min_success > 0:
+        print(f"gate passed: every scenario at or above {args.min_success:.2f}")
     return EXIT_OK
 
 

@@ -215,6 +215,18 @@ def list_scenarios() -> list[str]:
     return sorted(names)
 
 
+def suite_scenarios() -> list[str]:
+    """Names of the shipped scenarios tagged ``suite`` (what ``pickdemo bench`` runs by default)."""
+    out = []
+    for name in list_scenarios():
+        try:
+            if "suite" in load_scenario(name).tags:
+                out.append(name)
+        except ScenarioError:
+            continue
+    return out
+
+
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
     """A path to a file, or the name of a shipped scenario (``pick_cube``)."""
     path = Path(name_or_path)
