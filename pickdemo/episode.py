@@ -20,7 +20,7 @@ import numpy as np
 from pickdemo import robot_model as rm
 from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, plan_grasp
 from pickdemo.kinematics import IKParams, panda_kinematics
-from pickdemo.layout import LayoutError, sample_layout
+from pickdemo.layout import LayoutError, Placement, camera_position, sample_layout
 from pickdemo.metrics import score_perception, score_place
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
 from pickdemo.result import EpisodeFailure, EpisodeResult, Failure, PerceptionScore, Stage
@@ -37,7 +37,7 @@ from pickdemo.trajectory import (
 PhaseCallback = Callable[[str, str], None]
 
 #: Order in which the seed's generators are spawned. Append only: reordering changes every episode.
-RNG_STREAMS = ("layout", "camera", "ik")
+RNG_STREAMS = ("layout", "camera", "ik", "camera_pose")
 
 MAX_ATTEMPTS = 2  # a missed grasp is retried once, from a fresh look at the scene
 
@@ -71,9 +71,10 @@ class _Timer:
             self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - t0
 
 
-def target_model(scenario: Scenario) -> TargetModel:
-    t = scenario.target
-    return TargetModel(shape=t.shape, size=tuple(t.size), color=tuple(t.color))
+def target_model(scenario: Scenario, placement: Placement) -> TargetModel:
+    """What the task tells the robot about an object: shape, size (as placed) and colour."""
+    spec = next(o for o in scenario.objects if o.name == placement.name)
+    return TargetModel(shape=spec.shape, size=tuple(placement.size), color=tuple(spec.color))
 
 
 def run_episode(
@@ -97,7 +98,6 @@ def run_episode(
     timer = _Timer()
     wall0 = time.perf_counter()
     rngs = spawn_rngs(seed)
-    model = target_model(scenario)
     record: dict[str, Any] = {
         "perception": None,
         "place_error_mm": None,
@@ -113,13 +113,19 @@ def run_episode(
         say(name, msg)
 
     try:
+        if len(scenario.targets) != 1:
+            raise EpisodeFailure(
+                Stage.ERROR, f"a pick needs exactly one target; the scenario has {len(scenario.targets)}"
+            )
         try:
             layout = sample_layout(scenario, rngs["layout"])
         except LayoutError as exc:
             raise EpisodeFailure(Stage.ERROR, str(exc)) from None
+        placement = next(p for p in layout if p.name == scenario.target.name)
+        model = target_model(scenario, placement)
         with timer("scene"):
             scene = Scene(scenario, layout, gui=options.gui)
-        camera = Camera(scenario.camera, rngs["camera"])
+        camera = Camera(scenario.camera, rngs["camera"], position=camera_position(scenario.camera, rngs["camera_pose"]))
         max_steps = int(round(scenario.sim.max_sim_time_s / scene.time_step_s))
         ctl = Controller(scene, max_steps=max_steps)
         kin = panda_kinematics()
@@ -267,7 +273,7 @@ def run_episode(
                 final=final,
                 final_speed_m_s=scene.true_speed(target_name),
                 place_xy=scenario.place.position,
-                height_m=scenario.target.height_m,
+                height_m=placement.height_m,
                 lift_height_m=scenario.success.lift_height,
                 place_tolerance_m=scenario.success.place_tolerance,
             )

@@ -1,7 +1,10 @@
-"""Where each object of a scenario starts: sampled from the scenario's ranges with the scene's RNG.
+"""Where each object of a scenario starts, its size, and where the camera stands: sampled from the
+scenario's ranges with the scene's RNG.
 
 Pure: no simulator. Objects are placed in file order; an object that would overlap one already
-placed is re-drawn (a bounded number of times), so a seed always gives the same layout.
+placed is re-drawn (a bounded number of times), so a seed always gives the same layout. A draw is
+made only for what the scenario leaves open, so adding a range to one key does not change the other
+keys' draws of a scenario that does not use it.
 """
 
 from __future__ import annotations
@@ -11,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo.geometry import Pose
-from pickdemo.scenario import ObjectSpec, Scenario
+from pickdemo.scenario import CameraSpec, ObjectSpec, Scenario
 
 MAX_DRAWS = 200
 
@@ -24,43 +27,85 @@ class LayoutError(ValueError):
 class Placement:
     name: str
     pose: Pose  # world pose of the object's centre
+    size: tuple[float, ...]  # box: x, y, z; cylinder: diameter, height (m)
+    shape: str
+
+    @property
+    def height_m(self) -> float:
+        return self.size[2] if self.shape == "box" else self.size[1]
 
 
-def footprint_radius_m(obj: ObjectSpec) -> float:
+def footprint_radius_m(shape: str, size: tuple[float, ...]) -> float:
     """Radius of the circle that holds the object's footprint on the table."""
-    if obj.shape == "box":
-        return 0.5 * float(np.hypot(obj.size[0], obj.size[1]))
-    return 0.5 * obj.size[0]
+    if shape == "box":
+        return 0.5 * float(np.hypot(size[0], size[1]))
+    return 0.5 * size[0]
 
 
-def _draw(obj: ObjectSpec, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+def resting_height_m(shape: str, size: tuple[float, ...], rotation: np.ndarray) -> float:
+    """Height of the centre of an object whose lowest point touches the table z = 0."""
+    if shape == "box":
+        return 0.5 * float(np.abs(rotation[2]) @ np.asarray(size))
+    axis_z = abs(float(rotation[2, 2]))
+    return 0.5 * (size[1] * axis_z + size[0] * float(np.sqrt(max(1.0 - axis_z**2, 0.0))))
+
+
+def _angle(fixed: float | None, rng_range: tuple[float, float] | None, rng: np.random.Generator) -> float:
+    if fixed is not None:
+        return float(np.radians(fixed))
+    if rng_range is not None:
+        return float(np.radians(rng.uniform(*rng_range)))
+    return 0.0
+
+
+def _size(obj: ObjectSpec, rng: np.random.Generator) -> tuple[float, ...]:
+    if obj.size is not None:
+        return tuple(obj.size)
+    return tuple(float(rng.uniform(lo, hi)) for lo, hi in obj.size_range)  # type: ignore[union-attr]
+
+
+def _draw(obj: ObjectSpec, rng: np.random.Generator) -> tuple[np.ndarray, float, float, float]:
     if obj.position is not None:
-        xy = np.array(obj.position, dtype=float)
+        xy = np.array(obj.position[:2], dtype=float)
     else:
         (x0, x1), (y0, y1) = obj.position_range  # type: ignore[misc]
         xy = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
-    if obj.yaw_deg is not None:
-        yaw = np.radians(obj.yaw_deg)
-    elif obj.yaw_range_deg is not None:
-        yaw = np.radians(rng.uniform(*obj.yaw_range_deg))
-    else:
-        yaw = 0.0
-    return xy, float(yaw)
+    yaw = _angle(obj.yaw_deg, obj.yaw_range_deg, rng)
+    pitch = _angle(obj.pitch_deg, obj.pitch_range_deg, rng)
+    roll = _angle(obj.roll_deg, obj.roll_range_deg, rng)
+    return xy, yaw, pitch, roll
 
 
 def sample_layout(scenario: Scenario, rng: np.random.Generator) -> tuple[Placement, ...]:
-    """Start poses of all objects, resting on the table (z = half their height)."""
+    """Start poses and sizes of all objects, resting on the table unless a centre height is given."""
     placed: list[tuple[np.ndarray, float]] = []
     out: list[Placement] = []
     for obj in scenario.objects:
-        r = footprint_radius_m(obj)
+        size = _size(obj, rng)
+        r = footprint_radius_m(obj.shape, size)
         for _ in range(MAX_DRAWS):
-            xy, yaw = _draw(obj, rng)
+            xy, yaw, pitch, roll = _draw(obj, rng)
+            if obj.position is not None:  # a fixed spot: the scenario's author answers for the spacing
+                break
             if all(np.linalg.norm(xy - q) >= r + rq + scenario.layout.clearance_m for q, rq in placed):
                 break
         else:
             raise LayoutError(f"objects.{obj.name}: no free spot found in {MAX_DRAWS} draws")
         placed.append((xy, r))
-        pose = Pose.from_xyz_rpy(np.array([xy[0], xy[1], obj.height_m / 2.0]), yaw=yaw)
-        out.append(Placement(name=obj.name, pose=pose))
+        pose = Pose.from_xyz_rpy(np.array([xy[0], xy[1], 0.0]), roll=roll, pitch=pitch, yaw=yaw)
+        z = obj.position[2] if obj.position is not None and len(obj.position) == 3 else None
+        if z is None:
+            z = resting_height_m(obj.shape, size, pose.rotation)
+        out.append(Placement(obj.name, Pose(np.array([xy[0], xy[1], z]), pose.rotation), size, obj.shape))
     return tuple(out)
+
+
+def camera_position(spec: CameraSpec, rng: np.random.Generator) -> np.ndarray:
+    """Where the camera stands: the scenario's position, or one drawn around ``look_at``."""
+    if not spec.sampled:
+        return np.array(spec.position, dtype=float)
+    d = rng.uniform(*spec.distance_range_m)  # type: ignore[misc]
+    el = np.radians(rng.uniform(*spec.elevation_range_deg))  # type: ignore[misc]
+    az = np.radians(rng.uniform(*spec.azimuth_range_deg))  # type: ignore[misc]
+    offset = d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    return np.asarray(spec.look_at, dtype=float) + offset

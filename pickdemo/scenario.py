@@ -45,6 +45,10 @@ class CameraSpec(_Model):
         43.0,
     )  # horizontal, vertical
     depth_noise: Literal["none", "kinect"] = "kinect"
+    # Instead of a fixed position: sampled around look_at per seed (all three, or none).
+    distance_range_m: tuple[PositiveFloat, PositiveFloat] | None = None
+    elevation_range_deg: tuple[float, float] | None = None  # above the table plane
+    azimuth_range_deg: tuple[float, float] | None = None  # about world z, 0 = from +x
     near_m: PositiveFloat = 0.1
     far_m: PositiveFloat = 3.0
 
@@ -54,7 +58,21 @@ class CameraSpec(_Model):
             raise ValueError("look_at must differ from position")
         if self.far_m <= self.near_m:
             raise ValueError("far_m must exceed near_m")
+        ranges = (self.distance_range_m, self.elevation_range_deg, self.azimuth_range_deg)
+        if any(r is not None for r in ranges) and any(r is None for r in ranges):
+            raise ValueError("give all of distance_range_m, elevation_range_deg, azimuth_range_deg, or none")
+        for r in ranges:
+            if r is not None and r[0] > r[1]:
+                raise ValueError("camera ranges must be [min, max]")
+        if self.elevation_range_deg is not None and not (
+            0 < self.elevation_range_deg[0] and self.elevation_range_deg[1] < 90
+        ):
+            raise ValueError("elevation_range_deg must lie in (0, 90)")
         return self
+
+    @property
+    def sampled(self) -> bool:
+        return self.distance_range_m is not None
 
 
 class TableSpec(_Model):
@@ -66,48 +84,75 @@ class TableSpec(_Model):
     friction: Annotated[float, Field(ge=0.0)] = 0.8
 
 
+class ReferenceSpec(_Model):
+    """Published figures to show beside ours (for example a row of the paper's Tables 1 and 2)."""
+
+    label: str = ""
+    position_error_mm: Annotated[float, Field(ge=0.0)]
+    yaw_error_deg: Annotated[float, Field(ge=0.0)]
+    pitch_error_deg: Annotated[float, Field(ge=0.0)] = 0.0
+    roll_error_deg: Annotated[float, Field(ge=0.0)] = 0.0
+
+
 class ObjectSpec(_Model):
-    """One object on the table: a box or an upright cylinder."""
+    """One object on the table: a box or a cylinder (upright unless tilted)."""
 
     name: Annotated[str, Field(min_length=1)]
     shape: Literal["box", "cylinder"]
-    size: tuple[PositiveFloat, ...]  # box: x, y, z extents; cylinder: diameter, height (m)
+    size: tuple[PositiveFloat, ...] | None = None  # box: x, y, z extents; cylinder: diameter, height (m)
+    size_range: tuple[tuple[PositiveFloat, PositiveFloat], ...] | None = None  # per dimension: [min, max]
     color: tuple[UnitFloat, UnitFloat, UnitFloat]
     mass: PositiveFloat = 0.1  # kg
     friction: Annotated[float, Field(ge=0.0)] = 0.9
-    position: Vec2 | None = None  # m, x, y on the table
+    position: tuple[float, float] | tuple[float, float, float] | None = None  # m: x, y (and centre z)
     position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
     yaw_deg: float | None = None
     yaw_range_deg: Vec2 | None = None
+    pitch_deg: float | None = None
+    pitch_range_deg: Vec2 | None = None
+    roll_deg: float | None = None
+    roll_range_deg: Vec2 | None = None
+    static: bool = False  # held where it is placed (no gravity): for tilted objects in perception tests
     target: bool = False
+    reference: ReferenceSpec | None = None  # published errors for this object, shown by `perceive`
 
-    @field_validator("size")
+    @field_validator("size", "size_range")
     @classmethod
-    def _check_size(cls, size: tuple[float, ...], info: ValidationInfo) -> tuple[float, ...]:
+    def _check_size(cls, size: tuple | None, info: ValidationInfo) -> tuple | None:
+        if size is None:
+            return size
         shape = info.data.get("shape")
         expected = {"box": 3, "cylinder": 2}.get(shape or "", len(size))
         if len(size) != expected:
             what = "x, y, z extents" if shape == "box" else "diameter, height"
             raise ValueError(f"a {shape} needs {expected} values ({what}), got {len(size)}")
+        if info.field_name == "size_range" and any(lo > hi for lo, hi in size):
+            raise ValueError("each size_range entry must be [min, max]")
         return size
 
     @model_validator(mode="after")
     def _check(self) -> ObjectSpec:
+        if (self.size is None) == (self.size_range is None):
+            raise ValueError("give exactly one of size, size_range")
         if (self.position is None) == (self.position_range is None):
             raise ValueError("give exactly one of position, position_range")
-        if self.yaw_deg is not None and self.yaw_range_deg is not None:
-            raise ValueError("give at most one of yaw_deg, yaw_range_deg")
+        for fixed, rng, name in (
+            (self.yaw_deg, self.yaw_range_deg, "yaw"),
+            (self.pitch_deg, self.pitch_range_deg, "pitch"),
+            (self.roll_deg, self.roll_range_deg, "roll"),
+        ):
+            if fixed is not None and rng is not None:
+                raise ValueError(f"give at most one of {name}_deg, {name}_range_deg")
+            if rng is not None and rng[0] > rng[1]:
+                raise ValueError(f"{name}_range_deg must be [min, max]")
+        tilted = any(v for v in (self.pitch_deg, self.roll_deg, self.pitch_range_deg, self.roll_range_deg))
+        if tilted and not self.static:
+            raise ValueError("a tilted object needs static = true (it would fall over)")
         if self.position_range is not None:
             for lo, hi in self.position_range:
                 if lo > hi:
                     raise ValueError("position_range bounds must be [min, max]")
-        if self.yaw_range_deg is not None and self.yaw_range_deg[0] > self.yaw_range_deg[1]:
-            raise ValueError("yaw_range_deg must be [min, max]")
         return self
-
-    @property
-    def height_m(self) -> float:
-        return self.size[2] if self.shape == "box" else self.size[1]
 
 
 class PlaceSpec(_Model):
@@ -156,8 +201,8 @@ class Scenario(_Model):
         if not self.objects:
             raise ValueError("at least one object is needed")
         targets = [o for o in self.objects if o.target]
-        if len(targets) != 1:
-            raise ValueError(f"exactly one object must have target = true, found {len(targets)}")
+        if not targets:
+            raise ValueError("one object must have target = true")
         names = [o.name for o in self.objects]
         if len(set(names)) != len(names):
             raise ValueError("object names must be unique")
@@ -165,7 +210,13 @@ class Scenario(_Model):
 
     @property
     def target(self) -> ObjectSpec:
+        """The target of a pick (the first object marked as one)."""
         return next(o for o in self.objects if o.target)
+
+    @property
+    def targets(self) -> tuple[ObjectSpec, ...]:
+        """Every object marked as a target (perception evaluates them all; a pick needs exactly one)."""
+        return tuple(o for o in self.objects if o.target)
 
 
 def _format_loc(loc: tuple[int | str, ...], data: object) -> str:

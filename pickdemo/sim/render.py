@@ -47,10 +47,12 @@ def camera_intrinsics(spec: CameraSpec) -> Intrinsics:
 class Camera:
     """A fixed RGB-D camera placed by the scenario."""
 
-    def __init__(self, spec: CameraSpec, rng: np.random.Generator) -> None:
+    def __init__(self, spec: CameraSpec, rng: np.random.Generator, *, position: np.ndarray | None = None) -> None:
+        """``position`` overrides the scenario's (for a camera placement sampled per seed)."""
         self.spec = spec
         self.intrinsics = camera_intrinsics(spec)
-        self.T_world_cam: Pose = look_at_pose(np.array(spec.position), np.array(spec.look_at))
+        where = np.array(spec.position) if position is None else np.asarray(position, dtype=float)
+        self.T_world_cam: Pose = look_at_pose(where, np.array(spec.look_at))
         self._view = opengl_view_matrix(self.T_world_cam)
         self._proj = opengl_projection_matrix(self.intrinsics, spec.near_m, spec.far_m)
         self._rng = rng

@@ -85,7 +85,7 @@ class Scene:
         self._build_robot()
         specs = {o.name: o for o in scenario.objects}
         for placement in layout:
-            self._build_object(specs[placement.name], placement.pose)
+            self._build_object(specs[placement.name], placement)
 
     # ----------------------------------------------------------------------------------- building
     def _build_table(self) -> None:
@@ -130,14 +130,14 @@ class Scene:
             robot, self.finger_joints, p.POSITION_CONTROL, targetPositions=[rm.FINGER_MAX_M] * 2, forces=[20.0, 20.0]
         )
 
-    def _build_object(self, spec: ObjectSpec, pose: Pose) -> None:
-        c = self.client
+    def _build_object(self, spec: ObjectSpec, placement: Placement) -> None:
+        c, pose, size = self.client, placement.pose, placement.size
         if spec.shape == "box":
-            half = [s / 2.0 for s in spec.size]
+            half = [s / 2.0 for s in size]
             col = c.createCollisionShape(p.GEOM_BOX, halfExtents=half)
             vis = c.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[*spec.color, 1.0])
         else:
-            radius, height = spec.size[0] / 2.0, spec.size[1]
+            radius, height = size[0] / 2.0, size[1]
             col = c.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=height)
             # PyBullet's own cylinder visual renders 1 mm taller than its collision shape (measured)
             # and smooth-shades the rim; a mesh of the exact size with flat caps renders true.
@@ -145,8 +145,9 @@ class Scene:
             vis = c.createVisualShape(
                 p.GEOM_MESH, vertices=verts, normals=normals, indices=indices, rgbaColor=[*spec.color, 1.0]
             )
+        mass = 0.0 if spec.static else spec.mass  # a static body stays where it is put
         body = c.createMultiBody(
-            spec.mass, col, vis, basePosition=list(pose.position), baseOrientation=list(pose.quaternion_xyzw)
+            mass, col, vis, basePosition=list(pose.position), baseOrientation=list(pose.quaternion_xyzw)
         )
         c.changeDynamics(body, -1, lateralFriction=spec.friction, spinningFriction=0.001, rollingFriction=0.0001)
         self.bodies[spec.name] = body

@@ -1,0 +1,216 @@
+"""Perception only, measured: ``python -m pickdemo perceive SCENARIO --seeds 0-99 [--methods ...]``.
+
+Each seed's scene is built and rendered once (no arm motion); every method sees that same frame and
+estimates every target's pose; each estimate is scored against the truth (position error, 3-D and
+per axis; yaw, pitch, roll errors modulo the object's symmetry; the position NEES, which averages 3
+when the reported covariance is honest; the method's own time, rendering excluded).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pickdemo.baselines import METHODS as BASELINES
+from pickdemo.evaluation import pose_errors
+from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel, estimate_pose
+from pickdemo.scenario import Scenario
+
+MethodFn = Callable[..., PoseEstimate]
+METHODS: dict[str, MethodFn] = {"paper": estimate_pose, **BASELINES}
+ORIENTED = {"paper", "centroid", "icp"}  # pixel gives a position only
+
+ERROR_KEYS = (
+    "position_error_mm",
+    "x_error_mm",
+    "y_error_mm",
+    "z_error_mm",
+    "feature_point_error_mm",
+    "yaw_error_deg",
+    "pitch_error_deg",
+    "roll_error_deg",
+)
+
+
+def perceive_seed(scenario: Scenario, seed: int, methods: list[str]) -> list[dict[str, Any]]:
+    """One sample per method and target for one seed."""
+    from pickdemo.episode import spawn_rngs, target_model
+    from pickdemo.layout import camera_position, sample_layout
+    from pickdemo.sim.render import Camera
+    from pickdemo.sim.scene import Scene
+
+    rngs = spawn_rngs(seed)
+    layout = sample_layout(scenario, rngs["layout"])
+    with Scene(scenario, layout) as scene:
+        if any(not o.static for o in scenario.objects):
+            scene.step(120)  # let what is not held come to rest
+        camera = Camera(scenario.camera, rngs["camera"], position=camera_position(scenario.camera, rngs["camera_pose"]))
+        frame = camera.capture(scene)
+        truths = {t.name: scene.true_pose(t.name) for t in scenario.targets}  # truth: scoring only
+    distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))
+    samples = []
+    for spec in scenario.targets:
+        placement = next(p for p in layout if p.name == spec.name)
+        model = target_model(scenario, placement)
+        truth = truths[spec.name]
+        for name in methods:
+            t0 = time.perf_counter()
+            try:
+                est = METHODS[name](frame, model)
+                error = None
+            except PerceptionError as exc:
+                est, error = None, str(exc)
+            elapsed_ms = (time.perf_counter() - t0) * 1e3
+            sample: dict[str, Any] = {"method": name, "seed": seed, "target": spec.name, "time_ms": elapsed_ms,
+                                      "camera_distance_m": distance, "failure": error}  # fmt: skip
+            if est is None:
+                sample.update({k: None for k in ERROR_KEYS}, nees=None)
+            else:
+                sample.update(_score(est, truth, model, oriented=name in ORIENTED))
+            if spec.reference is not None:
+                sample["reference"] = spec.reference.model_dump()
+            samples.append(sample)
+    return samples
+
+
+def _score(est: PoseEstimate, truth, model: TargetModel, *, oriented: bool) -> dict[str, Any]:
+    errs = pose_errors(est.pose, truth, est.yaw_symmetry_rad, has_orientation=oriented)
+    e = est.pose.position - truth.position
+    nees = float(e @ np.linalg.solve(est.position_cov, e)) if np.all(np.isfinite(est.position_cov)) else None
+    # The paper's "main feature point": the centre of the top face.
+    half = model.height_m / 2.0
+    top_est = est.pose.position + (est.pose.rotation[:, 2] * half if oriented else np.array([0.0, 0.0, half]))
+    top_true = truth.position + truth.rotation[:, 2] * half
+    return {
+        **errs,
+        "feature_point_error_mm": float(np.linalg.norm(top_est - top_true) * 1e3),
+        "nees": nees,
+        "estimated_pose": est.pose.to_dict(),
+        "true_pose": truth.to_dict(),
+    }
+
+
+def iter_samples(scenario: Scenario, seeds: list[int], methods: list[str]) -> Iterator[list[dict[str, Any]]]:
+    for seed in seeds:
+        yield perceive_seed(scenario, seed, methods)
+
+
+def _stats(values: list[float]) -> dict[str, float] | None:
+    v = np.asarray([x for x in values if x is not None], dtype=float)
+    if len(v) == 0:
+        return None
+    return {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)), "max": float(v.max()),
+            "mean": float(v.mean()), "n": int(len(v))}  # fmt: skip
+
+
+def summarise(samples: list[dict[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for method in dict.fromkeys(s["method"] for s in samples):
+        ms = [s for s in samples if s["method"] == method]
+        nees = [s["nees"] for s in ms if s["nees"] is not None]
+        out[method] = {
+            "samples": len(ms),
+            "failures": sum(1 for s in ms if s["failure"]),
+            **{k: _stats([s[k] for s in ms]) for k in ERROR_KEYS},
+            "nees_mean": float(np.mean(nees)) if nees else None,
+            "nees_in_band": (1.5 <= float(np.mean(nees)) <= 6.0) if nees else None,
+            "time_ms": _stats([s["time_ms"] for s in ms]),
+        }
+    return out
+
+
+def _fmt(st: dict[str, float] | None, digits: int = 2) -> str:
+    if st is None:
+        return "-"
+    return f"{st['median']:.{digits}f} / {st['p95']:.{digits}f} / {st['max']:.{digits}f}"
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    head = (f"{'method':<9} {'3-D mm (med/p95/max)':<22} {'x / y / z mm (median)':<22} {'yaw deg':<20} "
+            f"{'pitch deg':<20} {'roll deg':<20} {'NEES':>6} {'ms':>6} fail")  # fmt: skip
+    lines = [head, "-" * len(head)]
+    for method, s in summary.items():
+        axes = " / ".join(
+            "-" if s[k] is None else f"{s[k]['median']:.2f}" for k in ("x_error_mm", "y_error_mm", "z_error_mm")
+        )
+        nees = "-" if s["nees_mean"] is None else f"{s['nees_mean']:.2f}"
+        lines.append(
+            f"{method:<9} {_fmt(s['position_error_mm']):<22} {axes:<22} {_fmt(s['yaw_error_deg']):<20} "
+            f"{_fmt(s['pitch_error_deg']):<20} {_fmt(s['roll_error_deg']):<20} {nees:>6} "
+            f"{s['time_ms']['median']:>6.2f} {s['failures']}"
+        )
+    lines.append("NEES: mean normalised squared position error; 3 when the reported covariance matches the errors.")
+    return "\n".join(lines)
+
+
+def format_reference_rows(samples: list[dict[str, Any]], method: str = "paper") -> str | None:
+    """Row by row, the reference's errors (the paper's) beside ours, for targets that carry one."""
+    rows = [s for s in samples if s["method"] == method and s.get("reference")]
+    if not rows:
+        return None
+    by_target: dict[str, list[dict[str, Any]]] = {}
+    for s in rows:
+        by_target.setdefault(s["target"], []).append(s)
+    lines = [f"{'target':<10} {'reference':<24} {'3-D mm: ref / ours (median over seeds)':<40} "
+             f"{'yaw deg: ref / ours':<22} {'pitch deg':<18} {'roll deg':<18}"]  # fmt: skip
+    for target, ss in by_target.items():
+        ref = ss[0]["reference"]
+
+        def med(key: str, ss: list[dict[str, Any]] = ss) -> float:
+            return float(np.median([s[key] for s in ss if s[key] is not None]))
+
+        lines.append(
+            f"{target:<10} {ref.get('label', ''):<24} "
+            f"{ref['position_error_mm']:>6.2f} / {med('feature_point_error_mm'):<31.3f} "
+            f"{ref['yaw_error_deg']:>5.2f} / {med('yaw_error_deg'):<14.3f} "
+            f"{ref['pitch_error_deg']:>4.2f} / {med('pitch_error_deg'):<9.3f} "
+            f"{ref['roll_error_deg']:>4.2f} / {med('roll_error_deg'):<9.3f}"
+        )
+    return "\n".join(lines)
+
+
+def write_plot(samples: list[dict[str, Any]], path: Path, title: str) -> bool:
+    """Error per method (like the paper's Fig. 2): 3-D position error and yaw error. False without matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    methods = list(dict.fromkeys(s["method"] for s in samples))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    for ax, key, label in ((axes[0], "position_error_mm", "3-D position error (mm)"),
+                           (axes[1], "yaw_error_deg", "yaw error (deg)")):  # fmt: skip
+        data, names = [], []
+        for m in methods:
+            vals = [s[key] for s in samples if s["method"] == m and s[key] is not None]
+            if vals:
+                data.append(vals)
+                names.append(m)
+        if data:
+            ax.boxplot(data, showfliers=True)
+            ax.set_xticks(range(1, len(names) + 1), names)
+            ax.set_yscale("log")
+        ax.set_ylabel(label)
+        ax.grid(True, which="both", alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return True
+
+
+def write_outputs(out_dir: Path, samples: list[dict[str, Any]], summary: dict[str, Any], title: str) -> list[Path]:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = [out_dir / "perception.json"]
+    written[0].write_text(json.dumps({"samples": samples, "summary": summary}, indent=1, allow_nan=False) + "\n")
+    plot = out_dir / "perception.png"
+    if write_plot(samples, plot, title):
+        written.append(plot)
+    return written
