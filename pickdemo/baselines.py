@@ -46,7 +46,7 @@ def _segment(frame: RGBDFrame, model: TargetModel, params: PerceptionParams):
     x0, y0, x1, y1 = _target_roi(frame, model, params)
     f = crop_frame(frame, x0, y0, x1, y1)
     pts = world_points(f)
-    mask = segment_target(f, model, params, pts)
+    mask = segment_target(f, model, params, pts[..., 2])
     cloud = pts[mask]
     cloud = cloud[np.all(np.isfinite(cloud), axis=1)]
     if len(cloud) < 10:

@@ -41,6 +41,8 @@ from pickdemo.geometry import Pose
 MIXTURE_KERNEL = np.array([[1.0, 2.0, 1.0], [2.0, 4.0, 2.0], [1.0, 2.0, 1.0]]) / 16.0
 #: The paper's feature-location uncertainty (eq. 14): one pixel.
 SIGMA_UV_PX = 1.0
+#: Smallest position uncertainty reported in any direction (see estimate_pose), m.
+MODEL_FLOOR_M = 20e-6
 #: Constant colour deviation sigma_c of eq. (12), in 8-bit units.
 SIGMA_COLOR = 2.0
 
@@ -61,6 +63,8 @@ class PerceptionParams:
     feature_min_distance_px: int = 3
     face_color_tol: float = 12.0  # 8-bit units: how far a top-face pixel's colour may stray
     face_depth_sigmas: float = 3.0
+    edge_sigma_px: float = 1.0  # an outline point's location uncertainty (the paper's sigma_u = 1 px)
+    fit_points: int = 2500  # depth points in the 6-DoF fit at most (a regular thinning beyond)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.color_cos_min <= 1.0:
@@ -170,6 +174,16 @@ def point_covariance(
 
 
 # -------------------------------------------------------------------------------------- segmentation
+def world_heights(frame: RGBDFrame) -> np.ndarray:
+    """(H, W) world z of every pixel (nan where there is no depth): z is linear in the depth."""
+    K, T = frame.intrinsics, frame.T_world_cam
+    h, w = frame.depth_m.shape
+    r = T.rotation[2]
+    slope = r[0] * (np.arange(w) - K.cx)[None, :] / K.fx + r[1] * (np.arange(h) - K.cy)[:, None] / K.fy + r[2]
+    depth = np.where(np.isfinite(frame.depth_m), frame.depth_m, np.nan)
+    return depth * slope + T.position[2]
+
+
 def world_points(frame: RGBDFrame) -> np.ndarray:
     """(H, W, 3) world coordinates of every pixel (nan where there is no depth)."""
     depth = np.where(np.isfinite(frame.depth_m), frame.depth_m, np.nan)
@@ -187,9 +201,12 @@ def color_match(rgb: np.ndarray, color: tuple[float, float, float], cos_min: flo
     return (cos >= cos_min) & (norm > 20.0)
 
 
-def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParams, pts_world: np.ndarray) -> np.ndarray:
-    """Binary mask of the target: above the table, of its colour, the largest such blob."""
-    above = np.nan_to_num(pts_world[..., 2], nan=-1.0) > params.min_height_m
+def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParams, z_world: np.ndarray) -> np.ndarray:
+    """Binary mask of the target: above the table, of its colour, the largest such blob.
+
+    ``z_world`` is the (H, W) world height of every pixel (:func:`world_heights`).
+    """
+    above = np.nan_to_num(z_world, nan=-1.0) > params.min_height_m
     mask = (above & color_match(frame.rgb, model.color, params.color_cos_min)).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n <= 1:
@@ -200,13 +217,13 @@ def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     return labels == best
 
 
-def top_face_mask(frame: RGBDFrame, mask: np.ndarray, pts_world: np.ndarray, params: PerceptionParams) -> np.ndarray:
+def top_face_mask(frame: RGBDFrame, mask: np.ndarray, z_world: np.ndarray, params: PerceptionParams) -> np.ndarray:
     """The target's top face: the region of one uniform colour that holds its highest points.
 
     Flat faces under a directional light render in one colour each, so the face's edges are crisp
     in RGB (which has no noise) where they would be blurred in depth.
     """
-    z = pts_world[..., 2]
+    z = z_world
     zs = z[mask]
     zs = zs[np.isfinite(zs)]
     top = np.quantile(zs, 0.9)
@@ -258,28 +275,35 @@ def measure_features(
     K = frame.intrinsics
     R = frame.T_world_cam.rotation
     # Eqs. (11)-(12) for each channel, over the whole (cropped) image at once.
-    colour = [mixture_moments(frame.rgb[..., ch].astype(np.float64), SIGMA_COLOR**2) for ch in range(3)]
+    if len(uv) == 0:
+        return ()
+    iu = np.round(uv[:, 0]).astype(int)
+    iv = np.round(uv[:, 1]).astype(int)
+    ok = (iu >= 1) & (iu < K.width - 1) & (iv >= 1) & (iv < K.height - 1)
+    uv, iu, iv = uv[ok], iu[ok], iv[ok]
+    z, vz = mu_z[iv, iu], var_z[iv, iu]
+    ok = np.isfinite(z) & np.isfinite(vz)
+    uv, iu, iv, z, vz = uv[ok], iu[ok], iv[ok], z[ok], vz[ok]
+    # Eqs. (11)-(12) for r, g, b over each feature's 3x3 window.
+    dv, du = np.mgrid[-1:2, -1:2]
+    win = frame.rgb[iv[:, None, None] + dv, iu[:, None, None] + du].astype(np.float64)  # (N, 3, 3, 3)
+    col = np.einsum("ij,nijc->nc", MIXTURE_KERNEL, win)
+    col_var = np.maximum(np.einsum("ij,nijc->nc", MIXTURE_KERNEL, SIGMA_COLOR**2 + win * win) - col * col, 0.0)
+    mean_cam = np.column_stack([z * (uv[:, 0] - K.cx) / K.fx, z * (uv[:, 1] - K.cy) / K.fy, z])
+    mean_world = frame.T_world_cam.transform_points(mean_cam)
+    shift = np.array(offset, dtype=np.float64)
     out = []
-    for u, v in uv:
-        iu, iv = int(round(u)), int(round(v))
-        if not (1 <= iu < K.width - 1 and 1 <= iv < K.height - 1):
-            continue
-        z, vz = float(mu_z[iv, iu]), float(var_z[iv, iu])
-        if not np.isfinite(z) or not np.isfinite(vz):
-            continue
-        col = [float(m[iv, iu]) for m, _ in colour]
-        col_var = [float(sv[iv, iu]) for _, sv in colour]
-        mean_cam = np.array([z * (u - K.cx) / K.fx, z * (v - K.cy) / K.fy, z])
-        cov_cam = point_covariance(u, v, z, vz, K.fx, K.fy, K.cx, K.cy)
+    for n in range(len(z)):
+        cov_cam = point_covariance(uv[n, 0], uv[n, 1], z[n], vz[n], K.fx, K.fy, K.cx, K.cy)
         out.append(
             FeaturePoint(
-                uv=np.array([u + offset[0], v + offset[1]]),
-                mean_cam=mean_cam,
+                uv=uv[n] + shift,
+                mean_cam=mean_cam[n],
                 cov_cam=cov_cam,
-                mean_world=frame.T_world_cam.transform_points(mean_cam[None])[0],
+                mean_world=mean_world[n],
                 cov_world=R @ cov_cam @ R.T,
-                rgb=np.array(col),
-                rgb_var=np.array(col_var),
+                rgb=col[n],
+                rgb_var=col_var[n],
             )
         )
     return tuple(out)
@@ -344,6 +368,25 @@ def outline_pixels(mask: np.ndarray) -> np.ndarray:
     if np.mean(np.sum((c - c.mean(axis=0)) * normal, axis=1)) < 0:
         normal = -normal
     return c + 0.5 * normal
+
+
+def unoccluded(
+    outline_uv: np.ndarray, depth_m: np.ndarray, face_depth_m: float, *, step_px: float = 2.5, margin_m: float = 0.005
+) -> np.ndarray:
+    """Which outline points are the face's own edge, not the edge of something in front of it.
+
+    Just outside an occluded stretch of outline lies a surface nearer the camera than the face.
+    """
+    c = np.round(outline_uv).astype(int)
+    centre = c.mean(axis=0)
+    out_dir = outline_uv - centre
+    out_dir /= np.maximum(np.linalg.norm(out_dir, axis=1, keepdims=True), 1e-9)
+    probe = np.round(outline_uv + step_px * out_dir).astype(int)
+    h, w = depth_m.shape
+    probe[:, 0] = np.clip(probe[:, 0], 0, w - 1)
+    probe[:, 1] = np.clip(probe[:, 1], 0, h - 1)
+    d = depth_m[probe[:, 1], probe[:, 0]]
+    return ~(np.isfinite(d) & (d < face_depth_m - margin_m))
 
 
 def crop_frame(frame: RGBDFrame, x0: int, y0: int, x1: int, y1: int) -> RGBDFrame:
@@ -459,7 +502,7 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
     x0, y0, x1, y1 = _target_roi(frame, model, params)
     f = crop_frame(frame, x0, y0, x1, y1)
     K = f.intrinsics
-    pts = world_points(f)
+    pts = world_heights(f)
     mask = segment_target(f, model, params, pts)
     face = top_face_mask(f, mask, pts, params)
 
@@ -481,23 +524,16 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
         iv = np.clip(np.round(outline_uv[:, 1]).astype(int), 0, K.height - 1)
         if rim[iv, iu].sum() >= 10:
             outline_uv = outline_uv[rim[iv, iu]]
-    mask_v, mask_u = np.nonzero(mask)
-    mask_uv = np.column_stack([mask_u, mask_v]).astype(np.float64)
     px_m = float(np.nanmedian(depth[face])) / K.fx  # one pixel's footprint, m
     # An outline point is an image feature: the paper's sigma_u = sigma_v = 1 px (eq. 14) applies.
-    var_edge = (SIGMA_UV_PX * px_m) ** 2
-    for _ in range(2):
-        B = _plane_basis(normal)
-        xy = (intersect_rays_plane(f, outline_uv, normal, plane_point) - plane_point) @ B[:, :2]
-        center2, yaw_face, size_face, _ = _fit_outline(xy, model)
-        # Pass 2: re-select the face's pixels by where their rays meet the plane, not by their own
-        # (noisy) depth, so that the plane is free of selection bias; then refit.
-        mxy = (intersect_rays_plane(f, mask_uv, normal, plane_point) - plane_point) @ B[:, :2]
-        inside = _inside_model(mxy, center2, yaw_face, model, margin_m=2.5 * px_m)
-        sel = np.zeros_like(mask)
-        sel[mask_v[inside], mask_u[inside]] = True
-        if sel.sum() >= 6:
-            normal, plane_point, plane_cov = _fit_face_plane(f, sel, mu_z, var_z)
+    var_edge = (params.edge_sigma_px * px_m) ** 2
+    # Where something stands in front of the face, its outline is that thing's edge: leave it out.
+    face_depth = float(np.nanmedian(depth[face]))
+    visible = unoccluded(outline_uv, depth, face_depth)
+    if visible.sum() >= 10:
+        outline_uv = outline_uv[visible]
+
+    # The start of the 6-DoF fit below: the outline on the first plane, fitted with the known shape.
     B = _plane_basis(normal)
     xy = (intersect_rays_plane(f, outline_uv, normal, plane_point) - plane_point) @ B[:, :2]
     center2, yaw_face, size_face, _ = _fit_outline(xy, model)
@@ -507,30 +543,24 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
     # each weighted by its own covariance across the outline.
     uv = shi_tomasi_features(f, mask, params)
     features = measure_features(f, uv, mu_z, var_z, offset=(x0, y0))
-    feat_xy, feat_var, feat_uv = [], [], []
-    residuals = _rectangle_residuals if model.shape == "box" else _circle_residuals
-    for fp in features:
-        m3, c3 = condition_on_plane(fp.mean_world, fp.cov_world, normal, plane_point)
-        p2 = (m3 - plane_point) @ B[:, :2]
-        c2 = B[:, :2].T @ c3 @ B[:, :2]
+    feat_var, feat_uv = np.zeros(0), np.zeros((0, 2))
+    if features:
+        p2s, c2s = [], []
+        for fp in features:
+            m3, c3 = condition_on_plane(fp.mean_world, fp.cov_world, normal, plane_point)
+            p2s.append((m3 - plane_point) @ B[:, :2])
+            c2s.append(B[:, :2].T @ c3 @ B[:, :2])
+        p2a, c2a = np.array(p2s), np.array(c2s)
         if model.shape == "box":
-            r, J = residuals(p2[None], model.size[0], model.size[1])(np.array([*center2, yaw_face]))
+            r, J = _rectangle_residuals(p2a, model.size[0], model.size[1])(np.array([*center2, yaw_face]))
         else:
-            r, J = residuals(p2[None], model.size[0] / 2.0)(center2)
-        n2 = -J[0, :2]  # the outline's normal at the feature (the residual's gradient in the point)
-        var = float(n2 @ c2 @ n2) + var_edge
-        if abs(r[0]) < 3.0 * np.sqrt(var):
-            feat_xy.append(p2)
-            feat_var.append(var)
-            feat_uv.append(fp.uv - np.array([x0, y0], dtype=np.float64))
-    n_used = len(feat_xy)
-    all_xy = np.vstack([xy, *([np.array(feat_xy)] if feat_xy else [])])
-    weights = (
-        np.concatenate([np.full(len(xy), 1.0 / var_edge), 1.0 / np.array(feat_var)])
-        if feat_xy
-        else np.full(len(xy), 1.0 / var_edge)
-    )
-    center2, yaw_face, size_face, fit_cov = _fit_outline(all_xy, model, weights, init=(center2, yaw_face))
+            r, J = _circle_residuals(p2a, model.size[0] / 2.0)(center2)
+        n2 = -J[:, :2]  # the outline's normal at each feature (the residual's gradient in the point)
+        var = np.einsum("ij,ijk,ik->i", n2, c2a, n2) + var_edge
+        on_outline = np.abs(r) < 3.0 * np.sqrt(var)
+        feat_var = var[on_outline]
+        feat_uv = np.array([fp.uv for fp in features])[on_outline] - np.array([x0, y0], dtype=np.float64)
+    n_used = len(feat_var)
     symmetry = (
         0.0 if model.shape == "cylinder" else (np.pi / 2.0 if abs(model.size[0] - model.size[1]) < 1e-9 else np.pi)
     )
@@ -542,13 +572,19 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
 
     # Last, the 6-DoF covariance-weighted fit of the whole model: every target pixel's mixture point
     # against its surface, and the outline (with the features on it) against its top face's edges.
-    edge_uv = np.vstack([outline_uv, *([np.array(feat_uv)] if feat_uv else [])])
-    edge_var = np.concatenate([np.full(len(outline_uv), var_edge), np.array(feat_var)])
+    edge_uv = np.vstack([outline_uv, feat_uv])
+    edge_var = np.concatenate([np.full(len(outline_uv), var_edge), feat_var])
     # Dense points: each pixel's own depth, with the mixture's variance (eq. 10) as its uncertainty,
     # which grows where the 3x3 window spans a depth step. (The mixture's mean, eq. 9, would smear a
     # surface across such a step; measured: 0.09 mm median error with it, 0.04 mm without.)
-    pose, cov6, _ = refine_pose_6dof(f, mask, depth, var_z, model, Pose(center, R), edge_uv, edge_var)
-    pos_cov = cov6[:3, :3]
+    pose, cov6, _ = refine_pose_6dof(
+        f, mask, depth, var_z, model, Pose(center, R), edge_uv, edge_var, max_points=params.fit_points
+    )
+    # A floor for what the fit cannot see: the scene itself is modelled to about 20 um (a cylinder's
+    # 64-sided mesh deviates 24 um from the circle; rasterisation quantises edges), so no direction
+    # is reported better than that, however many points agree.
+    w, V = np.linalg.eigh(0.5 * (cov6[:3, :3] + cov6[:3, :3].T))
+    pos_cov = V @ np.diag(np.maximum(w, 0.0) + MODEL_FLOOR_M**2) @ V.T
     rpy_cov = cov6[3:, 3:]
     if model.shape == "cylinder":
         rpy_cov = rpy_cov.copy()
@@ -629,7 +665,8 @@ def refine_pose_6dof(
     outline_uv: np.ndarray,
     outline_var: np.ndarray,
     *,
-    iterations: int = 6,
+    iterations: int = 5,
+    max_points: int = 2000,
 ) -> tuple[Pose, np.ndarray, int]:
     """The object's pose by a covariance-weighted fit of its known shape (our design; the paper
     leaves the pose step open).
@@ -648,23 +685,20 @@ def refine_pose_6dof(
     K = frame.intrinsics
     Tc = frame.T_world_cam
     vs, us = np.nonzero(pixels)
+    if len(vs) > max_points:  # a regular, deterministic thinning: the fit's cost grows with the points
+        keep = np.arange(0, len(vs), int(np.ceil(len(vs) / max_points)))
+        vs, us = vs[keep], us[keep]
     z = mu_z[vs, us]
     vz = var_z[vs, us]
     ok = np.isfinite(z) & np.isfinite(vz)
     vs, us, z, vz = vs[ok], us[ok], z[ok], vz[ok]
     du, dv = us - K.cx, vs - K.cy
-    pts = Tc.transform_points(np.column_stack([z * du / K.fx, z * dv / K.fy, z]))
-    # Eq. (14) for every point at once, in the camera frame (3x3 each), then into the world frame.
-    s2 = SIGMA_UV_PX**2
-    cov_c = np.empty((len(z), 3, 3))
-    cov_c[:, 0, 0] = (vz * du * du + s2 * z * z) / K.fx**2
-    cov_c[:, 1, 1] = (vz * dv * dv + s2 * z * z) / K.fy**2
-    cov_c[:, 0, 1] = cov_c[:, 1, 0] = vz * du * dv / (K.fx * K.fy)
-    cov_c[:, 0, 2] = cov_c[:, 2, 0] = vz * du / K.fx
-    cov_c[:, 1, 2] = cov_c[:, 2, 1] = vz * dv / K.fy
-    cov_c[:, 2, 2] = vz
+    ray = np.column_stack([du / K.fx, dv / K.fy, np.ones(len(z))])  # a = (x/z, y/z, 1)
+    pts = Tc.transform_points(ray * z[:, None])
+    # Eq. (14) is var_z a a^T + sigma_uv^2 z^2 diag(1/fx^2, 1/fy^2, 0); projected on a unit normal
+    # n (camera frame) that is var_z (n.a)^2 + sigma_uv^2 z^2 (n_x^2/fx^2 + n_y^2/fy^2), per point.
+    s2z2 = SIGMA_UV_PX**2 * z * z
     Rc = Tc.rotation
-    cov_w = Rc @ cov_c @ Rc.T
     rays = pixel_rays_cam(outline_uv, K) @ Rc.T
     half_h = model.height_m / 2.0
 
@@ -694,15 +728,18 @@ def refine_pose_6dof(
         q, n = closest_on_model(local, model)
         nw = n @ R.T
         r_d = np.einsum("ij,ij->i", nw, pts - (q @ R.T + t))
-        sd = np.sqrt(np.maximum(np.einsum("ij,ijk,ik->i", nw, cov_w, nw), 1e-14))
+        nc = nw @ Rc  # normals in the camera frame
+        var_n = vz * np.einsum("ij,ij->i", nc, ray) ** 2 + s2z2 * (nc[:, 0] ** 2 / K.fx**2 + nc[:, 1] ** 2 / K.fy**2)
+        sd = np.sqrt(np.maximum(var_n, 1e-14))
         J_d = np.hstack([-n, np.cross(n, q)]) / sd[:, None]
         r_d = r_d / sd
         r_e = edge_residuals(T) / edge_sd
-        J_e = np.empty((len(r_e), 6))
-        for k in range(6):
-            d = np.zeros(6)
-            d[k] = 1e-6
-            J_e[:, k] = (edge_residuals(T * pin.exp6(pin.Motion(d[:3], d[3:]))) / edge_sd - r_e) / 1e-6
+        if it == 0:  # numeric, once: near the solution the edges' Jacobian barely changes
+            J_e = np.empty((len(r_e), 6))
+            for k in range(6):
+                d = np.zeros(6)
+                d[k] = 1e-6
+                J_e[:, k] = (edge_residuals(T * pin.exp6(pin.Motion(d[:3], d[3:]))) / edge_sd - r_e) / 1e-6
         if it == 1:  # drop gross outliers (mis-segmented pixels) once the fit has settled
             keep_pts = np.abs(r_d) < 4.0
             keep_edge = np.abs(r_e) < 4.0
@@ -714,14 +751,14 @@ def refine_pose_6dof(
         step = np.linalg.lstsq(J, -r, rcond=1e-9)[0]
         T = T * pin.exp6(pin.Motion(step[:3], step[3:]))
         used = int(keep_pts.sum())
-        if np.linalg.norm(step) < 1e-9:
+        if np.linalg.norm(step) < 1e-6:  # 1 um and 1 urad: converged
             break
     # Covariance: each group's modelled deviations rescaled by what its residuals show (one step of
     # variance-component estimation): eq. (10)'s variance counts the noisy spread of the window on
     # top of the noise itself, and one pixel is generous for a crisp edge.
     s_d = float(np.sqrt(np.mean(r_d[keep_pts] ** 2))) if keep_pts.any() else 1.0
     s_e = float(np.sqrt(np.mean(r_e[keep_edge] ** 2))) if keep_edge.any() else 1.0
-    J = np.vstack([J_d[keep_pts] / max(s_d, 1e-6), J_e[keep_edge] / max(s_e, 1e-6)])
+    J = np.vstack([J_d[keep_pts] / max(s_d, 1e-3), J_e[keep_edge] / max(s_e, 1e-3)])
     info = J.T @ J
     cov_local = np.linalg.pinv(info, rcond=1e-15, hermitian=True)  # pinv: a cylinder has no yaw
     R = T.rotation
