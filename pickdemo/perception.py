@@ -42,7 +42,7 @@ MIXTURE_KERNEL = np.array([[1.0, 2.0, 1.0], [2.0, 4.0, 2.0], [1.0, 2.0, 1.0]]) /
 #: The paper's feature-location uncertainty (eq. 14): one pixel.
 SIGMA_UV_PX = 1.0
 #: Smallest position uncertainty reported in any direction (see estimate_pose), m.
-MODEL_FLOOR_M = 20e-6
+MODEL_FLOOR_M = 10e-6
 #: Constant colour deviation sigma_c of eq. (12), in 8-bit units.
 SIGMA_COLOR = 2.0
 
@@ -557,7 +557,11 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
             r, J = _circle_residuals(p2a, model.size[0] / 2.0)(center2)
         n2 = -J[:, :2]  # the outline's normal at each feature (the residual's gradient in the point)
         var = np.einsum("ij,ijk,ik->i", n2, c2a, n2) + var_edge
-        on_outline = np.abs(r) < 3.0 * np.sqrt(var)
+        # On the top face's outline in the image too: a corner elsewhere on the object (a bottom or
+        # side corner) can land near the outline once conditioned on the top plane, and would bias it.
+        uv_f = np.array([fp.uv for fp in features]) - np.array([x0, y0], dtype=np.float64)
+        d_img = np.min(np.linalg.norm(uv_f[:, None, :] - outline_uv[None, :, :], axis=2), axis=1)
+        on_outline = (np.abs(r) < 3.0 * np.sqrt(var)) & (d_img < 1.5)
         feat_var = var[on_outline]
         feat_uv = np.array([fp.uv for fp in features])[on_outline] - np.array([x0, y0], dtype=np.float64)
     n_used = len(feat_var)
@@ -580,7 +584,7 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
     pose, cov6, _ = refine_pose_6dof(
         f, mask, depth, var_z, model, Pose(center, R), edge_uv, edge_var, max_points=params.fit_points
     )
-    # A floor for what the fit cannot see: the scene itself is modelled to about 20 um (a cylinder's
+    # A floor for what the fit cannot see: the scene itself is modelled to some 10-20 um (a cylinder's
     # 64-sided mesh deviates 24 um from the circle; rasterisation quantises edges), so no direction
     # is reported better than that, however many points agree.
     w, V = np.linalg.eigh(0.5 * (cov6[:3, :3] + cov6[:3, :3].T))

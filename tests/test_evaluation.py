@@ -1,0 +1,47 @@
+"""Pose errors against the truth, fair to symmetric objects (values worked by hand)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pickdemo.evaluation import pose_errors
+from pickdemo.geometry import Pose
+
+
+def test_cube_quarter_turn_is_no_error() -> None:
+    true = Pose.from_xyz_rpy([0.5, 0.0, 0.025], yaw=np.radians(10.0))
+    est = Pose.from_xyz_rpy([0.5003, 0.0004, 0.025], yaw=np.radians(100.5))  # a quarter turn + 0.5 deg
+    e = pose_errors(est, true, np.pi / 2)
+    assert e["yaw_error_deg"] == pytest.approx(0.5, abs=1e-9)
+    assert e["position_error_mm"] == pytest.approx(0.5)  # 0.3 and 0.4 mm: a 3-4-5 triangle
+    assert (e["x_error_mm"], e["y_error_mm"], e["z_error_mm"]) == pytest.approx((0.3, 0.4, 0.0))
+
+
+def test_box_half_turn_but_not_quarter() -> None:
+    true = Pose.from_xyz_rpy([0, 0, 0], yaw=0.0)
+    assert pose_errors(Pose.from_xyz_rpy([0, 0, 0], yaw=np.pi), true, np.pi)["yaw_error_deg"] == pytest.approx(0.0)
+    assert pose_errors(Pose.from_xyz_rpy([0, 0, 0], yaw=np.pi / 2), true, np.pi)["yaw_error_deg"] == pytest.approx(90.0)
+
+
+def test_tilt_errors_by_hand() -> None:
+    true = Pose.from_xyz_rpy([0, 0, 0], roll=np.radians(2.0), pitch=np.radians(1.0), yaw=np.radians(-25.0))
+    est = Pose.from_xyz_rpy([0, 0, 0], roll=np.radians(2.3), pitch=np.radians(0.8), yaw=np.radians(-25.4))
+    e = pose_errors(est, true, np.pi)
+    assert e["roll_error_deg"] == pytest.approx(0.3, abs=1e-9)
+    assert e["pitch_error_deg"] == pytest.approx(0.2, abs=1e-9)
+    assert e["yaw_error_deg"] == pytest.approx(0.4, abs=1e-9)
+
+
+def test_cylinder_has_no_yaw_but_has_tilt() -> None:
+    true = Pose.from_xyz_rpy([0, 0, 0], roll=np.radians(3.0), yaw=np.radians(40.0))
+    spin = Pose.from_xyz_rpy([0, 0, 0], yaw=np.radians(-110.0))
+    est = Pose(true.position, true.rotation @ spin.rotation)  # spun about its own axis
+    e = pose_errors(est, true, 0.0)
+    assert e["yaw_error_deg"] is None
+    assert e["rotation_error_deg"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_no_orientation() -> None:
+    e = pose_errors(Pose.identity(), Pose.identity(), np.pi, has_orientation=False)
+    assert e["yaw_error_deg"] is None and e["pitch_error_deg"] is None and e["position_error_mm"] == 0.0
