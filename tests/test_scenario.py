@@ -77,3 +77,38 @@ def test_unknown_name_lists_known() -> None:
 def test_missing_file() -> None:
     with pytest.raises(ScenarioError, match="no such scenario file"):
         load_scenario("does/not/exist.toml")
+
+
+def test_tilted_object_must_be_static(tmp_path: Path) -> None:
+    f = tmp_path / "tilt.toml"
+    f.write_text(GOOD.replace("target = true", "target = true\npitch_deg = 5.0"))
+    with pytest.raises(ScenarioError, match="static"):
+        load_scenario(f)
+    f.write_text(GOOD.replace("target = true", "target = true\npitch_deg = 5.0\nstatic = true"))
+    assert load_scenario(f).target.static
+
+
+def test_camera_ranges_come_together(tmp_path: Path) -> None:
+    f = tmp_path / "cam.toml"
+    f.write_text(GOOD + "\n[camera]\ndistance_range_m = [0.5, 1.0]\n")
+    with pytest.raises(ScenarioError, match="camera"):
+        load_scenario(f)
+
+
+def test_layout_samples_sizes_tilts_and_camera() -> None:
+    import numpy as np
+
+    from pickdemo.layout import camera_position, sample_layout
+
+    sc = load_scenario("perceive_boxes")
+    rng = np.random.default_rng(0)
+    (p,) = sample_layout(sc, rng)
+    lo = [r[0] for r in sc.target.size_range]
+    hi = [r[1] for r in sc.target.size_range]
+    assert all(a <= s <= b for a, s, b in zip(lo, p.size, hi, strict=True))
+    # Resting on the table: its lowest corner at z = 0.
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * np.array(p.size) / 2
+    assert p.pose.transform_points(corners)[:, 2].min() == pytest.approx(0.0, abs=1e-12)
+    pos = camera_position(sc.camera, np.random.default_rng(1))
+    d = np.linalg.norm(pos - np.array(sc.camera.look_at))
+    assert 0.5 <= d <= 1.0

@@ -1,0 +1,59 @@
+"""Perception only, in the simulator: a regression on fixed seeds, the paper's rows, the command."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pickdemo.perceive import perceive_seed
+from pickdemo.scenario import load_scenario
+
+pytestmark = pytest.mark.sim
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_random_boxes_regression(seed: int) -> None:
+    samples = {s["method"]: s for s in perceive_seed(load_scenario("perceive_boxes"), seed, ["paper", "pixel", "icp"])}
+    paper = samples["paper"]
+    assert paper["failure"] is None
+    assert paper["position_error_mm"] < 0.3
+    assert paper["yaw_error_deg"] < 0.3 and paper["pitch_error_deg"] < 0.5 and paper["roll_error_deg"] < 0.5
+    assert paper["nees"] < 20.0  # honest: not wildly over-confident
+    assert paper["position_error_mm"] < samples["pixel"]["position_error_mm"]
+
+
+def test_paper_table_rows_beat_the_paper() -> None:
+    samples = [s for s in perceive_seed(load_scenario("paper_table"), 0, ["paper"])]
+    assert len(samples) == 6
+    for s in samples:
+        ref = s["reference"]
+        assert s["feature_point_error_mm"] < ref["position_error_mm"], s["target"]
+        assert s["yaw_error_deg"] < ref["yaw_error_deg"], s["target"]
+
+
+def test_perceive_command_writes_json_and_plot(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    proc = subprocess.run(
+        [sys.executable, "-m", "pickdemo", "perceive", "perceive_cylinders", "--seeds", "0-1", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    for method in ("paper", "pixel", "centroid", "icp"):
+        assert f"\n{method} " in proc.stdout
+    data = json.loads((tmp_path / "perception.json").read_text())
+    assert len(data["samples"]) == 8  # 4 methods x 2 seeds x 1 target
+    for key in ("method", "seed", "position_error_mm", "yaw_error_deg", "pitch_error_deg", "roll_error_deg", "nees"):
+        assert key in data["samples"][0]
+    assert data["samples"][0]["yaw_error_deg"] is None  # a cylinder has no yaw
+    assert set(data["summary"]) == {"paper", "pixel", "centroid", "icp"}
+    assert (tmp_path / "perception.png").stat().st_size > 10_000
+
+
+def test_perceive_rejects_unknown_method() -> None:
+    proc = subprocess.run([sys.executable, "-m", "pickdemo", "perceive", "pick_cube", "--methods", "magic"],
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert proc.returncode == 2 and "magic" in proc.stderr and proc.stderr.count("\n") == 1
