@@ -9,21 +9,26 @@ Steps (equation numbers as in the paper):
 1. Segment the target: pixels above the table plane (z = 0) whose colour matches the target's,
    searched first on a subsampled frame to find a region of interest; all else runs on that crop.
 2. The top face: of the target's pixels, the region of one uniform colour holding its highest
-   points (flat faces shade uniformly, so its edges are crisp in the noise-free RGB image).
+   points (flat faces shade uniformly, so its edges are crisp in the noise-free RGB image). Its
+   outline: the boundary pixels moved half a pixel outwards, less any stretch where something
+   nearer the camera hides it (and, for a cylinder, less the arc along its smooth-shaded side).
 3. The 3x3 Gaussian mixture of depth, eqs. (9)-(10), with eq. (8) as each pixel's variance, for
    every pixel at once (a convolution).
-4. The face's plane: a weighted fit to the back-projected mixture points (eqs. 5-7), each weighted
-   by the inverse of its eq. (14) variance along the vertical. Its pixels are chosen twice: first
-   by colour, then by where their rays meet the first plane (not by their own noisy depth), which
-   removes the selection bias. The plane gives the height, pitch and roll with their covariance.
-5. The face's outline: its boundary pixels, moved half a pixel outwards, intersected with the plane;
-   a rectangle (box) or circle (cylinder) of the known size is fitted to them by weighted
-   Gauss-Newton, giving the centre and yaw with their covariance.
-6. Shi-Tomasi feature points on the target (sub-pixel refined), each with its mixture depth and
-   colour (eqs. 9-12), back-projection (eqs. 5-7) and 6x6 covariance (eqs. 13-14). Each feature's
-   Gaussian is conditioned on the face's plane; those that lie on the outline join the fit of
-   step 5, weighted by their own covariance across the outline.
-7. The centre is the top face's centre moved half the object's height along the face's normal.
+4. A start: the face's plane fitted to the mixture points (eqs. 5-7) weighted by eq. (14), and the
+   known rectangle or circle fitted to the outline intersected with that plane.
+5. Shi-Tomasi feature points on the target (sub-pixel refined), each with its mixture depth and
+   colour (eqs. 9-12), back-projection (eqs. 5-7) and covariance (eqs. 13-14). Each is conditioned
+   on the face's plane; those lying on the face's outline (in the image and in the plane) are
+   edge observations with their own covariance.
+6. The pose: a 6-DoF covariance-weighted fit of the known shape (:func:`refine_pose_6dof`): every
+   target pixel's point against the model's surface, weighted by eq. (14) with the mixture's
+   variance (so a pixel whose window spans a depth step weighs little), and the outline rays and
+   edge features against the top face's edges, at the paper's one-pixel uncertainty. Its 6x6
+   covariance comes from the information matrix, each residual group rescaled by its observed
+   spread, with a floor for what the model of the scene cannot resolve.
+
+Measured choices are documented where they are made (the mixture's variance but each pixel's own
+depth; features selected on the outline in the image; the cylinder's side arc left out).
 """
 
 from __future__ import annotations
@@ -35,7 +40,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickdemo.camera import Intrinsics, RGBDFrame, backproject_image, kinect_sigma_m, pixel_rays_cam
-from pickdemo.geometry import Pose
+from pickdemo.geometry import Pose, wrap_angle
 
 #: Eqs. (9)-(12): weight 1/4 at the feature, 1/8 on the four edge neighbours, 1/16 on the diagonals.
 MIXTURE_KERNEL = np.array([[1.0, 2.0, 1.0], [2.0, 4.0, 2.0], [1.0, 2.0, 1.0]]) / 16.0
@@ -486,16 +491,6 @@ def condition_on_plane(
     return mean - cn * float(normal @ (mean - point)) / s, cov - np.outer(cn, cn) / s
 
 
-def _inside_model(xy: np.ndarray, center: np.ndarray, yaw: float, model: TargetModel, margin_m: float) -> np.ndarray:
-    """Which plane points lie inside the model's top face shrunk by ``margin_m``."""
-    d = xy - center
-    if model.shape == "cylinder":
-        return np.linalg.norm(d, axis=1) < model.size[0] / 2.0 - margin_m
-    c, s = np.cos(yaw), np.sin(yaw)
-    lx, ly = d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c
-    return (np.abs(lx) < model.size[0] / 2.0 - margin_m) & (np.abs(ly) < model.size[1] / 2.0 - margin_m)
-
-
 def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None) -> PoseEstimate:
     """The target's pose from one frame (see the module docstring for the method)."""
     params = params or PerceptionParams()
@@ -651,12 +646,8 @@ def _rpy_jacobian(R: np.ndarray) -> np.ndarray:
     for k in range(3):
         w = np.zeros(3)
         w[k] = 1e-7
-        J[:, k] = wrap_angle_vec(pin.rpy.matrixToRpy(R @ pin.exp3(w)) - base) / 1e-7
+        J[:, k] = wrap_angle(pin.rpy.matrixToRpy(R @ pin.exp3(w)) - base) / 1e-7
     return J
-
-
-def wrap_angle_vec(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def refine_pose_6dof(
