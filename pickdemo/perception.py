@@ -69,7 +69,7 @@ class PerceptionParams:
     face_color_tol: float = 12.0  # 8-bit units: how far a top-face pixel's colour may stray
     face_depth_sigmas: float = 3.0
     edge_sigma_px: float = 1.0  # an outline point's location uncertainty (the paper's sigma_u = 1 px)
-    fit_points: int = 2500  # depth points in the 6-DoF fit at most (a regular thinning beyond)
+    fit_points: int = 4000  # depth points in the 6-DoF fit at most (a regular thinning beyond)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.color_cos_min <= 1.0:
@@ -198,12 +198,13 @@ def world_points(frame: RGBDFrame) -> np.ndarray:
 
 def color_match(rgb: np.ndarray, color: tuple[float, float, float], cos_min: float) -> np.ndarray:
     """Pixels whose colour points the same way as ``color`` in RGB space (robust to shading)."""
-    c = np.asarray(color, dtype=np.float64)
+    c = np.asarray(color, dtype=np.float32)
     c = c / np.linalg.norm(c)
-    x = rgb.astype(np.float64)
-    norm = np.linalg.norm(x, axis=-1)
-    cos = (x @ c) / np.maximum(norm, 1e-9)
-    return (cos >= cos_min) & (norm > 20.0)
+    x = rgb.astype(np.float32)
+    dot = x @ c
+    norm2 = np.einsum("...c,...c->...", x, x)
+    # cos >= cos_min without a square root: dot >= 0 and dot^2 >= cos_min^2 |x|^2.
+    return (dot > 0.0) & (dot * dot >= np.float32(cos_min * cos_min) * norm2) & (norm2 > 400.0)
 
 
 def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParams, z_world: np.ndarray) -> np.ndarray:
@@ -235,7 +236,8 @@ def top_face_mask(frame: RGBDFrame, mask: np.ndarray, z_world: np.ndarray, param
     sigma = float(kinect_sigma_m(np.nanmedian(frame.depth_m[mask])))
     high = mask & (np.nan_to_num(z, nan=-1.0) > top - params.face_depth_sigmas * sigma)
     face_rgb = np.median(frame.rgb[high].astype(np.float64), axis=0)
-    close = np.linalg.norm(frame.rgb.astype(np.float64) - face_rgb, axis=-1) <= params.face_color_tol
+    diff = frame.rgb.astype(np.float32) - face_rgb.astype(np.float32)
+    close = np.einsum("...c,...c->...", diff, diff) <= np.float32(params.face_color_tol**2)
     face = (mask & close).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(face, connectivity=4)
     if n <= 1:
@@ -540,12 +542,15 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
     features = measure_features(f, uv, mu_z, var_z, offset=(x0, y0))
     feat_var, feat_uv = np.zeros(0), np.zeros((0, 2))
     if features:
-        p2s, c2s = [], []
-        for fp in features:
-            m3, c3 = condition_on_plane(fp.mean_world, fp.cov_world, normal, plane_point)
-            p2s.append((m3 - plane_point) @ B[:, :2])
-            c2s.append(B[:, :2].T @ c3 @ B[:, :2])
-        p2a, c2a = np.array(p2s), np.array(c2s)
+        # condition_on_plane for every feature at once.
+        means = np.array([fp.mean_world for fp in features])
+        covs = np.array([fp.cov_world for fp in features])
+        cn = covs @ normal  # (N, 3)
+        sn = np.maximum(cn @ normal, 1e-30)
+        m3 = means - cn * (((means - plane_point) @ normal) / sn)[:, None]
+        c3 = covs - cn[:, :, None] * cn[:, None, :] / sn[:, None, None]
+        p2a = (m3 - plane_point) @ B[:, :2]
+        c2a = B[:, :2].T @ c3 @ B[:, :2]
         if model.shape == "box":
             r, J = _rectangle_residuals(p2a, model.size[0], model.size[1])(np.array([*center2, yaw_face]))
         else:
@@ -660,7 +665,7 @@ def refine_pose_6dof(
     outline_uv: np.ndarray,
     outline_var: np.ndarray,
     *,
-    iterations: int = 5,
+    iterations: int = 4,
     max_points: int = 2000,
 ) -> tuple[Pose, np.ndarray, int]:
     """The object's pose by a covariance-weighted fit of its known shape (our design; the paper
@@ -740,10 +745,10 @@ def refine_pose_6dof(
             keep_edge = np.abs(r_e) < 4.0
         J = np.vstack([J_d[keep_pts], J_e[keep_edge]])
         r = np.concatenate([r_d[keep_pts], r_e[keep_edge]])
-        info = J.T @ J
-        # Least squares on J itself: the minimum-norm step leaves a direction that nothing observes
-        # (a cylinder's turn about its axis) alone, where the normal equations would be singular.
-        step = np.linalg.lstsq(J, -r, rcond=1e-9)[0]
+        # Minimum-norm least squares on the 6x6 normal equations: a direction that nothing observes
+        # (a cylinder's turn about its axis) is left alone (singular values of J below 1e-9 of
+        # the largest, i.e. of J^T J below 1e-18, are cut).
+        step = np.linalg.lstsq(J.T @ J, -(J.T @ r), rcond=1e-18)[0]
         T = T * pin.exp6(pin.Motion(step[:3], step[3:]))
         used = int(keep_pts.sum())
         if np.linalg.norm(step) < 1e-6:  # 1 um and 1 urad: converged
@@ -765,7 +770,7 @@ def refine_pose_6dof(
 
 
 def _gauss_newton(
-    residual_jacobian, x0: np.ndarray, weights: np.ndarray, iterations: int = 15, tol: float = 1e-10
+    residual_jacobian, x0: np.ndarray, weights: np.ndarray, iterations: int = 6, tol: float = 1e-8
 ) -> tuple[np.ndarray, np.ndarray]:
     """Weighted Gauss-Newton; returns the solution and its covariance.
 
