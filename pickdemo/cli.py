@@ -68,6 +68,7 @@ def _build_parser() -> argparse.ArgumentParser:
     perceive.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-99 (default 0-19)")
     perceive.add_argument("--methods", default="paper,pixel,centroid,icp", help="comma-separated (default: all)")
     perceive.add_argument("--out", type=Path, help="directory for perception.json and perception.png")
+    perceive.add_argument("--repeat", type=int, default=1, help="time each method N times per frame (median)")
     sub.add_parser("list", help="list the shipped scenarios")
     return parser
 
@@ -212,8 +213,10 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
     samples: list[dict] = []
     from tqdm import tqdm
 
-    for batch in tqdm(perceive.iter_samples(scenario, seeds, methods), total=len(seeds), unit="seed",
-                      disable=not sys.stderr.isatty()):  # fmt: skip
+    if args.repeat < 1:
+        raise UsageError("--repeat must be at least 1")
+    batches = perceive.iter_samples(scenario, seeds, methods, repeat=args.repeat)
+    for batch in tqdm(batches, total=len(seeds), unit="seed", disable=not sys.stderr.isatty()):
         samples += batch
     summary = perceive.summarise(samples)
     print(perceive.format_summary(summary))

@@ -37,8 +37,9 @@ ERROR_KEYS = (
 )
 
 
-def perceive_seed(scenario: Scenario, seed: int, methods: list[str]) -> list[dict[str, Any]]:
-    """One sample per method and target for one seed."""
+def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: int = 1) -> list[dict[str, Any]]:
+    """One sample per method and target for one seed. With ``repeat`` > 1 each method runs that many
+    times on the frame and its time is the median (a steadier benchmark; the estimate is the same)."""
     from pickdemo.episode import spawn_rngs, target_model
     from pickdemo.layout import camera_position, sample_layout
     from pickdemo.sim.render import Camera
@@ -59,13 +60,16 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str]) -> list[dic
         model = target_model(scenario, placement)
         truth = truths[spec.name]
         for name in methods:
-            t0 = time.perf_counter()
-            try:
-                est = METHODS[name](frame, model)
-                error = None
-            except PerceptionError as exc:
-                est, error = None, str(exc)
-            elapsed_ms = (time.perf_counter() - t0) * 1e3
+            times = []
+            for _ in range(max(repeat, 1)):
+                t0 = time.perf_counter()
+                try:
+                    est = METHODS[name](frame, model)
+                    error = None
+                except PerceptionError as exc:
+                    est, error = None, str(exc)
+                times.append((time.perf_counter() - t0) * 1e3)
+            elapsed_ms = float(np.median(times))
             sample: dict[str, Any] = {"method": name, "seed": seed, "target": spec.name, "time_ms": elapsed_ms,
                                       "camera_distance_m": distance, "failure": error}  # fmt: skip
             if est is None:
@@ -95,9 +99,11 @@ def _score(est: PoseEstimate, truth, model: TargetModel, *, oriented: bool) -> d
     }
 
 
-def iter_samples(scenario: Scenario, seeds: list[int], methods: list[str]) -> Iterator[list[dict[str, Any]]]:
+def iter_samples(
+    scenario: Scenario, seeds: list[int], methods: list[str], *, repeat: int = 1
+) -> Iterator[list[dict[str, Any]]]:
     for seed in seeds:
-        yield perceive_seed(scenario, seed, methods)
+        yield perceive_seed(scenario, seed, methods, repeat=repeat)
 
 
 def _stats(values: list[float]) -> dict[str, float] | None:
