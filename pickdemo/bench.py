@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import statistics
 import time
 import xml.etree.ElementTree as ET
 from collections import Counter
@@ -30,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from pickdemo.result import Stage
+from pickdemo.stats import describe
 
 DEFAULT_GUARD_S = 300.0  # wall-clock guard of one episode (a typical one takes 1-2 s)
 
@@ -89,19 +89,6 @@ def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float,
     centre = (p + z * z / (2 * n)) / denom
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
     return max(0.0, centre - half), min(1.0, centre + half)
-
-
-def _stats(values: list[float]) -> dict[str, float] | None:
-    if not values:
-        return None
-    v = sorted(values)
-
-    def q(f: float) -> float:
-        k = (len(v) - 1) * f
-        lo, hi = math.floor(k), math.ceil(k)
-        return v[lo] + (v[hi] - v[lo]) * (k - lo)
-
-    return {"median": q(0.5), "p95": q(0.95), "max": v[-1], "mean": statistics.fmean(v), "n": len(v)}
 
 
 def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> dict[str, Any]:
@@ -279,10 +266,10 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "seeds": sorted(r["seed"] for r in rs),
             "failures_by_stage": {s.value: stages[s.value] for s in Stage if stages.get(s.value)},
             "failed_seeds": sorted(r["seed"] for r in rs if not r["success"]),
-            "position_error_mm": _stats([p["position_error_mm"] for p in perc]),
-            "yaw_error_deg": _stats([p["yaw_error_deg"] for p in perc if p["yaw_error_deg"] is not None]),
-            "place_error_mm": _stats([r["place_error_mm"] for r in rs if r["place_error_mm"] is not None]),
-            "wall_time_s": _stats([r["wall_time_s"] for r in rs]),
+            "position_error_mm": describe([p["position_error_mm"] for p in perc]),
+            "yaw_error_deg": describe([p["yaw_error_deg"] for p in perc if p["yaw_error_deg"] is not None]),
+            "place_error_mm": describe([r["place_error_mm"] for r in rs if r["place_error_mm"] is not None]),
+            "wall_time_s": describe([r["wall_time_s"] for r in rs]),
             "real_time_factor": sim / wall if wall > 0 else None,
         }
     return out

@@ -9,17 +9,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pickdemo.geometry import Pose, wrap_angle
+from pickdemo.evaluation import pose_errors
+from pickdemo.geometry import Pose
 from pickdemo.perception import PoseEstimate
 from pickdemo.result import PerceptionScore
-
-
-def yaw_error_deg(estimated: Pose, true: Pose, symmetry_rad: float) -> float | None:
-    """Absolute yaw error (deg) modulo the object's symmetry; None for a rotationally symmetric one."""
-    if symmetry_rad <= 0.0:
-        return None
-    d = wrap_angle(float(estimated.rpy[2]) - float(true.rpy[2]), symmetry_rad)
-    return float(abs(np.degrees(d)))
 
 
 def position_nees(estimate: PoseEstimate, true: Pose) -> float:
@@ -29,11 +22,12 @@ def position_nees(estimate: PoseEstimate, true: Pose) -> float:
 
 
 def score_perception(estimate: PoseEstimate, true: Pose) -> PerceptionScore:
+    errors = pose_errors(estimate.pose, true, estimate.yaw_symmetry_rad)
     return PerceptionScore(
         estimated_pose=estimate.to_dict(),
         true_pose=true.to_dict(),
-        position_error_mm=float(np.linalg.norm(estimate.pose.position - true.position) * 1e3),
-        yaw_error_deg=yaw_error_deg(estimate.pose, true, estimate.yaw_symmetry_rad),
+        position_error_mm=errors["position_error_mm"],
+        yaw_error_deg=errors["yaw_error_deg"],
         position_nees=position_nees(estimate, true),
     )
 

@@ -18,8 +18,10 @@ import numpy as np
 
 from pickdemo.baselines import METHODS as BASELINES
 from pickdemo.evaluation import pose_errors
+from pickdemo.metrics import position_nees
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel, estimate_pose
 from pickdemo.scenario import Scenario
+from pickdemo.stats import describe
 
 MethodFn = Callable[..., PoseEstimate]
 METHODS: dict[str, MethodFn] = {"paper": estimate_pose, **BASELINES}
@@ -84,8 +86,7 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
 
 def _score(est: PoseEstimate, truth, model: TargetModel, *, oriented: bool) -> dict[str, Any]:
     errs = pose_errors(est.pose, truth, est.yaw_symmetry_rad, has_orientation=oriented)
-    e = est.pose.position - truth.position
-    nees = float(e @ np.linalg.solve(est.position_cov, e)) if np.all(np.isfinite(est.position_cov)) else None
+    nees = position_nees(est, truth) if np.all(np.isfinite(est.position_cov)) else None
     # The paper's "main feature point": the centre of the top face.
     half = model.height_m / 2.0
     top_est = est.pose.position + (est.pose.rotation[:, 2] * half if oriented else np.array([0.0, 0.0, half]))
@@ -106,14 +107,6 @@ def iter_samples(
         yield perceive_seed(scenario, seed, methods, repeat=repeat)
 
 
-def _stats(values: list[float]) -> dict[str, float] | None:
-    v = np.asarray([x for x in values if x is not None], dtype=float)
-    if len(v) == 0:
-        return None
-    return {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)), "max": float(v.max()),
-            "mean": float(v.mean()), "n": int(len(v))}  # fmt: skip
-
-
 def summarise(samples: list[dict[str, Any]]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for method in dict.fromkeys(s["method"] for s in samples):
@@ -122,10 +115,10 @@ def summarise(samples: list[dict[str, Any]]) -> dict[str, Any]:
         out[method] = {
             "samples": len(ms),
             "failures": sum(1 for s in ms if s["failure"]),
-            **{k: _stats([s[k] for s in ms]) for k in ERROR_KEYS},
+            **{k: describe([s[k] for s in ms]) for k in ERROR_KEYS},
             "nees_mean": float(np.mean(nees)) if nees else None,
             "nees_in_band": (1.5 <= float(np.mean(nees)) <= 6.0) if nees else None,
-            "time_ms": _stats([s["time_ms"] for s in ms]),
+            "time_ms": describe([s["time_ms"] for s in ms]),
         }
     return out
 

@@ -509,7 +509,7 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
 
     # Pass 1: plane from the face pixels whose whole 3x3 window lies on the face (no edge mixing).
     inner = cv2.erode(face.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    normal, plane_point, plane_cov = _fit_face_plane(f, inner if inner.sum() >= 6 else face, mu_z, var_z)
+    normal, plane_point, _ = _fit_face_plane(f, inner if inner.sum() >= 6 else face, mu_z, var_z)
 
     outline_uv = outline_pixels(face)
     if model.shape == "cylinder":
