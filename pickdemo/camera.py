@@ -126,21 +126,59 @@ def opengl_view_matrix(T_world_cam: Pose) -> list[float]:
     return [float(v) for v in view.T.reshape(-1)]
 
 
-def opengl_projection_matrix(K: Intrinsics, near_m: float, far_m: float) -> list[float]:
-    """Column-major 4x4 OpenGL projection of a symmetric frustum with K's focal lengths.
+def opengl_projection_matrix(
+    K: Intrinsics, near_m: float, far_m: float, roi: tuple[int, int, int, int] | None = None
+) -> list[float]:
+    """Column-major 4x4 OpenGL projection with K's focal lengths: the whole image's symmetric frustum,
+    or the part of it that covers the region of interest ``roi = (x0, y0, x1, y1)`` (pixels, x1 and y1
+    exclusive) of the whole image.
 
     The renderer decides at which pixel the optical axis lands (its pixel-centre convention); the
-    simulator side measures that and sets ``K.cx``, ``K.cy`` to match (``pickdemo.sim.render``).
+    simulator side measures that and sets ``K.cx``, ``K.cy`` to match (``pickdemo.sim.render``). The
+    frustum is placed by the image's size, not by ``cx, cy``, so a crop rendered with this matrix
+    holds exactly the pixels ``[y0:y1, x0:x1]`` of the whole frame (its principal point is
+    ``(cx - x0, cy - y0)``: :func:`crop_intrinsics`).
     """
-    right = (K.width / 2.0) / K.fx * near_m
-    top = (K.height / 2.0) / K.fy * near_m
+    x0, y0, x1, y1 = (0, 0, K.width, K.height) if roi is None else roi
+    left = (x0 - K.width / 2.0) / K.fx * near_m
+    right = (x1 - K.width / 2.0) / K.fx * near_m
+    top = (K.height / 2.0 - y0) / K.fy * near_m  # OpenGL's y points up, image rows down
+    bottom = (K.height / 2.0 - y1) / K.fy * near_m
     proj = np.zeros((4, 4))
-    proj[0, 0] = near_m / right
-    proj[1, 1] = near_m / top
+    proj[0, 0] = 2.0 * near_m / (right - left)
+    proj[0, 2] = (right + left) / (right - left)
+    proj[1, 1] = 2.0 * near_m / (top - bottom)
+    proj[1, 2] = (top + bottom) / (top - bottom)
     proj[2, 2] = -(far_m + near_m) / (far_m - near_m)
     proj[2, 3] = -2.0 * far_m * near_m / (far_m - near_m)
     proj[3, 2] = -1.0
     return [float(v) for v in proj.T.reshape(-1)]
+
+
+def crop_intrinsics(K: Intrinsics, roi: tuple[int, int, int, int]) -> Intrinsics:
+    """Intrinsics of the region ``(x0, y0, x1, y1)`` of an image: same focal lengths, shifted centre."""
+    x0, y0, x1, y1 = roi
+    return Intrinsics(width=x1 - x0, height=y1 - y0, fx=K.fx, fy=K.fy, cx=K.cx - x0, cy=K.cy - y0)
+
+
+def roi_around(
+    points_world: np.ndarray, K: Intrinsics, T_world_cam: Pose, *, pad_px: int, min_size_px: int = 48
+) -> tuple[int, int, int, int] | None:
+    """The pixel box ``(x0, y0, x1, y1)`` that holds the projections of the given world points, padded
+    and clipped to the image; ``None`` when a point is behind the camera or the box misses the image."""
+    p_cam = T_world_cam.inverse().transform_points(np.atleast_2d(points_world))
+    if np.any(p_cam[:, 2] <= 1e-3):
+        return None
+    uv = project(p_cam, K)
+    lo = np.floor(uv.min(axis=0)) - pad_px
+    hi = np.ceil(uv.max(axis=0)) + pad_px + 1
+    grow = np.maximum(min_size_px - (hi - lo), 0.0) / 2.0
+    lo, hi = lo - np.floor(grow), hi + np.ceil(grow)
+    x0, y0 = int(max(lo[0], 0)), int(max(lo[1], 0))
+    x1, y1 = int(min(hi[0], K.width)), int(min(hi[1], K.height))
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        return None
+    return x0, y0, x1, y1
 
 
 @dataclass(frozen=True)
@@ -152,3 +190,4 @@ class RGBDFrame:
     intrinsics: Intrinsics
     T_world_cam: Pose
     time_s: float  # simulated time at which it was taken
+    roi: tuple[int, int, int, int] | None = None  # (x0, y0, x1, y1) of the whole image, when a crop

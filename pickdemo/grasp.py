@@ -17,7 +17,7 @@ import numpy as np
 
 from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose, wrap_angle
-from pickdemo.perception import PoseEstimate, TargetModel
+from pickdemo.perception import TargetModel
 
 FINGER_PAD_HALF_HEIGHT_M = 0.00925  # the rubber tip is 18.5 mm tall, centred on the TCP
 
@@ -68,11 +68,11 @@ def joint7_centre_yaw(*xy: tuple[float, float]) -> float:
     return float(np.pi / 4.0 + q1)
 
 
-def hand_yaw_for(estimate: PoseEstimate, model: TargetModel, centre_rad: float = 0.0) -> tuple[float, float]:
+def hand_yaw_for(pose: Pose, model: TargetModel, centre_rad: float = 0.0) -> tuple[float, float]:
     """Hand angle (rad) that closes across the narrower side, nearest ``centre_rad``; the width (m)."""
     if model.shape == "cylinder":
         return float(centre_rad), model.size[0]
-    obj_yaw = float(estimate.pose.rpy[2])
+    obj_yaw = float(pose.rpy[2])
     sx, sy = model.size[0], model.size[1]
     # Finger axis along the object's x axis when x is the narrower side, else along its y axis.
     psi = obj_yaw + np.pi / 2.0 if sx <= sy else obj_yaw
@@ -81,17 +81,28 @@ def hand_yaw_for(estimate: PoseEstimate, model: TargetModel, centre_rad: float =
 
 
 def plan_grasp(
-    estimate: PoseEstimate, model: TargetModel, place_xy: tuple[float, float], params: GraspParams | None = None
+    pose: Pose,
+    model: TargetModel,
+    place_xy: tuple[float, float],
+    params: GraspParams | None = None,
+    *,
+    hand_yaw_near_rad: float | None = None,
 ) -> GraspPlan:
-    """All TCP poses of the pick and place from the estimated pose of the target."""
+    """All TCP poses of the pick and place from the estimated pose of the target.
+
+    ``hand_yaw_near_rad``: of the equivalent hand angles, take the one nearest this (a re-plan keeps
+    the hand's angle; a retry may ask for another); by default the one that keeps joint 7 mid-range.
+    """
     params = params or GraspParams()
-    centre = joint7_centre_yaw(tuple(estimate.pose.position[:2]), tuple(place_xy))
-    psi, width = hand_yaw_for(estimate, model, centre)
+    centre = joint7_centre_yaw(tuple(pose.position[:2]), tuple(place_xy))
+    if hand_yaw_near_rad is not None:
+        centre = hand_yaw_near_rad
+    psi, width = hand_yaw_for(pose, model, centre)
     if width > 2.0 * rm.FINGER_MAX_M - params.width_margin_m:
         raise GraspPlanningError(
             f"object is {width * 1e3:.0f} mm wide; the gripper opens to {2e3 * rm.FINGER_MAX_M:.0f} mm"
         )
-    center = estimate.pose.position
+    center = pose.position
     top_z = center[2] + model.height_m / 2.0
     depth = min(params.max_grasp_depth_m, model.height_m / 2.0)
     grasp_z = max(top_z - depth, params.min_tcp_height_m)

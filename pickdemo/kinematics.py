@@ -88,6 +88,19 @@ class PandaKinematics:
             q = np.clip(pin.integrate(model, q, params.step * v), lo, hi)
         return q, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])), params.max_iterations
 
+    def track(self, target: Pose, q_prev: np.ndarray, *, max_iterations: int = 4) -> IKResult:
+        """One warm-started solve per control tick: a few damped least-squares steps from the last
+        command, no restarts (the target moved a millimetre or so since the last tick)."""
+        params = (
+            _TRACK_PARAMS
+            if max_iterations == _TRACK_PARAMS.max_iterations
+            else IKParams(restarts=0, max_iterations=max_iterations)
+        )
+        q, e_pos, e_rot, its = self._solve_from(target.to_se3(), np.asarray(q_prev, dtype=float), params)
+        ok = e_pos < params.tolerance_m and e_rot < params.tolerance_rad
+        reason = "" if ok else f"not converged in {its} steps ({e_pos * 1e3:.2f} mm, {np.degrees(e_rot):.3f} deg)"
+        return IKResult(ok, q, e_pos, e_rot, its, 0, reason)
+
     def solve(
         self, target: Pose, q_seed: np.ndarray, rng: np.random.Generator, params: IKParams | None = None
     ) -> IKResult:
@@ -116,6 +129,9 @@ class PandaKinematics:
             reason=f"no solution within tolerance after {params.restarts + 1} starts "
             f"(best: {e_pos * 1e3:.1f} mm, {np.degrees(e_rot):.2f} deg)",
         )
+
+
+_TRACK_PARAMS = IKParams(restarts=0, max_iterations=4)
 
 
 @functools.cache

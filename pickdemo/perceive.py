@@ -42,10 +42,11 @@ ERROR_KEYS = (
 def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: int = 1) -> list[dict[str, Any]]:
     """One sample per method and target for one seed. With ``repeat`` > 1 each method runs that many
     times on the frame and its time is the median (a steadier benchmark; the estimate is the same)."""
-    from pickdemo.episode import spawn_rngs, target_model
     from pickdemo.layout import camera_position, sample_layout
     from pickdemo.sim.render import Camera
     from pickdemo.sim.scene import Scene
+    from pickdemo.streams import spawn_rngs
+    from pickdemo.task import target_model
 
     rngs = spawn_rngs(seed)
     layout = sample_layout(scenario, rngs["layout"])

@@ -8,6 +8,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 
 class Stage(str, enum.Enum):
     """Where an episode can end in failure (ordered as the pipeline runs)."""
@@ -24,7 +26,62 @@ class Stage(str, enum.Enum):
     ERROR = "error"
 
 
-PHASES = ("perceive", "plan", "approach", "grasp", "lift", "place", "verify")
+@dataclass(frozen=True)
+class PhaseRecord:
+    """A state of the pick entered at a simulated time, with what it said."""
+
+    phase: str
+    sim_time_s: float
+    message: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"phase": self.phase, "sim_time_s": self.sim_time_s, "message": self.message}
+
+
+@dataclass(frozen=True)
+class AttemptRecord:
+    """One try at the grasp and how it ended (``outcome``: placed, missed, dropped ..., failed)."""
+
+    number: int
+    outcome: str
+    reason: str
+    start_s: float
+    end_s: float
+    grip_force_n: float
+    hand_yaw_deg: float | None
+    lift_speed_scale: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "number": self.number,
+            "outcome": self.outcome,
+            "reason": self.reason,
+            "start_s": self.start_s,
+            "end_s": self.end_s,
+            "grip_force_n": self.grip_force_n,
+            "hand_yaw_deg": self.hand_yaw_deg,
+            "lift_speed_scale": self.lift_speed_scale,
+        }
+
+
+@dataclass(frozen=True)
+class EpisodeTrace:
+    """Per control tick, for plots and tests (not in ``result.json``): the commanded Cartesian motion
+    with the limits it was given, the joint command, the true TCP and the tracked target."""
+
+    time_s: np.ndarray  # (N,)
+    state: tuple[str, ...]  # (N,)
+    setpoint: np.ndarray  # (N, 4) x, y, z (m), yaw (rad)
+    velocity: np.ndarray  # (N, 4)
+    acceleration: np.ndarray  # (N, 4)
+    jerk: np.ndarray  # (N, 4)
+    max_velocity: np.ndarray  # (N, 4): the limits Ruckig had at that tick
+    max_acceleration: np.ndarray  # (N, 4)
+    max_jerk: np.ndarray  # (N, 4)
+    retarget: np.ndarray  # (N,) bool: Ruckig recomputed (a re-target or new limits)
+    q: np.ndarray  # (N, 7) joint command
+    tcp_true: np.ndarray  # (N, 3) the TCP's true position (truth: for scoring)
+    tracked: np.ndarray  # (N, 4) the tracker's x, y, z, yaw now (nan before it has one)
 
 
 @dataclass(frozen=True)
@@ -79,7 +136,20 @@ class EpisodeResult:
     sim_time_s: float
     wall_time_s: float
     stage_wall_times_s: dict[str, float] = field(default_factory=dict)
-    phases: tuple[dict[str, Any], ...] = ()
+    phases: tuple[PhaseRecord, ...] = ()
+    open_loop: bool = False
+    attempts: tuple[AttemptRecord, ...] = ()
+    perception_frames: int = 0
+    perception_rate_hz: float | None = None  # frames per simulated second while it tracked the target
+    estimates_rejected: int = 0  # estimates the tracker's gate turned away
+    perception_failures: int = 0  # frames in which perception found no estimate
+    target_moves_detected: int = 0  # times the tracker restarted on a target that had moved
+    retargets: int = 0  # re-targets written into Ruckig while a motion was under way
+    tracking_error_mm: float | None = None  # tracker vs truth when the gripper last closed
+    tracking_yaw_error_deg: float | None = None
+    disturbances: tuple[dict[str, Any], ...] = ()  # the pushes applied (drawn per seed)
+    control_tick_ms: dict[str, float] = field(default_factory=dict)  # wall time of a decision: median, p95
+    trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
         return _clean(
@@ -95,7 +165,19 @@ class EpisodeResult:
                 "sim_time_s": self.sim_time_s,
                 "wall_time_s": self.wall_time_s,
                 "stage_wall_times_s": dict(self.stage_wall_times_s),
-                "phases": list(self.phases),
+                "phases": [p.to_dict() for p in self.phases],
+                "open_loop": self.open_loop,
+                "attempts": [a.to_dict() for a in self.attempts],
+                "perception_frames": self.perception_frames,
+                "perception_rate_hz": self.perception_rate_hz,
+                "estimates_rejected": self.estimates_rejected,
+                "perception_failures": self.perception_failures,
+                "target_moves_detected": self.target_moves_detected,
+                "retargets": self.retargets,
+                "tracking_error_mm": self.tracking_error_mm,
+                "tracking_yaw_error_deg": self.tracking_yaw_error_deg,
+                "disturbances": list(self.disturbances),
+                "control_tick_ms": dict(self.control_tick_ms),
             }
         )
 

@@ -176,6 +176,43 @@ class LayoutSpec(_Model):
     clearance_m: Annotated[float, Field(ge=0.0)] = 0.01  # free space between objects' footprints
 
 
+class ControlSpec(_Model):
+    """The closed loop: how often it looks, how late the estimates arrive, how often it may retry."""
+
+    max_attempts: Annotated[int, Field(ge=1, le=10)] = 3  # grasp attempts before the episode fails
+    perception_rate_hz: Annotated[float, Field(gt=0.0, le=60.0)] = 10.0  # frames per second while it looks
+    perception_latency_s: Annotated[float, Field(ge=0.0, le=1.0)] = 0.05  # frame taken at t reaches control at t + this
+    control_rate_hz: Annotated[float, Field(ge=30.0, le=240.0)] = 120.0  # control ticks per simulated second
+
+
+class DisturbanceSpec(_Model):
+    """The target is pushed across the table while the robot works (a slide of ``duration_s``).
+
+    The offset is fixed (``offset_m``), drawn per axis (``offset_range_m``) or drawn as a distance in
+    a random direction (``distance_range_m``); the turn is fixed or drawn, either way when
+    ``yaw_either_way`` is set.
+    """
+
+    at_time_s: Annotated[float, Field(ge=0.0)]  # simulated time after the first look
+    offset_m: Vec2 | None = None
+    offset_range_m: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max))
+    distance_range_m: tuple[Annotated[float, Field(ge=0.0)], Annotated[float, Field(ge=0.0)]] | None = None
+    yaw_deg: float = 0.0
+    yaw_range_deg: Vec2 | None = None
+    yaw_either_way: bool = False
+    duration_s: Annotated[float, Field(gt=0.0, le=2.0)] = 0.3
+
+    @model_validator(mode="after")
+    def _check(self) -> DisturbanceSpec:
+        given = [x is not None for x in (self.offset_m, self.offset_range_m, self.distance_range_m)]
+        if sum(given) != 1:
+            raise ValueError("give exactly one of offset_m, offset_range_m, distance_range_m")
+        for r in (*(self.offset_range_m or ()), self.distance_range_m, self.yaw_range_deg):
+            if r is not None and r[0] > r[1]:
+                raise ValueError("ranges must be [min, max]")
+        return self
+
+
 class SimSpec(_Model):
     time_step_s: Annotated[float, Field(gt=0.0, le=1.0 / 240.0)] = 1.0 / 240.0
     max_sim_time_s: PositiveFloat = 60.0  # simulated-time budget of one episode
@@ -195,6 +232,8 @@ class Scenario(_Model):
     layout: LayoutSpec = LayoutSpec()
     motion: MotionSpec = MotionSpec()
     sim: SimSpec = SimSpec()
+    control: ControlSpec = ControlSpec()
+    disturbances: tuple[DisturbanceSpec, ...] = ()
 
     @model_validator(mode="after")
     def _check(self) -> Scenario:

@@ -7,19 +7,11 @@ import pytest
 
 from pickdemo.geometry import Pose
 from pickdemo.grasp import GraspPlanningError, hand_yaw_for, plan_grasp
-from pickdemo.perception import PoseEstimate, TargetModel
+from pickdemo.perception import TargetModel
 
 
-def _estimate(yaw_deg: float, z: float = 0.025) -> PoseEstimate:
-    return PoseEstimate(
-        pose=Pose.from_xyz_rpy([0.5, 0.0, z], yaw=np.radians(yaw_deg)),
-        position_cov=np.eye(3) * 1e-8,
-        rpy_cov=np.eye(3) * 1e-6,
-        yaw_symmetry_rad=np.pi,
-        top_face_size_m=(0.05, 0.03),
-        n_features=10,
-        n_face_pixels=100,
-    )
+def _estimate(yaw_deg: float, z: float = 0.025) -> Pose:
+    return Pose.from_xyz_rpy([0.5, 0.0, z], yaw=np.radians(yaw_deg))
 
 
 def _finger_axis(psi: float) -> np.ndarray:
@@ -70,3 +62,11 @@ def test_too_wide_for_the_gripper() -> None:
     model = TargetModel("box", (0.09, 0.09, 0.05), (1.0, 0.0, 0.0))
     with pytest.raises(GraspPlanningError, match="wide"):
         plan_grasp(_estimate(0.0), model, (0.45, 0.3))
+
+
+def test_hand_yaw_near_keeps_the_hand_angle() -> None:
+    model = TargetModel("box", (0.05, 0.05, 0.05), (1.0, 0.0, 0.0))
+    first = plan_grasp(_estimate(44.0), model, (0.45, 0.3))
+    # The estimate crosses the quarter-turn boundary; the re-plan keeps the hand where it was.
+    again = plan_grasp(_estimate(46.0), model, (0.45, 0.3), hand_yaw_near_rad=first.hand_yaw_rad)
+    assert abs(again.hand_yaw_rad - first.hand_yaw_rad) == pytest.approx(np.radians(2.0))

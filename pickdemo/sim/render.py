@@ -16,6 +16,7 @@ from pickdemo.camera import (
     Intrinsics,
     RGBDFrame,
     add_kinect_noise,
+    crop_intrinsics,
     depth_from_buffer,
     look_at_pose,
     opengl_projection_matrix,
@@ -57,13 +58,19 @@ class Camera:
         self._proj = opengl_projection_matrix(self.intrinsics, spec.near_m, spec.far_m)
         self._rng = rng
 
-    def _render(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        w, h = self.spec.width, self.spec.height
+    def _render(
+        self, scene: Scene, roi: tuple[int, int, int, int] | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if roi is None:
+            w, h, proj = self.spec.width, self.spec.height, self._proj
+        else:
+            w, h = roi[2] - roi[0], roi[3] - roi[1]
+            proj = opengl_projection_matrix(self.intrinsics, self.spec.near_m, self.spec.far_m, roi)
         _, _, rgba, zbuf, seg = scene.client.getCameraImage(
             w,
             h,
             viewMatrix=self._view,
-            projectionMatrix=self._proj,
+            projectionMatrix=proj,
             shadow=0,
             lightDirection=list(LIGHT_DIRECTION),
             renderer=p.ER_TINY_RENDERER,
@@ -73,9 +80,14 @@ class Camera:
         depth[depth >= self.spec.far_m * 0.999] = np.inf  # no return
         return rgb, depth, np.asarray(seg).reshape(h, w)
 
-    def capture(self, scene: Scene) -> RGBDFrame:
-        """An RGB-D frame as a real sensor would give it (noisy depth if the scenario says so)."""
-        rgb, depth, _ = self._render(scene)
+    def capture(self, scene: Scene, roi: tuple[int, int, int, int] | None = None) -> RGBDFrame:
+        """An RGB-D frame as a real sensor would give it (noisy depth if the scenario says so).
+
+        With ``roi = (x0, y0, x1, y1)`` only that region of the image is rendered (at the full
+        frame's pixel density, so it holds exactly the pixels ``[y0:y1, x0:x1]`` of the whole frame):
+        a 120x120 crop costs about a sixteenth of a 640x480 frame.
+        """
+        rgb, depth, _ = self._render(scene, roi)
         if self.spec.depth_noise == "kinect":
             finite = np.isfinite(depth)
             noisy = depth.copy()
@@ -83,8 +95,9 @@ class Camera:
             depth = noisy
         rgb.setflags(write=False)
         depth.setflags(write=False)
+        K = self.intrinsics if roi is None else crop_intrinsics(self.intrinsics, roi)
         return RGBDFrame(
-            rgb=rgb, depth_m=depth, intrinsics=self.intrinsics, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s
+            rgb=rgb, depth_m=depth, intrinsics=K, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s, roi=roi
         )
 
     def capture_labels(self, scene: Scene) -> tuple[RGBDFrame, np.ndarray]:

@@ -193,6 +193,28 @@ class Scene:
         lin, ang = self.client.getBaseVelocity(self.bodies[name])
         return float(np.linalg.norm(lin))
 
+    def objects_at_rest(self, speed_m_s: float = 2e-3) -> bool:
+        """Whether every movable object is (nearly) still: for setting the world up, never for control."""
+        robotless = (b for n, b in self.bodies.items() if n not in ("robot", "table"))
+        return all(np.linalg.norm(self.client.getBaseVelocity(b)[0]) < speed_m_s for b in robotless)
+
+    def settle(self, max_steps: int) -> int:
+        """Step until the objects have come to rest (10 steps in a row), at most ``max_steps``; the
+        robot holds its pose meanwhile. Returns the steps taken. World set-up, not robot behaviour."""
+        still = 0
+        for i in range(max_steps):
+            self.step()
+            still = still + 1 if self.objects_at_rest() else 0
+            if still >= 10:
+                return i + 1
+        return max_steps
+
+    def set_pose(self, name: str, pose: Pose) -> None:
+        """Move a body kinematically (a disturbance): pose set, velocity zeroed."""
+        body = self.bodies[name]
+        self.client.resetBasePositionAndOrientation(body, list(pose.position), list(pose.quaternion_xyzw))
+        self.client.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+
     def true_tcp_pose(self) -> Pose:
         state = self.client.getLinkState(self.bodies["robot"], self.tcp_link, computeForwardKinematics=True)
         return Pose.from_quaternion_xyzw(np.array(state[4]), np.array(state[5]))

@@ -1,0 +1,39 @@
+"""What crosses between the robot and its controller once per control tick, as frozen dataclasses.
+
+:class:`Observation` is what the robot's own sensors report (encoders, finger openings, finger
+contacts); :class:`Command` is what the controller sends back (arm joint targets with velocity
+feed-forward, and the gripper's target opening and force). Camera frames travel separately, at
+their own rate (:class:`pickdemo.camera.RGBDFrame`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Observation:
+    """The robot's proprioception at one tick."""
+
+    time_s: float  # simulated time
+    arm_q: np.ndarray  # (7,) rad
+    arm_dq: np.ndarray  # (7,) rad/s
+    fingers_m: np.ndarray  # (2,) m, each finger's opening from the centre
+    finger_contacts: tuple[int, int]  # contact points on each finger with anything but the robot
+
+    @property
+    def opening_m(self) -> float:
+        """Distance between the fingers (m)."""
+        return float(np.sum(self.fingers_m))
+
+
+@dataclass(frozen=True)
+class Command:
+    """What the controller sends for the next tick."""
+
+    arm_q: np.ndarray  # (7,) rad, position targets
+    arm_dq: np.ndarray  # (7,) rad/s, velocity feed-forward
+    finger_opening_m: float  # target of each finger, 0 .. 0.04 m
+    finger_force_n: float  # force limit of each finger's motor (N)

@@ -1,0 +1,587 @@
+"""The pick behaviour: a state machine called once per control tick.
+
+Pure: no simulator. Each tick :meth:`PickMachine.update` gets the robot's observation (joints,
+finger opening, finger contacts) and returns a :class:`~pickdemo.interfaces.Command`; perception's
+estimates reach it through :meth:`PickMachine.on_estimate` when they arrive (late, by the modelled
+latency), and it says through :meth:`PickMachine.frame_request` when it wants a camera frame and of
+which region. Modelled on Drake's ``PickAndPlaceStateMachine::Update``: every state has an entry
+action (run once, when it is entered: plan, send a target) and an exit test (run every tick); a
+failure is a transition to ``FAILED`` with a typed stage and a reason.
+
+States, in the order of a pick::
+
+    LOOK -> APPROACH -> DESCEND -> CLOSE -> LIFT -> TRANSPORT -> LOWER -> RELEASE -> RETREAT -> HOME
+         -> VERIFY -> DONE
+    DESCEND --(the target moved)--> BACK_OFF -> APPROACH
+    CLOSE --(nothing held)--> BACK_OFF -> LOOK          (a retry, up to ``max_attempts``)
+    LIFT / TRANSPORT --(dropped)--> BACK_OFF -> LOOK    (a retry with more grip force, a slower lift)
+
+While it approaches, descends and closes it keeps looking (closed loop): the tracker fuses every
+estimate, and the motion is re-targeted to where the tracker says the target is. With
+``open_loop`` it looks only in ``LOOK`` and plays the plan from that one look, for comparison.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pickdemo import robot_model as rm
+from pickdemo.camera import Intrinsics, roi_around
+from pickdemo.geometry import Pose, wrap_angle
+from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, plan_grasp
+from pickdemo.interfaces import Command, Observation
+from pickdemo.kinematics import IKParams, PandaKinematics
+from pickdemo.motion import CartesianLimits, MotionError, MotionSample, OnlineMotion, pose_to_x4
+from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
+from pickdemo.result import AttemptRecord, Failure, Stage
+from pickdemo.tracker import TargetTracker, TrackerParams
+
+
+class State(str, enum.Enum):
+    LOOK = "look"
+    APPROACH = "approach"
+    DESCEND = "descend"
+    CLOSE = "close"
+    LIFT = "lift"
+    TRANSPORT = "transport"
+    LOWER = "lower"
+    RELEASE = "release"
+    RETREAT = "retreat"
+    HOME = "home"
+    VERIFY = "verify"
+    BACK_OFF = "back_off"
+    DONE = "done"
+    FAILED = "failed"
+
+
+#: States in which the closed loop keeps looking at the target (a region of interest around it).
+TRACKING_STATES = frozenset({State.APPROACH, State.DESCEND, State.CLOSE, State.BACK_OFF})
+
+
+@dataclass(frozen=True)
+class MachineParams:
+    """Behaviour of the pick; SI units."""
+
+    grasp: GraspParams = GraspParams()
+    free: CartesianLimits = CartesianLimits(velocity=0.30, acceleration=1.5, jerk=15.0)  # away from the object
+    near: CartesianLimits = CartesianLimits(velocity=0.10, acceleration=0.5, jerk=5.0)  # near it: descend, lift
+    grip_force_n: float = 20.0  # per finger; measured: holds a 5 cm cube with ~1 mm slip
+    max_grip_force_n: float = 70.0  # the Franka Hand's continuous grip force
+    open_force_n: float = 20.0
+    look_min_estimates: int = 2  # accepted estimates before the first plan (1 when open loop)
+    look_max_frames: int = 10  # frames in LOOK without an accepted estimate: the episode fails
+    lost_fail_s: float = 3.0  # the target lost this long while approaching: the episode fails
+    moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
+    moved_tolerance_rad: float = float(np.radians(8.0))
+    hold_margin_m: float = 0.008  # fingers closed this far past the object's width: nothing held
+    drop_ticks: int = 3  # ticks in a row without a hold before a drop is called
+    stall_ticks: int = 8  # ticks in a row of fingers not moving: they have closed or opened
+    close_timeout_s: float = 2.0
+    verify_wait_s: float = 0.3  # let the placed object come to rest before the last look
+    roi_margin_m: float = 0.03  # around the target's box, for the region of interest
+    tracker: TrackerParams = TrackerParams()
+
+
+@dataclass(frozen=True)
+class Event:
+    """A state entered, at a simulated time, with what it says."""
+
+    state: State
+    time_s: float
+    message: str
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """What the robot knows of its camera: intrinsics of the whole image and its pose."""
+
+    intrinsics: Intrinsics
+    T_world_cam: Pose
+
+
+@dataclass(frozen=True)
+class FrameRequest:
+    """A frame perception wants now: the whole image (``roi`` None) or a region of it."""
+
+    roi: tuple[int, int, int, int] | None
+
+
+@dataclass
+class _Counters:
+    estimates: int = 0
+    rejected: int = 0
+    perception_errors: int = 0
+    jumps: int = 0
+    retargets: int = 0
+    last_error: str = ""
+    notes: list[str] = field(default_factory=list)
+
+
+class PickMachine:
+    """Pick and place as a state machine; see the module docstring."""
+
+    def __init__(
+        self,
+        *,
+        kin: PandaKinematics,
+        model: TargetModel,
+        symmetry_rad: float,
+        place_xy: tuple[float, float],
+        camera: CameraModel,
+        q0: np.ndarray,
+        dt_s: float,
+        rng: np.random.Generator,
+        max_attempts: int = 3,
+        open_loop: bool = False,
+        params: MachineParams | None = None,
+    ) -> None:
+        self.p = params or MachineParams()
+        self.kin = kin
+        self.model = model
+        self.symmetry = symmetry_rad
+        self.place_xy = place_xy
+        self.camera = camera
+        self.rng = rng
+        self.max_attempts = max_attempts
+        self.open_loop = open_loop
+        self.dt_s = dt_s
+        self.motion = OnlineMotion(kin, q0, dt_s, self.p.free)
+        self.home_x4 = pose_to_x4(kin.forward(rm.HOME_Q))
+        self.tracker = TargetTracker(symmetry_rad, self.p.tracker)
+        self.state = State.LOOK
+        self.failure: Failure | None = None
+        self.events: list[Event] = []
+        self.attempts: list[AttemptRecord] = []
+        self.counters = _Counters()
+        self.plan: GraspPlan | None = None
+        self.grasp_width_m: float | None = None  # finger opening on the object at the last grasp
+        self.verify_estimate: PoseEstimate | None = None
+        self.last_sample: MotionSample | None = None
+        # Per attempt: what a retry may change.
+        self.attempt = 1
+        self.grip_force_n = self.p.grip_force_n
+        self.lift_scale = 1.0
+        self._turn_hand = False  # after a miss: try a square box by its other pair of faces
+        self._attempt_start_s = 0.0
+        # Per state.
+        self._entered = False
+        self._since_s = 0.0
+        self._now_s = 0.0
+        self._finger_target = rm.FINGER_MAX_M
+        self._finger_force = self.p.open_force_n
+        self._fresh_estimate = False
+        self._look_frames = 0
+        self._stall = 0
+        self._no_hold = 0
+        self._prev_opening: float | None = None
+        self._after_back_off = State.LOOK
+        self._descent_plan: GraspPlan | None = None
+        self._verify_asked = False
+
+    # ================================================================================ interface
+    @property
+    def finished(self) -> bool:
+        return self.state in (State.DONE, State.FAILED)
+
+    def frame_request(self, now_s: float) -> FrameRequest | None:
+        """Whether perception should look now, and at what (the loop applies the frame rate)."""
+        if self.state is State.LOOK:
+            return FrameRequest(None) if self._entered and self.motion.finished else None
+        if self.state is State.VERIFY:
+            wait_over = now_s - self._since_s >= self.p.verify_wait_s
+            return FrameRequest(None) if wait_over and not self._verify_asked else None
+        if self.open_loop or self.state not in TRACKING_STATES or not self.tracker.initialised:
+            return None
+        return FrameRequest(self._roi(now_s))
+
+    def on_estimate(self, result: PoseEstimate | PerceptionError, frame_time_s: float) -> None:
+        """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``."""
+        if self.state is State.VERIFY:
+            self._verify_asked = True
+            if isinstance(result, PoseEstimate):
+                self.verify_estimate = result
+            return
+        looking = self.state is State.LOOK or (self.state in TRACKING_STATES and not self.open_loop)
+        if not looking:
+            return
+        if self.state is State.LOOK:
+            self._look_frames += 1
+        if isinstance(result, PerceptionError):
+            self.counters.perception_errors += 1
+            self.counters.last_error = str(result)
+            return
+        self.counters.estimates += 1
+        up = self.tracker.update(result, frame_time_s)
+        if not up.accepted:
+            self.counters.rejected += 1
+        if up.jumped:
+            self.counters.jumps += 1
+            self.counters.notes.append(f"t = {frame_time_s:.2f} s: {up.reason}")
+        if up.accepted:
+            self._fresh_estimate = True
+
+    def update(self, obs: Observation) -> Command:
+        """One control tick: the state's entry action (once), its exit test, then the motion's tick."""
+        self._now_s = obs.time_s
+        for _ in range(4):  # a state may hand over to the next within the tick
+            if not self._entered:
+                self._entered = True
+                self._since_s = obs.time_s
+                getattr(self, f"_enter_{self.state.value}")(obs)
+            if self.finished:
+                break
+            nxt = getattr(self, f"_tick_{self.state.value}")(obs)
+            if nxt is None:
+                break
+            self._go(*nxt)
+        if self.finished:
+            return self._command_hold()
+        try:
+            sample = self.motion.step()
+        except MotionError as exc:
+            self._fail(Stage.TRAJECTORY, str(exc))
+            return self._command_hold()
+        self.last_sample = sample
+        self.counters.retargets = self.motion.retargets
+        return Command(sample.q, sample.dq, self._finger_target, self._finger_force)
+
+    # ============================================================================== transitions
+    def _go(self, state: State, message: str) -> None:
+        self.state = state
+        self._entered = False
+        self.events.append(Event(state, self._now_s, message))
+
+    def abort(self, stage: Stage, reason: str) -> None:
+        """End the episode from outside (the step budget is spent)."""
+        self._fail(stage, reason)
+
+    def _fail(self, stage: Stage, reason: str) -> None:
+        if self.plan is not None and (not self.attempts or self.attempts[-1].number != self.attempt):
+            self._end_attempt("failed", f"{stage.value}: {reason}")
+        self.failure = Failure(stage, reason)
+        self.state = State.FAILED
+        self._entered = True
+        self.events.append(Event(State.FAILED, self._now_s, f"{stage.value}: {reason}"))
+
+    def _command_hold(self) -> Command:
+        q = self.motion.q
+        return Command(q.copy(), np.zeros(7), self._finger_target, self._finger_force)
+
+    def _end_attempt(self, outcome: str, reason: str) -> None:
+        self.attempts.append(
+            AttemptRecord(
+                number=self.attempt,
+                outcome=outcome,
+                reason=reason,
+                start_s=self._attempt_start_s,
+                end_s=self._now_s,
+                grip_force_n=self.grip_force_n,
+                hand_yaw_deg=None if self.plan is None else float(np.degrees(self.plan.hand_yaw_rad)),
+                lift_speed_scale=self.lift_scale,
+            )
+        )
+
+    def _retry(self, stage: Stage, outcome: str, reason: str) -> tuple[State, str] | None:
+        """End this attempt; start the next (changed by what failed) or fail the episode."""
+        self._end_attempt(outcome, reason)
+        if self.attempt >= self.max_attempts:
+            self._fail(stage, f"{reason} (attempt {self.attempt} of {self.max_attempts})")
+            return None
+        self.attempt += 1
+        if outcome == "missed":
+            # Look again; a square box may be taken by its other pair of faces.
+            self._turn_hand = self.model.shape == "box" and self.symmetry < np.pi - 1e-9
+        else:
+            # It slipped out: hold harder, lift more gently.
+            self.grip_force_n = min(self.grip_force_n * 2.0, self.p.max_grip_force_n)
+            self.lift_scale *= 0.5
+        self._after_back_off = State.LOOK
+        return State.BACK_OFF, f"{outcome}: {reason}; attempt {self.attempt} of {self.max_attempts} follows"
+
+    # ==================================================================================== helpers
+    def _open(self) -> None:
+        self._finger_target, self._finger_force = rm.FINGER_MAX_M, self.p.open_force_n
+
+    def _fingers_stalled(self, obs: Observation) -> bool:
+        opening = obs.opening_m
+        moved = self._prev_opening is None or abs(opening - self._prev_opening) > 2e-6 * 240.0 * self.dt_s
+        self._prev_opening = opening
+        self._stall = 0 if moved else self._stall + 1
+        return self._stall >= self.p.stall_ticks
+
+    def _holding(self, obs: Observation) -> bool:
+        assert self.plan is not None
+        left, right = obs.finger_contacts
+        return left > 0 and right > 0 and obs.opening_m > self.plan.object_width_m - self.p.hold_margin_m
+
+    def _dropped(self, obs: Observation) -> bool:
+        self._no_hold = 0 if self._holding(obs) else self._no_hold + 1
+        return self._no_hold >= self.p.drop_ticks
+
+    def _tracked_pose(self) -> Pose:
+        tp = self.tracker.predict(self._now_s)
+        return Pose.from_xyz_rpy(tp.position, yaw=tp.yaw_rad)
+
+    def _replan(self, *, first: bool) -> GraspPlan | None:
+        """A grasp plan from the tracker's belief now; None after failing the episode.
+
+        A re-plan keeps the hand's angle. The first plan of an attempt checks that the whole pick and
+        place is in reach; after a miss it first tries the hand turned a quarter (a square box's other
+        pair of faces), and the usual angle if that is out of reach.
+        """
+        pose = self._tracked_pose()
+        if not first:
+            near = None if self.plan is None else self.plan.hand_yaw_rad
+            try:
+                return plan_grasp(pose, self.model, self.place_xy, self.p.grasp, hand_yaw_near_rad=near)
+            except GraspPlanningError as exc:
+                self._fail(Stage.GRASP_PLANNING, str(exc))
+                return None
+        candidates: list[float | None] = [None]
+        if self._turn_hand and self.plan is not None:
+            candidates.insert(0, self.plan.hand_yaw_rad + np.pi / 2.0)
+        self._turn_hand = False
+        reason = ""
+        for near in candidates:
+            try:
+                plan = plan_grasp(pose, self.model, self.place_xy, self.p.grasp, hand_yaw_near_rad=near)
+            except GraspPlanningError as exc:
+                self._fail(Stage.GRASP_PLANNING, str(exc))
+                return None
+            reason = ""
+            for name, target in (("grasp", plan.grasp), ("place", plan.place)):
+                res = self.kin.solve(target, self.motion.q, self.rng, IKParams())
+                if not res.success:
+                    reason = f"{name} pose out of reach: {res.reason}"
+                    break
+            if not reason:
+                return plan
+        self._fail(Stage.IK, reason)
+        return None
+
+    def _x4(self, pose: Pose) -> np.ndarray:
+        """(x, y, z, yaw) of a plan's pose, its yaw the equivalent nearest the current setpoint's."""
+        x4 = pose_to_x4(pose)
+        x4[3] = self.motion.setpoint[3] + wrap_angle(x4[3] - self.motion.setpoint[3])
+        return x4
+
+    def _roi(self, now_s: float) -> tuple[int, int, int, int] | None:
+        tp = self.tracker.predict(now_s)
+        r = 0.5 * float(np.linalg.norm(self.model.size)) + self.p.roi_margin_m + 3.0 * tp.position_sigma_m
+        corners = tp.position + r * np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        corners[:, 2] = np.maximum(corners[:, 2], -0.005)
+        return roi_around(corners, self.camera.intrinsics, self.camera.T_world_cam, pad_px=4)
+
+    # ===================================================================================== states
+    # ---- LOOK: from the home pose, full frames until the tracker holds the target.
+    def _enter_look(self, obs: Observation) -> None:
+        self._open()
+        self._attempt_start_s = obs.time_s
+        self.tracker = TargetTracker(self.symmetry, self.p.tracker)
+        self._look_frames = 0
+        self._fresh_estimate = False
+        self.motion.set_target(self._x4_home(), limits=self.p.free)
+
+    def _x4_home(self) -> np.ndarray:
+        x4 = self.home_x4.copy()
+        x4[3] = self.motion.setpoint[3] + wrap_angle(x4[3] - self.motion.setpoint[3])
+        return x4
+
+    def _tick_look(self, obs: Observation) -> tuple[State, str] | None:
+        needed = 1 if self.open_loop else self.p.look_min_estimates
+        if self.tracker.accepted >= needed:
+            plan = self._replan(first=True)
+            if plan is None:
+                return None
+            self.plan = plan
+            tp = self.tracker.predict(obs.time_s)
+            return State.APPROACH, (
+                f"target at ({tp.position[0]:.4f}, {tp.position[1]:.4f}, {tp.position[2]:.4f}) m, "
+                f"yaw {np.degrees(tp.yaw_rad):+.2f} deg from {self.tracker.accepted} estimate(s); "
+                f"grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg"
+                + (f" (attempt {self.attempt})" if self.attempt > 1 else "")
+            )
+        if self._look_frames >= self.p.look_max_frames:
+            self._fail(
+                Stage.PERCEPTION,
+                f"no estimate of the target in {self._look_frames} frames: {self.counters.last_error or 'rejected'}",
+            )
+        return None
+
+    # ---- APPROACH: to above the target, re-targeted as estimates arrive.
+    def _enter_approach(self, obs: Observation) -> None:
+        assert self.plan is not None
+        self.motion.set_target(self._x4(self.plan.pregrasp), limits=self.p.free)
+
+    def _track_plan(self) -> GraspPlan | None:
+        """A fresh plan when a new estimate has come in (closed loop), else None."""
+        if self.open_loop or not self._fresh_estimate:
+            return None
+        self._fresh_estimate = False
+        return self._replan(first=False)
+
+    def _tick_approach(self, obs: Observation) -> tuple[State, str] | None:
+        if not self.open_loop and self.tracker.lost(obs.time_s):
+            lost_for = obs.time_s - max(self._since_s, self.tracker.last_accept_s or 0.0)
+            if lost_for > self.p.lost_fail_s:
+                self._fail(Stage.PERCEPTION, f"target lost: no estimate accepted for {lost_for:.1f} s")
+                return None
+        plan = self._track_plan()
+        if plan is not None:
+            self.plan = plan
+            self.motion.set_target(self._x4(plan.pregrasp))
+        if self.motion.finished:
+            return State.DESCEND, f"above the target at t = {obs.time_s:.2f} s"
+        return None
+
+    # ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
+    def _enter_descend(self, obs: Observation) -> None:
+        assert self.plan is not None
+        self._descent_plan = self.plan
+        self.motion.set_target(self._x4(self.plan.grasp), limits=self.p.near)
+
+    def _tick_descend(self, obs: Observation) -> tuple[State, str] | None:
+        plan = self._track_plan()
+        if plan is not None:
+            assert self._descent_plan is not None
+            moved = float(np.linalg.norm(plan.grasp.position[:2] - self._descent_plan.grasp.position[:2]))
+            turned = abs(plan.hand_yaw_rad - self._descent_plan.hand_yaw_rad)
+            self.plan = plan
+            if moved > self.p.moved_tolerance_m or turned > self.p.moved_tolerance_rad:
+                self._after_back_off = State.APPROACH
+                return State.BACK_OFF, (
+                    f"the target moved {moved * 1e3:.0f} mm, {np.degrees(turned):.0f} deg during the descent: "
+                    "backing off to approach again"
+                )
+            self.motion.set_target(self._x4(plan.grasp))
+        if self.motion.finished:
+            return State.CLOSE, f"at the grasp pose, t = {obs.time_s:.2f} s"
+        return None
+
+    # ---- CLOSE: fingers close with this attempt's force; held or missed.
+    def _enter_close(self, obs: Observation) -> None:
+        self._finger_target, self._finger_force = 0.0, self.grip_force_n
+        self._stall = 0
+        self._prev_opening = None
+
+    def _tick_close(self, obs: Observation) -> tuple[State, str] | None:
+        assert self.plan is not None
+        stalled = self._fingers_stalled(obs)
+        if not stalled and obs.time_s - self._since_s < self.p.close_timeout_s:
+            return None
+        if self._holding(obs):
+            self.grasp_width_m = obs.opening_m
+            return State.LIFT, (
+                f"holding: fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {self.grip_force_n:.0f} N"
+            )
+        reason = (
+            f"fingers closed to {obs.opening_m * 1e3:.1f} mm "
+            f"(expected {self.plan.object_width_m * 1e3:.0f} mm): nothing held"
+        )
+        return self._retry(Stage.GRASP, "missed", reason)
+
+    # ---- LIFT, TRANSPORT, LOWER: carry it, watching the hold.
+    def _enter_lift(self, obs: Observation) -> None:
+        assert self.plan is not None
+        self._no_hold = 0
+        self.motion.set_target(self._x4(self.plan.lift), limits=self.p.near.scaled(self.lift_scale))
+
+    def _tick_lift(self, obs: Observation) -> tuple[State, str] | None:
+        if self._dropped(obs):
+            return self._retry(Stage.LIFT, "dropped while lifting", f"fingers at {obs.opening_m * 1e3:.1f} mm")
+        if self.motion.finished:
+            return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
+        return None
+
+    def _enter_transport(self, obs: Observation) -> None:
+        assert self.plan is not None
+        self.motion.set_target(
+            self._x4(self.plan.place_above), limits=self.p.free.scaled(min(1.0, 2 * self.lift_scale))
+        )
+
+    def _tick_transport(self, obs: Observation) -> tuple[State, str] | None:
+        if self._dropped(obs):
+            return self._retry(Stage.TRANSPORT, "dropped in transit", f"fingers at {obs.opening_m * 1e3:.1f} mm")
+        if self.motion.finished:
+            return State.LOWER, f"above the place position, t = {obs.time_s:.2f} s"
+        return None
+
+    def _enter_lower(self, obs: Observation) -> None:
+        assert self.plan is not None
+        self.motion.set_target(self._x4(self.plan.place), limits=self.p.near)
+
+    def _tick_lower(self, obs: Observation) -> tuple[State, str] | None:
+        if self._dropped(obs):
+            return self._retry(Stage.TRANSPORT, "dropped in transit", f"fingers at {obs.opening_m * 1e3:.1f} mm")
+        if self.motion.finished:
+            return State.RELEASE, "lowered onto the table"
+        return None
+
+    # ---- RELEASE, RETREAT, HOME, VERIFY.
+    def _enter_release(self, obs: Observation) -> None:
+        self._open()
+        self._stall = 0
+        self._prev_opening = None
+
+    def _tick_release(self, obs: Observation) -> tuple[State, str] | None:
+        opened = obs.opening_m > 2.0 * rm.FINGER_MAX_M - 0.004
+        if opened or self._fingers_stalled(obs) or obs.time_s - self._since_s > self.p.close_timeout_s:
+            assert self.plan is not None
+            self._end_attempt("placed", "")
+            p = self.plan.place.position
+            return State.RETREAT, f"released at ({p[0]:.3f}, {p[1]:.3f})"
+        return None
+
+    def _enter_retreat(self, obs: Observation) -> None:
+        assert self.plan is not None
+        self.motion.set_target(self._x4(self.plan.retreat), limits=self.p.near)
+
+    def _tick_retreat(self, obs: Observation) -> tuple[State, str] | None:
+        return (State.HOME, "clear of the object") if self.motion.finished else None
+
+    def _enter_home(self, obs: Observation) -> None:
+        self.motion.set_target(self._x4_home(), limits=self.p.free)
+
+    def _tick_home(self, obs: Observation) -> tuple[State, str] | None:
+        return (State.VERIFY, f"arm home, t = {obs.time_s:.2f} s") if self.motion.finished else None
+
+    def _enter_verify(self, obs: Observation) -> None:
+        self._verify_asked = False
+        self.verify_estimate = None
+
+    def _tick_verify(self, obs: Observation) -> tuple[State, str] | None:
+        if not self._verify_asked:
+            return None
+        if self.verify_estimate is None:
+            return State.DONE, "the camera does not find the target at the end"
+        seen = self.verify_estimate.pose.position
+        err = float(np.hypot(seen[0] - self.place_xy[0], seen[1] - self.place_xy[1]))
+        return State.DONE, f"the camera sees the target {err * 1e3:.1f} mm from the place position"
+
+    def _enter_done(self, obs: Observation) -> None:
+        pass
+
+    def _tick_done(self, obs: Observation) -> tuple[State, str] | None:
+        return None
+
+    # ---- BACK_OFF: open, straight up to a safe height, then look or approach again.
+    def _enter_back_off(self, obs: Observation) -> None:
+        if self._after_back_off is State.LOOK:
+            self._open()
+        safe_z = self.p.grasp.pregrasp_height_m + (self.plan.grasp.position[2] if self.plan is not None else 0.02)
+        x4 = self.motion.setpoint.copy()
+        x4[2] = max(x4[2], safe_z)
+        self.motion.set_target(x4, limits=self.p.near)
+
+    def _tick_back_off(self, obs: Observation) -> tuple[State, str] | None:
+        if self._after_back_off is State.APPROACH:
+            plan = self._track_plan()  # keep following the target while rising
+            if plan is not None:
+                self.plan = plan
+        if self.motion.finished:
+            nxt = self._after_back_off
+            return nxt, "clear above the table: " + ("look again" if nxt is State.LOOK else "approach again")
+        return None

@@ -1,0 +1,221 @@
+"""The target tracker: fuses perception's estimates into one belief of the target's pose and rates.
+
+Pure: estimates in, a Gaussian belief out. A constant-velocity Kalman filter on the state
+``(x, y, z, yaw, vx, vy, vz, vyaw)`` (m, rad, m/s, rad/s), white-noise acceleration as process noise.
+
+- **Measurement noise** is the estimate's own covariance (position and yaw), plus a floor for what
+  the method's model of itself leaves out (an arm passing in front, rasterised edges).
+- **Latency**: an estimate refers to the time its frame was taken. The filter's state is kept at the
+  time of the newest estimate it has taken in; :meth:`TargetTracker.predict` carries it to any later
+  time (the controller asks for *now*), so the delay is compensated with the estimated rates.
+- **Outliers** are rejected with a Mahalanobis gate on the innovation. A run of rejected estimates
+  that agree with each other is not an outlier but a world that changed (the target was pushed):
+  after :attr:`TrackerParams.jump_confirm` of them the filter restarts on the newest, and counts a
+  jump, which the controller reads.
+- **Yaw** is known modulo the target's symmetry (a quarter turn for a square box, a half turn for
+  any box); innovations are wrapped to that period. A cylinder has no yaw: its yaw is not updated.
+- **Lost**: no estimate accepted for :attr:`TrackerParams.lost_after_s`; the controller decides what
+  that means where it is (while the hand hides the target on purpose, nothing).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo.geometry import wrap_angle
+from pickdemo.perception import PoseEstimate
+
+#: 99.9 % quantiles of the chi-square distribution, by degrees of freedom (the gate's threshold).
+CHI2_999 = {3: 16.266, 4: 18.467}
+
+
+@dataclass(frozen=True)
+class TrackerParams:
+    """Noise and gating; SI units."""
+
+    accel_sigma_m_s2: float = 0.05  # white-noise acceleration: how fast the target may start moving
+    yaw_accel_sigma_rad_s2: float = 0.2
+    position_floor_m: float = 0.0007  # added to each estimate's standard deviation, per axis
+    yaw_floor_rad: float = float(np.radians(0.7))
+    initial_speed_sigma_m_s: float = 0.05  # prior on the rates when a track starts
+    initial_yaw_rate_sigma_rad_s: float = 0.2
+    jump_confirm: int = 3  # rejected estimates in a row that agree with each other: the target moved
+    lost_after_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if min(self.accel_sigma_m_s2, self.position_floor_m, self.yaw_floor_rad, self.lost_after_s) <= 0.0:
+            raise ValueError("tracker noise levels and lost_after_s must be positive")
+        if self.jump_confirm < 2:
+            raise ValueError("jump_confirm must be at least 2")
+
+
+@dataclass(frozen=True)
+class TrackedPose:
+    """The belief at one time: mean and covariance of (x, y, z, yaw) and of their rates."""
+
+    time_s: float
+    position: np.ndarray  # (3,) m
+    yaw_rad: float
+    velocity: np.ndarray  # (3,) m/s
+    yaw_rate_rad_s: float
+    covariance: np.ndarray  # (8, 8)
+
+    @property
+    def position_sigma_m(self) -> float:
+        """The largest standard deviation of the position (m)."""
+        return float(np.sqrt(np.max(np.linalg.eigvalsh(self.covariance[:3, :3]))))
+
+
+@dataclass(frozen=True)
+class TrackerUpdate:
+    """What became of one estimate."""
+
+    accepted: bool
+    mahalanobis2: float  # squared Mahalanobis distance of the innovation
+    jumped: bool = False  # the track restarted here: the target moved
+    reason: str = ""
+
+
+class TargetTracker:
+    """Kalman filter over the target's pose and rates, with a gate and jump detection."""
+
+    def __init__(self, yaw_symmetry_rad: float, params: TrackerParams | None = None) -> None:
+        """``yaw_symmetry_rad``: the model looks the same after this turn (0 for a cylinder: no yaw)."""
+        self.params = params or TrackerParams()
+        self.symmetry = yaw_symmetry_rad
+        self.has_yaw = yaw_symmetry_rad > 0.0
+        self._x: np.ndarray | None = None
+        self._P = np.zeros((8, 8))
+        self._t = 0.0
+        self._last_accept_s: float | None = None
+        self._rejected: list[tuple[float, np.ndarray, np.ndarray]] = []  # run of rejected (t, z, R)
+        self.accepted = 0
+        self.rejected = 0
+        self.jumps = 0
+
+    # ----------------------------------------------------------------------------------- queries
+    @property
+    def initialised(self) -> bool:
+        return self._x is not None
+
+    @property
+    def last_accept_s(self) -> float | None:
+        """Frame time of the newest accepted estimate."""
+        return self._last_accept_s
+
+    def lost(self, now_s: float) -> bool:
+        """No estimate accepted for ``lost_after_s`` (or none ever)."""
+        return self._last_accept_s is None or now_s - self._last_accept_s > self.params.lost_after_s
+
+    def predict(self, time_s: float) -> TrackedPose:
+        """The belief carried forward to ``time_s`` (never before the newest estimate taken in)."""
+        if self._x is None:
+            raise RuntimeError("the tracker has no estimate yet")
+        x, P = self._propagate(max(time_s - self._t, 0.0))
+        return TrackedPose(
+            time_s=max(time_s, self._t),
+            position=x[:3].copy(),
+            yaw_rad=float(x[3]),
+            velocity=x[4:7].copy(),
+            yaw_rate_rad_s=float(x[7]),
+            covariance=P,
+        )
+
+    # ---------------------------------------------------------------------------------- updates
+    def update(self, estimate: PoseEstimate, time_s: float) -> TrackerUpdate:
+        """Take in an estimate from a frame taken at ``time_s`` (estimates must come in time order)."""
+        z, R = self._measurement(estimate)
+        if self._x is None:
+            self._start(z, R, time_s)
+            return TrackerUpdate(True, 0.0)
+        if time_s < self._t:
+            return TrackerUpdate(False, float("nan"), reason="older than the track")
+        x, P = self._propagate(time_s - self._t)
+        H = self._H()
+        innov = H @ z - H @ x
+        if self.has_yaw:
+            innov[3] = wrap_angle(innov[3], self.symmetry)
+        S = H @ P @ H.T + H @ R @ H.T
+        d2 = float(innov @ np.linalg.solve(S, innov))
+        if d2 > CHI2_999[len(innov)]:
+            self.rejected += 1
+            self._rejected.append((time_s, z, R))
+            if self._jump_confirmed():
+                self._start(z, R, time_s)
+                self.jumps += 1
+                return TrackerUpdate(True, d2, jumped=True, reason="the target moved: the track restarts")
+            return TrackerUpdate(False, d2, reason=f"Mahalanobis distance {np.sqrt(d2):.1f} beyond the gate")
+        K = P @ H.T @ np.linalg.inv(S)
+        x = x + K @ innov
+        I_KH = np.eye(8) - K @ H
+        P = I_KH @ P @ I_KH.T + K @ (H @ R @ H.T) @ K.T  # Joseph form: stays symmetric and positive
+        self._x, self._P, self._t = x, 0.5 * (P + P.T), time_s
+        self._last_accept_s = time_s
+        self._rejected.clear()
+        self.accepted += 1
+        return TrackerUpdate(True, d2)
+
+    # --------------------------------------------------------------------------------- internals
+    def _H(self) -> np.ndarray:
+        """Rows of the state that a measurement observes: position, and yaw where there is one."""
+        rows = [0, 1, 2, 3] if self.has_yaw else [0, 1, 2]
+        return np.eye(8)[rows]
+
+    def _measurement(self, est: PoseEstimate) -> tuple[np.ndarray, np.ndarray]:
+        p = self.params
+        z = np.zeros(8)
+        z[:3] = est.pose.position
+        yaw = float(est.pose.rpy[2])
+        if self.has_yaw and self._x is not None:  # the equivalent yaw nearest the track's
+            yaw = float(self._x[3] + wrap_angle(yaw - self._x[3], self.symmetry))
+        z[3] = yaw
+        R = np.zeros((8, 8))
+        w, V = np.linalg.eigh(est.position_cov)
+        R[:3, :3] = V @ np.diag((np.sqrt(np.maximum(w, 0.0)) + p.position_floor_m) ** 2) @ V.T
+        R[3, 3] = (np.sqrt(max(float(est.rpy_cov[2, 2]), 0.0)) + p.yaw_floor_rad) ** 2
+        return z, R
+
+    def _start(self, z: np.ndarray, R: np.ndarray, time_s: float) -> None:
+        p = self.params
+        self._x = z.copy()
+        self._x[4:] = 0.0
+        P = np.zeros((8, 8))
+        P[:4, :4] = R[:4, :4]
+        if not self.has_yaw:
+            P[3, 3] = np.pi**2
+        P[4:7, 4:7] = np.eye(3) * p.initial_speed_sigma_m_s**2
+        P[7, 7] = p.initial_yaw_rate_sigma_rad_s**2
+        self._P = P
+        self._t = time_s
+        self._last_accept_s = time_s
+        self._rejected.clear()
+        self.accepted += 1
+
+    def _propagate(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        assert self._x is not None
+        F = np.eye(8)
+        F[:4, 4:] = np.eye(4) * dt
+        q = np.array([self.params.accel_sigma_m_s2] * 3 + [self.params.yaw_accel_sigma_rad_s2]) ** 2
+        Q = np.zeros((8, 8))
+        Q[:4, :4] = np.diag(q * dt**3 / 3.0)
+        Q[:4, 4:] = Q[4:, :4] = np.diag(q * dt**2 / 2.0)
+        Q[4:, 4:] = np.diag(q * dt)
+        return F @ self._x, F @ self._P @ F.T + Q
+
+    def _jump_confirmed(self) -> bool:
+        """The last ``jump_confirm`` rejected estimates, in a row, agree with each other."""
+        n = self.params.jump_confirm
+        if len(self._rejected) < n:
+            return False
+        run = self._rejected[-n:]
+        H = self._H()
+        for (_, za, Ra), (_, zb, Rb) in zip(run[:-1], run[1:], strict=True):
+            d = H @ (zb - za)
+            if self.has_yaw:
+                d[3] = wrap_angle(d[3], self.symmetry)
+            S = H @ (Ra + Rb) @ H.T
+            if float(d @ np.linalg.solve(S, d)) > CHI2_999[len(d)]:
+                return False
+        return True
