@@ -47,6 +47,7 @@ class Job:
     scenario_path: str
     scenario_name: str
     seed: int
+    open_loop: bool = False
 
     @property
     def key(self) -> tuple[str, int]:
@@ -106,6 +107,18 @@ def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> di
         "wall_time_s": wall_time_s,
         "stage_wall_times_s": {},
         "phases": [],
+        "open_loop": job.open_loop,
+        "attempts": [],
+        "perception_frames": 0,
+        "perception_rate_hz": None,
+        "estimates_rejected": 0,
+        "perception_failures": 0,
+        "target_moves_detected": 0,
+        "retargets": 0,
+        "tracking_error_mm": None,
+        "tracking_yaw_error_deg": None,
+        "disturbances": [],
+        "control_tick_ms": {},
     }
 
 
@@ -119,7 +132,7 @@ def run_job(job: Job) -> dict[str, Any]:
         scenario = load_scenario(job.scenario_path)
     except Exception as exc:  # noqa: BLE001 - a job must always come back with a result
         return failed_result(job, Stage.ERROR, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
-    return run_episode(scenario, job.seed).to_dict()
+    return run_episode(scenario, job.seed, open_loop=job.open_loop).to_dict()
 
 
 # --------------------------------------------------------------------------------------- executors
@@ -248,7 +261,7 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Per-scenario statistics of result dicts (as in ``episodes.jsonl``)."""
     by_scenario: dict[str, list[dict[str, Any]]] = {}
     for r in results:
-        by_scenario.setdefault(r["scenario"], []).append(r)
+        by_scenario.setdefault(summary_name(r), []).append(r)
     out: dict[str, dict[str, Any]] = {}
     for name, rs in sorted(by_scenario.items()):
         n = len(rs)
@@ -271,8 +284,19 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "place_error_mm": describe([r["place_error_mm"] for r in rs if r["place_error_mm"] is not None]),
             "wall_time_s": describe([r["wall_time_s"] for r in rs]),
             "real_time_factor": sim / wall if wall > 0 else None,
+            "first_attempt_successes": sum(1 for r in rs if r["success"] and len(r.get("attempts") or ()) == 1),
+            "attempts_per_episode": describe([len(r.get("attempts") or ()) for r in rs]),
+            "perception_rate_hz": describe([r.get("perception_rate_hz") for r in rs]),
+            "estimates_rejected": sum(r.get("estimates_rejected") or 0 for r in rs),
+            "target_moves_detected": sum(r.get("target_moves_detected") or 0 for r in rs),
+            "tracking_error_mm": describe([r.get("tracking_error_mm") for r in rs]),
         }
     return out
+
+
+def summary_name(result: dict[str, Any]) -> str:
+    """The scenario's name, marked when the episode ran open loop."""
+    return result["scenario"] + (" [open loop]" if result.get("open_loop") else "")
 
 
 def _seed_ranges(seeds: list[int]) -> str:
@@ -306,6 +330,19 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
             if st:
                 med, p95, mx = st["median"], st["p95"], st["max"]
                 lines.append(f"  {label}: median {med:.3f} {unit}, p95 {p95:.3f}, max {mx:.3f} (n={st['n']})")
+        att = s["attempts_per_episode"]
+        if att:
+            lines.append(
+                f"  first attempt: {s['first_attempt_successes']}/{s['episodes']}; attempts per episode: "
+                f"mean {att['mean']:.2f}, max {att['max']:.0f}"
+            )
+        if s["perception_rate_hz"]:
+            trk = s["tracking_error_mm"]
+            lines.append(
+                f"  closed loop: perception {s['perception_rate_hz']['median']:.1f} Hz, "
+                f"{s['estimates_rejected']} estimate(s) rejected, {s['target_moves_detected']} target move(s) "
+                f"detected" + (f", tracking error at the grasp median {trk['median']:.2f} mm" if trk else "")
+            )
         wt, rtf = s["wall_time_s"], s["real_time_factor"]
         rtf_text = f"{rtf:.1f}x" if rtf is not None else "n/a"
         lines.append(f"  wall time per episode: median {wt['median']:.2f} s; real-time factor {rtf_text}")

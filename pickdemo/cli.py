@@ -37,6 +37,7 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, help="directory to write result.json into")
     run.add_argument("--gui", action="store_true", help="open the PyBullet window (needs a display)")
     run.add_argument("--quiet", action="store_true", help="print only the summary line")
+    run.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
     bench = sub.add_parser(
         "bench",
         help="run many seeded episodes in parallel and gate on the success rate",
@@ -57,6 +58,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "--episode-timeout", type=float, default=300.0, help="wall-clock guard per episode, s (default 300)"
     )
     bench.add_argument("--no-progress", action="store_true", help="no progress bar")
+    bench.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
     perceive = sub.add_parser(
         "perceive",
         help="perception only: every method on the same frames, errors against the truth",
@@ -84,6 +86,9 @@ def _summary(result: EpisodeResult) -> str:
         )
     if result.place_error_mm is not None:
         parts.append(f"place error {result.place_error_mm:.1f} mm")
+    if result.attempts:
+        parts.append(f"{len(result.attempts)} attempt(s)")
+    parts.append(f"{result.perception_frames} frames")
     parts.append(f"{result.sim_time_s:.1f} s simulated in {result.wall_time_s:.2f} s")
     line = " | ".join(parts)
     if result.failure is not None:
@@ -109,8 +114,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"[{time.perf_counter() - t0:6.2f} s] {phase:<9} {message}", flush=True)
 
     if not args.quiet:
-        print(f"pickdemo: {scenario.name} seed {args.seed}: {scenario.description}", flush=True)
-    result = run_episode(scenario, args.seed, options=EpisodeOptions(gui=args.gui), on_phase=on_phase)
+        loop = "open loop (one look)" if args.open_loop else "closed loop"
+        print(f"pickdemo: {scenario.name} seed {args.seed} ({loop}): {scenario.description}", flush=True)
+    options = EpisodeOptions(gui=args.gui, open_loop=args.open_loop)
+    result = run_episode(scenario, args.seed, options=options, on_phase=on_phase)
     print(_summary(result), flush=True)
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -146,7 +153,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         if scenario.name in seen and seen[scenario.name] != path.resolve():
             raise UsageError(f"two scenarios are named {scenario.name!r}: {seen[scenario.name]} and {path}")
         seen[scenario.name] = path.resolve()
-        jobs += [bench.Job(str(path.resolve()), scenario.name, seed) for seed in seeds]
+        jobs += [bench.Job(str(path.resolve()), scenario.name, seed, args.open_loop) for seed in seeds]
     jobs = list({j.key: j for j in jobs}.values())
 
     if args.executor == "ray":
@@ -253,6 +260,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("pickdemo: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader went away (`| head`): stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_FAILED
 
 
 if __name__ == "__main__":  # pragma: no cover

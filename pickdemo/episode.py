@@ -203,7 +203,7 @@ def run_episode(
             tick_ms.append((time.perf_counter() - t0) * 1e3)
             for ev in machine.events[n_events:]:
                 phase(ev.state.value, ev.message, ev.time_s)
-                if ev.state is State.CLOSE:  # commit: how far the tracker is from the truth (scoring)
+                if ev.state is State.CLOSE and not ev.note:  # commit: how far the tracker is from the truth (scoring)
                     truth = scene.true_pose(target_name)
                     tp = machine.tracker.predict(now)
                     tracking_error_mm = float(np.linalg.norm(tp.position - truth.position)) * 1e3

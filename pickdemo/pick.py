@@ -24,7 +24,7 @@ estimate, and the motion is re-targeted to where the tracker says the target is.
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -92,6 +92,7 @@ class Event:
     state: State
     time_s: float
     message: str
+    note: bool = False  # something seen within a state, not a transition
 
 
 @dataclass(frozen=True)
@@ -117,7 +118,6 @@ class _Counters:
     jumps: int = 0
     retargets: int = 0
     last_error: str = ""
-    notes: list[str] = field(default_factory=list)
 
 
 class PickMachine:
@@ -153,7 +153,7 @@ class PickMachine:
         self.tracker = TargetTracker(symmetry_rad, self.p.tracker)
         self.state = State.LOOK
         self.failure: Failure | None = None
-        self.events: list[Event] = []
+        self.events: list[Event] = [Event(State.LOOK, 0.0, "looking for the target", note=True)]
         self.attempts: list[AttemptRecord] = []
         self.counters = _Counters()
         self.plan: GraspPlan | None = None
@@ -219,7 +219,19 @@ class PickMachine:
             self.counters.rejected += 1
         if up.jumped:
             self.counters.jumps += 1
-            self.counters.notes.append(f"t = {frame_time_s:.2f} s: {up.reason}")
+            tp = self.tracker.predict(frame_time_s)
+            moved = ""
+            if self.plan is not None:
+                d = float(np.linalg.norm(tp.position[:2] - self.plan.grasp.position[:2]))
+                moved = f" {d * 1e3:.0f} mm from the plan"
+            self.events.append(
+                Event(
+                    self.state,
+                    self._now_s,
+                    f"the target moved{moved} (frame at t = {frame_time_s:.2f} s): tracking it again",
+                    note=True,
+                )
+            )
         if up.accepted:
             self._fresh_estimate = True
 
