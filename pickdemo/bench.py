@@ -118,7 +118,7 @@ def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> di
         "tracking_error_mm": None,
         "tracking_yaw_error_deg": None,
         "disturbances": [],
-        "control_tick_ms": {},
+        "control_tick_wall_ms": {},
     }
 
 

@@ -188,10 +188,8 @@ def run_episode(
         tick = 0
         while not machine.finished:
             if scene.steps + substeps > max_steps:
-                machine.abort(
-                    Stage.TIMEOUT,
-                    f"simulated-time budget of {scenario.sim.max_sim_time_s:.1f} s spent in state {machine.state.value}",
-                )
+                budget = scenario.sim.max_sim_time_s
+                machine.abort(Stage.TIMEOUT, f"simulated-time budget of {budget:.1f} s spent in {machine.state.value}")
                 break
             now = scene.sim_time_s
             obs = robot.observe()
@@ -316,7 +314,7 @@ def run_episode(
         tracking_error_mm=tracking_error_mm,
         tracking_yaw_error_deg=tracking_yaw_deg,
         disturbances=tuple(p.push.to_dict() for p in pushes),
-        control_tick_ms={
+        control_tick_wall_ms={
             "median": float(np.median(tick_arr)),
             "p95": float(np.percentile(tick_arr, 95)),
             "ticks": len(tick_ms),

@@ -494,8 +494,21 @@ def condition_on_plane(
 
 
 def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None) -> PoseEstimate:
-    """The target's pose from one frame (see the module docstring for the method)."""
-    params = params or PerceptionParams()
+    """The target's pose from one frame (see the module docstring for the method).
+
+    Raises :class:`PerceptionError` with the reason when the target cannot be measured, a degenerate
+    fit included (too little of it visible: a singular system); nothing else escapes.
+    """
+    try:
+        return _estimate_pose(frame, model, params or PerceptionParams())
+    except (np.linalg.LinAlgError, cv2.error, ValueError, IndexError) as exc:
+        reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise PerceptionError(
+            f"degenerate fit ({type(exc).__name__}: {reason}): too little of the target seen"
+        ) from None
+
+
+def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams) -> PoseEstimate:
     x0, y0, x1, y1 = _target_roi(frame, model, params)
     f = crop_frame(frame, x0, y0, x1, y1)
     K = f.intrinsics

@@ -57,6 +57,12 @@ class State(str, enum.Enum):
     FAILED = "failed"
 
 
+#: Corners of a box holding the Panda hand and its fingers, in the TCP frame (z towards the finger tips), m.
+HAND_BOX_TCP = np.array(
+    [[x, y, z] for x in (-0.035, 0.035) for y in (-0.105, 0.105) for z in (-0.17, 0.01)], dtype=float
+)
+UNIT_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+
 #: States in which the closed loop keeps looking at the target (a region of interest around it).
 TRACKING_STATES = frozenset({State.APPROACH, State.DESCEND, State.CLOSE, State.BACK_OFF})
 
@@ -214,7 +220,7 @@ class PickMachine:
             self.counters.last_error = str(result)
             return
         self.counters.estimates += 1
-        up = self.tracker.update(result, frame_time_s)
+        up = self.tracker.update(result, frame_time_s, occluded=self._hand_hides_target(frame_time_s))
         if not up.accepted:
             self.counters.rejected += 1
         if up.jumped:
@@ -380,10 +386,39 @@ class PickMachine:
         x4[3] = self.motion.setpoint[3] + wrap_angle(x4[3] - self.motion.setpoint[3])
         return x4
 
+    def _hand_hides_target(self, time_s: float) -> bool:
+        """Whether the hand's box, where the joint encoders put it, overlaps the target's box in the image.
+
+        The robot's own model and joint states are what a real robot has (a "self filter"); boxes make
+        the answer conservative. Uses the commanded joints of now, close to the frame's a latency ago.
+        """
+        if not self.tracker.initialised:
+            return False
+        K, T = self.camera.intrinsics, self.camera.T_world_cam
+        tcp = self.kin.forward(self.motion.q)
+        hand = tcp.transform_points(HAND_BOX_TCP)
+        tp = self.tracker.predict(time_s)
+        r = 0.5 * float(np.linalg.norm(self.model.size))
+        target = tp.position + r * UNIT_CUBE
+        box_hand = roi_around(hand, K, T, pad_px=0, min_size_px=0)
+        box_target = roi_around(target, K, T, pad_px=0, min_size_px=0)
+        if box_hand is None or box_target is None:
+            return False
+        # In front of it too: the hand nearer the camera than the target's far side.
+        cam = T.position
+        nearer = np.min(np.linalg.norm(hand - cam, axis=1)) < np.linalg.norm(tp.position - cam) + r
+        overlap = not (
+            box_hand[2] <= box_target[0]
+            or box_target[2] <= box_hand[0]
+            or box_hand[3] <= box_target[1]
+            or box_target[3] <= box_hand[1]
+        )
+        return bool(overlap and nearer)
+
     def _roi(self, now_s: float) -> tuple[int, int, int, int] | None:
         tp = self.tracker.predict(now_s)
         r = 0.5 * float(np.linalg.norm(self.model.size)) + self.p.roi_margin_m + 3.0 * tp.position_sigma_m
-        corners = tp.position + r * np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        corners = tp.position + r * UNIT_CUBE
         corners[:, 2] = np.maximum(corners[:, 2], -0.005)
         return roi_around(corners, self.camera.intrinsics, self.camera.T_world_cam, pad_px=4)
 
@@ -586,7 +621,8 @@ class PickMachine:
         safe_z = self.p.grasp.pregrasp_height_m + (self.plan.grasp.position[2] if self.plan is not None else 0.02)
         x4 = self.motion.setpoint.copy()
         x4[2] = max(x4[2], safe_z)
-        self.motion.set_target(x4, limits=self.p.near)
+        # Limits change only at rest: lowered mid-motion, Ruckig may overshoot while braking.
+        self.motion.set_target(x4, limits=self.p.near if self.motion.finished else None)
 
     def _tick_back_off(self, obs: Observation) -> tuple[State, str] | None:
         if self._after_back_off is State.APPROACH:

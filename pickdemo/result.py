@@ -121,6 +121,10 @@ class PerceptionScore:
         }
 
 
+#: Keys of ``result.json`` measured on the wall clock: the only ones that differ between two runs of a seed.
+WALL_CLOCK_KEYS = ("wall_time_s", "stage_wall_times_s", "control_tick_wall_ms")
+
+
 @dataclass(frozen=True)
 class EpisodeResult:
     """One scored episode. ``to_dict`` gives the ``result.json`` object."""
@@ -148,7 +152,7 @@ class EpisodeResult:
     tracking_error_mm: float | None = None  # tracker vs truth when the gripper last closed
     tracking_yaw_error_deg: float | None = None
     disturbances: tuple[dict[str, Any], ...] = ()  # the pushes applied (drawn per seed)
-    control_tick_ms: dict[str, float] = field(default_factory=dict)  # wall time of a decision: median, p95
+    control_tick_wall_ms: dict[str, float] = field(default_factory=dict)  # wall time of a decision: median, p95
     trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
@@ -177,7 +181,7 @@ class EpisodeResult:
                 "tracking_error_mm": self.tracking_error_mm,
                 "tracking_yaw_error_deg": self.tracking_yaw_error_deg,
                 "disturbances": list(self.disturbances),
-                "control_tick_ms": dict(self.control_tick_ms),
+                "control_tick_wall_ms": dict(self.control_tick_wall_ms),
             }
         )
 

@@ -25,6 +25,7 @@ from pickdemo.bench import (
     summarise,
     wilson_interval,
 )
+from pickdemo.result import WALL_CLOCK_KEYS
 
 
 def _result(scenario: str, seed: int, ok: bool, stage: str = "grasp") -> dict:
@@ -139,7 +140,7 @@ def test_bad_scenario_in_a_job_is_an_error_result() -> None:
 
 
 def _strip(rs: list[dict]) -> dict:
-    return {(r["scenario"], r["seed"]): {k: v for k, v in r.items() if k not in ("wall_time_s", "stage_wall_times_s")}
+    return {(r["scenario"], r["seed"]): {k: v for k, v in r.items() if k not in WALL_CLOCK_KEYS}
             for r in rs}  # fmt: skip
 
 

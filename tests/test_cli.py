@@ -49,7 +49,7 @@ def test_bad_scenario_file_names_file_and_key(tmp_path: Path) -> None:
 def test_run_writes_result_json(tmp_path: Path) -> None:
     proc = _run("run", "pick_cube", "--seed", "1", "--out", str(tmp_path / "o"), cwd=tmp_path)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    for phase in ("perceive", "plan", "approach", "grasp", "lift", "place", "verify"):
+    for phase in ("look", "approach", "descend", "close", "lift", "transport", "lower", "release", "verify", "done"):
         assert f"] {phase}" in proc.stdout
     assert "SUCCESS" in proc.stdout
     assert proc.stderr == ""  # nothing leaks from PyBullet's C code
@@ -64,6 +64,11 @@ def test_run_writes_result_json(tmp_path: Path) -> None:
         "sim_time_s",
         "wall_time_s",
         "stage_wall_times_s",
+        "attempts",
+        "perception_frames",
+        "perception_rate_hz",
+        "estimates_rejected",
+        "tracking_error_mm",
     ):
         assert key in result
     for key in ("estimated_pose", "true_pose", "position_error_mm", "yaw_error_deg"):
