@@ -290,6 +290,7 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "estimates_rejected": sum(r.get("estimates_rejected") or 0 for r in rs),
             "target_moves_detected": sum(r.get("target_moves_detected") or 0 for r in rs),
             "tracking_error_mm": describe([r.get("tracking_error_mm") for r in rs]),
+            "control_tick_wall_ms": describe([(r.get("control_tick_wall_ms") or {}).get("median") for r in rs]),
         }
     return out
 
@@ -345,7 +346,9 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
             )
         wt, rtf = s["wall_time_s"], s["real_time_factor"]
         rtf_text = f"{rtf:.1f}x" if rtf is not None else "n/a"
-        lines.append(f"  wall time per episode: median {wt['median']:.2f} s; real-time factor {rtf_text}")
+        tick = s["control_tick_wall_ms"]
+        tick_text = f"; control decision {tick['median']:.3f} ms a tick (median)" if tick else ""
+        lines.append(f"  wall time per episode: median {wt['median']:.2f} s; real-time factor {rtf_text}{tick_text}")
     return "\n".join(lines)
 
 

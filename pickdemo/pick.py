@@ -194,11 +194,16 @@ class PickMachine:
 
     def frame_request(self, now_s: float) -> FrameRequest | None:
         """Whether perception should look now, and at what (the loop applies the frame rate)."""
-        if self.state is State.LOOK:
-            return FrameRequest(None) if self._entered and self.motion.finished else None
-        if self.state is State.VERIFY:
+        if self.state is State.LOOK:  # the whole image, then around the first estimate
+            if not (self._entered and self.motion.finished):
+                return None
+            return FrameRequest(self._roi(now_s) if self.tracker.initialised else None)
+        if self.state is State.VERIFY:  # around where it was put down
             wait_over = now_s - self._since_s >= self.p.verify_wait_s
-            return FrameRequest(None) if wait_over and not self._verify_asked else None
+            if not wait_over or self._verify_asked:
+                return None
+            z = self.model.height_m / 2.0
+            return FrameRequest(self._roi_at(np.array([*self.place_xy, z]), self.p.roi_margin_m + 0.03))
         if self.open_loop or self.state not in TRACKING_STATES or not self.tracker.initialised:
             return None
         return FrameRequest(self._roi(now_s))
@@ -416,9 +421,13 @@ class PickMachine:
         return bool(overlap and nearer)
 
     def _roi(self, now_s: float) -> tuple[int, int, int, int] | None:
+        """Around the tracked target, widened by its uncertainty (None: the whole image)."""
         tp = self.tracker.predict(now_s)
-        r = 0.5 * float(np.linalg.norm(self.model.size)) + self.p.roi_margin_m + 3.0 * tp.position_sigma_m
-        corners = tp.position + r * UNIT_CUBE
+        return self._roi_at(tp.position, self.p.roi_margin_m + 3.0 * tp.position_sigma_m)
+
+    def _roi_at(self, centre: np.ndarray, margin_m: float) -> tuple[int, int, int, int] | None:
+        r = 0.5 * float(np.linalg.norm(self.model.size)) + margin_m
+        corners = centre + r * UNIT_CUBE
         corners[:, 2] = np.maximum(corners[:, 2], -0.005)
         return roi_around(corners, self.camera.intrinsics, self.camera.T_world_cam, pad_px=4)
 

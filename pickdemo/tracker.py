@@ -35,8 +35,8 @@ CHI2_999 = {3: 16.266, 4: 18.467}
 class TrackerParams:
     """Noise and gating; SI units."""
 
-    accel_sigma_m_s2: float = 0.05  # white-noise acceleration: how fast the target may start moving
-    yaw_accel_sigma_rad_s2: float = 0.2
+    accel_sigma_m_s2: float = 0.01  # white-noise acceleration (m/s^2): a real move beyond it is a jump
+    yaw_accel_sigma_rad_s2: float = 0.05
     position_floor_m: float = 0.0007  # added to each estimate's standard deviation, per axis
     yaw_floor_rad: float = float(np.radians(0.7))
     initial_speed_sigma_m_s: float = 0.05  # prior on the rates when a track starts

@@ -73,3 +73,24 @@ def test_table_plane_is_z_zero(tile_scene) -> None:
 
     z = world_points(frame)[..., 2][seg == scene.bodies["table"]]
     assert np.max(np.abs(z)) < 0.5e-3
+
+
+@pytest.mark.parametrize("roi", [(200, 150, 330, 270), (0, 0, 100, 90), (517, 371, 640, 480)])
+def test_region_of_interest_is_the_same_pixels(tile_scene, roi) -> None:
+    """A crop rendered with the ROI's frustum holds exactly the whole frame's pixels [y0:y1, x0:x1],
+    and its intrinsics project the tiles to the same places, shifted by the corner."""
+    from pickdemo.sim.render import Camera
+
+    scene, frame, _ = tile_scene
+    camera = Camera(scene.scenario.camera, np.random.default_rng(0))
+    scenario_noise = scene.scenario.camera.depth_noise
+    crop = camera.capture(scene, roi)
+    x0, y0, x1, y1 = roi
+    assert crop.rgb.shape == (y1 - y0, x1 - x0, 3) and crop.roi == roi
+    np.testing.assert_array_equal(crop.rgb, frame.rgb[y0:y1, x0:x1])
+    whole = frame.depth_m[y0:y1, x0:x1]
+    finite = np.isfinite(whole)
+    assert np.array_equal(finite, np.isfinite(crop.depth_m))
+    tol = 5e-6 if scenario_noise == "none" else 0.02  # Kinect noise is drawn per frame
+    assert np.max(np.abs(crop.depth_m[finite] - whole[finite])) < tol
+    assert (crop.intrinsics.cx, crop.intrinsics.cy) == (frame.intrinsics.cx - x0, frame.intrinsics.cy - y0)

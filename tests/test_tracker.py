@@ -1,0 +1,90 @@
+"""The target tracker: fuses estimates, compensates latency, gates outliers, restarts on a real move."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pickdemo.geometry import Pose
+from pickdemo.perception import PoseEstimate
+from pickdemo.tracker import TargetTracker, TrackerParams
+
+
+def _est(x: float, y: float, yaw_deg: float = 0.0, sd_m: float = 1e-4, z: float = 0.025) -> PoseEstimate:
+    return PoseEstimate(
+        pose=Pose.from_xyz_rpy([x, y, z], yaw=np.radians(yaw_deg)),
+        position_cov=np.eye(3) * sd_m**2,
+        rpy_cov=np.eye(3) * np.radians(0.1) ** 2,
+        yaw_symmetry_rad=np.pi / 2,
+        top_face_size_m=(0.05, 0.05),
+        n_features=10,
+        n_face_pixels=500,
+    )
+
+
+def test_static_target_fuses_and_predicts_in_place() -> None:
+    rng = np.random.default_rng(0)
+    tr = TargetTracker(np.pi / 2)
+    for k in range(20):
+        up = tr.update(_est(0.5 + rng.normal(0, 2e-4), rng.normal(0, 2e-4), 10.0), 0.1 * k)
+        assert up.accepted
+    tp = tr.predict(2.05)  # 50 ms of latency ahead of the newest frame
+    assert np.linalg.norm(tp.position[:2] - [0.5, 0.0]) < 5e-4
+    assert np.linalg.norm(tp.velocity) < 5e-3
+    assert np.degrees(tp.yaw_rad) == pytest.approx(10.0, abs=0.2)
+
+
+def test_moving_target_velocity_is_estimated_and_latency_compensated() -> None:
+    tr = TargetTracker(np.pi / 2)
+    v = 0.05  # m/s along y
+    for k in range(30):
+        tr.update(_est(0.5, v * 0.1 * k), 0.1 * k)
+    tp = tr.predict(2.9 + 0.05)
+    assert tp.velocity[1] == pytest.approx(v, abs=2e-3)
+    assert tp.position[1] == pytest.approx(v * 2.95, abs=1e-3)
+
+
+def test_single_outlier_is_rejected() -> None:
+    tr = TargetTracker(np.pi / 2)
+    for k in range(5):
+        tr.update(_est(0.5, 0.0), 0.1 * k)
+    up = tr.update(_est(0.53, 0.0), 0.5)
+    assert not up.accepted and up.mahalanobis2 > 100
+    assert tr.update(_est(0.5, 0.0), 0.6).accepted
+    assert tr.predict(0.6).position[0] == pytest.approx(0.5, abs=1e-4)
+    assert tr.rejected == 1 and tr.jumps == 0
+
+
+def test_a_real_move_restarts_the_track_after_agreeing_rejections() -> None:
+    tr = TargetTracker(np.pi / 2, TrackerParams(jump_confirm=3))
+    for k in range(5):
+        tr.update(_est(0.5, 0.0), 0.1 * k)
+    ups = [tr.update(_est(0.54, 0.02, 20.0), 0.5 + 0.1 * k) for k in range(3)]
+    assert [u.accepted for u in ups] == [False, False, True] and ups[-1].jumped
+    assert tr.jumps == 1
+    np.testing.assert_allclose(tr.predict(0.7).position[:2], [0.54, 0.02], atol=1e-4)
+
+
+def test_occluded_rejections_never_restart_the_track() -> None:
+    tr = TargetTracker(np.pi / 2)
+    for k in range(5):
+        tr.update(_est(0.5, 0.0), 0.1 * k)
+    for k in range(6):
+        assert not tr.update(_est(0.51, 0.04), 0.5 + 0.1 * k, occluded=True).accepted
+    assert tr.jumps == 0
+    assert tr.predict(1.1).position[0] == pytest.approx(0.5, abs=1e-4)
+
+
+def test_yaw_wraps_with_the_symmetry() -> None:
+    tr = TargetTracker(np.pi / 2)
+    tr.update(_est(0.5, 0.0, 44.0), 0.0)
+    up = tr.update(_est(0.5, 0.0, -45.5), 0.1)  # the same square face a quarter turn on
+    assert up.accepted
+    assert np.degrees(tr.predict(0.1).yaw_rad) == pytest.approx(44.3, abs=0.6)
+
+
+def test_lost_after_a_second_without_an_accepted_estimate() -> None:
+    tr = TargetTracker(0.0)  # a cylinder: no yaw
+    assert tr.lost(0.0)
+    tr.update(_est(0.5, 0.0), 0.0)
+    assert not tr.lost(0.9) and tr.lost(1.1)
