@@ -13,7 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-from pickdemo.result import EpisodeResult
+from pickdemo.result import EpisodeResult, PhaseRecord
 from pickdemo.scenario import ScenarioError, list_scenarios, load_scenario, resolve_scenario_path, suite_scenarios
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -109,9 +109,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
 
-    def on_phase(phase: str, message: str) -> None:
+    def on_phase(rec: PhaseRecord) -> None:
         if not args.quiet:
-            print(f"[{time.perf_counter() - t0:6.2f} s] {phase:<9} {message}", flush=True)
+            wall = time.perf_counter() - t0
+            print(f"[sim {rec.sim_time_s:6.2f} s | wall {wall:5.2f} s] {rec.phase:<9} {rec.message}", flush=True)
 
     if not args.quiet:
         loop = "open loop (one look)" if args.open_loop else "closed loop"

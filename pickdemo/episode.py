@@ -33,7 +33,7 @@ from pickdemo.scenario import Scenario
 from pickdemo.streams import spawn_rngs
 from pickdemo.task import target_model
 
-PhaseCallback = Callable[[str, str], None]
+PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each note), as it happens
 
 SETTLE_MAX_S = 2.0  # the objects come to rest before the first look, within this
 
@@ -117,7 +117,6 @@ def run_episode(
     options = options or EpisodeOptions()
     if open_loop is not None:
         options = EpisodeOptions(**{**options.__dict__, "open_loop": open_loop})
-    say = on_phase or (lambda phase, msg: None)
     timer = _Timer()
     wall0 = time.perf_counter()
     rngs = spawn_rngs(seed)
@@ -138,7 +137,8 @@ def run_episode(
 
     def phase(name: str, msg: str, t: float) -> None:
         phases.append(PhaseRecord(name, round(t, 6), msg))
-        say(name, msg)
+        if on_phase is not None:
+            on_phase(phases[-1])
 
     try:
         if len(scenario.targets) != 1:

@@ -26,10 +26,11 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from pickdemo import robot_model as rm
-from pickdemo.camera import Intrinsics, roi_around
+from pickdemo.camera import Intrinsics, project, roi_around
 from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, plan_grasp
 from pickdemo.interfaces import Command, Observation
@@ -61,6 +62,8 @@ class State(str, enum.Enum):
 HAND_BOX_TCP = np.array(
     [[x, y, z] for x in (-0.035, 0.035) for y in (-0.105, 0.105) for z in (-0.17, 0.01)], dtype=float
 )
+#: A turned hand (a retry's other grasp yaw) is taken only if joint 7 stays within this (its limit: 2.90 rad).
+WRIST_TURN_LIMIT_RAD = 2.4
 UNIT_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
 
 #: States in which the closed loop keeps looking at the target (a region of interest around it).
@@ -72,7 +75,9 @@ class MachineParams:
     """Behaviour of the pick; SI units."""
 
     grasp: GraspParams = GraspParams()
-    free: CartesianLimits = CartesianLimits(velocity=0.30, acceleration=1.5, jerk=15.0)  # away from the object
+    free: CartesianLimits = CartesianLimits(  # away from the object
+        velocity=0.30, acceleration=1.5, jerk=15.0, yaw_velocity=1.5, yaw_acceleration=6.0, yaw_jerk=60.0
+    )
     near: CartesianLimits = CartesianLimits(velocity=0.10, acceleration=0.5, jerk=5.0)  # near it: descend, lift
     grip_force_n: float = 20.0  # per finger; measured: holds a 5 cm cube with ~1 mm slip
     max_grip_force_n: float = 70.0  # the Franka Hand's continuous grip force
@@ -88,6 +93,7 @@ class MachineParams:
     close_timeout_s: float = 2.0
     verify_wait_s: float = 0.3  # let the placed object come to rest before the last look
     roi_margin_m: float = 0.03  # around the target's box, for the region of interest
+    occlusion_fraction: float = 0.02  # of the target's silhouette under the hand's: the hand hides it
     tracker: TrackerParams = TrackerParams()
 
 
@@ -159,7 +165,7 @@ class PickMachine:
         self.tracker = TargetTracker(symmetry_rad, self.p.tracker)
         self.state = State.LOOK
         self.failure: Failure | None = None
-        self.events: list[Event] = [Event(State.LOOK, 0.0, "looking for the target", note=True)]
+        self.events: list[Event] = []
         self.attempts: list[AttemptRecord] = []
         self.counters = _Counters()
         self.plan: GraspPlan | None = None
@@ -239,7 +245,7 @@ class PickMachine:
                 Event(
                     self.state,
                     self._now_s,
-                    f"the target moved{moved} (frame at t = {frame_time_s:.2f} s): tracking it again",
+                    f"the target moved{moved} (seen in the frame of t = {frame_time_s:.2f} s): tracking it again",
                     note=True,
                 )
             )
@@ -380,6 +386,9 @@ class PickMachine:
                 if not res.success:
                     reason = f"{name} pose out of reach: {res.reason}"
                     break
+                if near is not None and abs(res.q[6]) > WRIST_TURN_LIMIT_RAD:  # a turned hand: keep wrist room
+                    reason = f"{name} pose turns joint 7 to {res.q[6]:.2f} rad"
+                    break
             if not reason:
                 return plan
         self._fail(Stage.IK, reason)
@@ -392,33 +401,30 @@ class PickMachine:
         return x4
 
     def _hand_hides_target(self, time_s: float) -> bool:
-        """Whether the hand's box, where the joint encoders put it, overlaps the target's box in the image.
+        """Whether the hand, where the joint encoders put it, covers part of the target in the image.
 
-        The robot's own model and joint states are what a real robot has (a "self filter"); boxes make
-        the answer conservative. Uses the commanded joints of now, close to the frame's a latency ago.
+        A "self filter": the robot's own model, its joint states and the camera's pose are what a
+        real robot has. The hand is a box around the hand and fingers; the target is its model's
+        box at the tracked pose; each is projected and their silhouettes (convex hulls) intersected.
+        Uses the commanded joints of now, close to the frame's of a latency ago.
         """
         if not self.tracker.initialised:
             return False
         K, T = self.camera.intrinsics, self.camera.T_world_cam
-        tcp = self.kin.forward(self.motion.q)
-        hand = tcp.transform_points(HAND_BOX_TCP)
+        T_cam_world = T.inverse()
         tp = self.tracker.predict(time_s)
-        r = 0.5 * float(np.linalg.norm(self.model.size))
-        target = tp.position + r * UNIT_CUBE
-        box_hand = roi_around(hand, K, T, pad_px=0, min_size_px=0)
-        box_target = roi_around(target, K, T, pad_px=0, min_size_px=0)
-        if box_hand is None or box_target is None:
-            return False
-        # In front of it too: the hand nearer the camera than the target's far side.
-        cam = T.position
-        nearer = np.min(np.linalg.norm(hand - cam, axis=1)) < np.linalg.norm(tp.position - cam) + r
-        overlap = not (
-            box_hand[2] <= box_target[0]
-            or box_target[2] <= box_hand[0]
-            or box_hand[3] <= box_target[1]
-            or box_target[3] <= box_hand[1]
+        hand = self.kin.forward(self.motion.q).transform_points(HAND_BOX_TCP)
+        half = np.array(
+            self.model.size if self.model.shape == "box" else (self.model.size[0],) * 2 + (self.model.size[1],)
         )
-        return bool(overlap and nearer)
+        target = Pose.from_xyz_rpy(tp.position, yaw=tp.yaw_rad).transform_points(0.5 * half * UNIT_CUBE)
+        p_hand, p_target = T_cam_world.transform_points(hand), T_cam_world.transform_points(target)
+        if np.any(p_hand[:, 2] <= 1e-3) or np.min(p_hand[:, 2]) > np.max(p_target[:, 2]):
+            return False  # behind the camera, or wholly behind the target
+        hull_hand = cv2.convexHull(project(p_hand, K).astype(np.float32))
+        hull_target = cv2.convexHull(project(p_target, K).astype(np.float32))
+        area, _ = cv2.intersectConvexConvex(hull_hand, hull_target)
+        return bool(area > self.p.occlusion_fraction * cv2.contourArea(hull_target))
 
     def _roi(self, now_s: float) -> tuple[int, int, int, int] | None:
         """Around the tracked target, widened by its uncertainty (None: the whole image)."""
@@ -434,6 +440,8 @@ class PickMachine:
     # ===================================================================================== states
     # ---- LOOK: from the home pose, full frames until the tracker holds the target.
     def _enter_look(self, obs: Observation) -> None:
+        if not self.events:
+            self.events.append(Event(State.LOOK, obs.time_s, "looking for the target", note=True))
         self._open()
         self._attempt_start_s = obs.time_s
         self.tracker = TargetTracker(self.symmetry, self.p.tracker)
@@ -490,7 +498,7 @@ class PickMachine:
             self.plan = plan
             self.motion.set_target(self._x4(plan.pregrasp))
         if self.motion.finished:
-            return State.DESCEND, f"above the target at t = {obs.time_s:.2f} s"
+            return State.DESCEND, "above the target"
         return None
 
     # ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
@@ -514,7 +522,7 @@ class PickMachine:
                 )
             self.motion.set_target(self._x4(plan.grasp))
         if self.motion.finished:
-            return State.CLOSE, f"at the grasp pose, t = {obs.time_s:.2f} s"
+            return State.CLOSE, "at the grasp pose"
         return None
 
     # ---- CLOSE: fingers close with this attempt's force; held or missed.
@@ -554,15 +562,13 @@ class PickMachine:
 
     def _enter_transport(self, obs: Observation) -> None:
         assert self.plan is not None
-        self.motion.set_target(
-            self._x4(self.plan.place_above), limits=self.p.free.scaled(min(1.0, 2 * self.lift_scale))
-        )
+        self.motion.set_target(self._x4(self.plan.place_above), limits=self.p.free.scaled(self.lift_scale))
 
     def _tick_transport(self, obs: Observation) -> tuple[State, str] | None:
         if self._dropped(obs):
             return self._retry(Stage.TRANSPORT, "dropped in transit", f"fingers at {obs.opening_m * 1e3:.1f} mm")
         if self.motion.finished:
-            return State.LOWER, f"above the place position, t = {obs.time_s:.2f} s"
+            return State.LOWER, "above the place position"
         return None
 
     def _enter_lower(self, obs: Observation) -> None:
@@ -602,7 +608,7 @@ class PickMachine:
         self.motion.set_target(self._x4_home(), limits=self.p.free)
 
     def _tick_home(self, obs: Observation) -> tuple[State, str] | None:
-        return (State.VERIFY, f"arm home, t = {obs.time_s:.2f} s") if self.motion.finished else None
+        return (State.VERIFY, "arm home") if self.motion.finished else None
 
     def _enter_verify(self, obs: Observation) -> None:
         self._verify_asked = False
