@@ -26,11 +26,10 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from pickdemo import robot_model as rm
-from pickdemo.camera import Intrinsics, project, roi_around
+from pickdemo.camera import Intrinsics, roi_around
 from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, plan_grasp
 from pickdemo.interfaces import Command, Observation
@@ -58,10 +57,6 @@ class State(str, enum.Enum):
     FAILED = "failed"
 
 
-#: Corners of a box holding the Panda hand and its fingers, in the TCP frame (z towards the finger tips), m.
-HAND_BOX_TCP = np.array(
-    [[x, y, z] for x in (-0.035, 0.035) for y in (-0.105, 0.105) for z in (-0.17, 0.01)], dtype=float
-)
 #: A turned hand (a retry's other grasp yaw) is taken only if joint 7 stays within this (its limit: 2.90 rad).
 WRIST_TURN_LIMIT_RAD = 2.4
 UNIT_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
@@ -84,7 +79,7 @@ class MachineParams:
     open_force_n: float = 20.0
     look_min_estimates: int = 2  # accepted estimates before the first plan (1 when open loop)
     look_max_frames: int = 10  # frames in LOOK without an accepted estimate: the episode fails
-    lost_fail_s: float = 3.0  # the target lost this long while approaching: the episode fails
+    max_relooks: int = 2  # the target lost while approaching: look again from home, at most this often
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
     moved_tolerance_rad: float = float(np.radians(8.0))
     hold_margin_m: float = 0.008  # fingers closed this far past the object's width: nothing held
@@ -93,7 +88,7 @@ class MachineParams:
     close_timeout_s: float = 2.0
     verify_wait_s: float = 0.3  # let the placed object come to rest before the last look
     roi_margin_m: float = 0.03  # around the target's box, for the region of interest
-    occlusion_fraction: float = 0.02  # of the target's silhouette under the hand's: the hand hides it
+    face_size_tolerance: float = 0.2  # a top face measured this far off the model's size: a partial view
     tracker: TrackerParams = TrackerParams()
 
 
@@ -192,6 +187,7 @@ class PickMachine:
         self._after_back_off = State.LOOK
         self._descent_plan: GraspPlan | None = None
         self._verify_asked = False
+        self._relooks = 0
 
     # ================================================================================ interface
     @property
@@ -231,7 +227,7 @@ class PickMachine:
             self.counters.last_error = str(result)
             return
         self.counters.estimates += 1
-        up = self.tracker.update(result, frame_time_s, occluded=self._hand_hides_target(frame_time_s))
+        up = self.tracker.update(result, frame_time_s, partial=not self._complete_view(result))
         if not up.accepted:
             self.counters.rejected += 1
         if up.jumped:
@@ -400,31 +396,17 @@ class PickMachine:
         x4[3] = self.motion.setpoint[3] + wrap_angle(x4[3] - self.motion.setpoint[3])
         return x4
 
-    def _hand_hides_target(self, time_s: float) -> bool:
-        """Whether the hand, where the joint encoders put it, covers part of the target in the image.
-
-        A "self filter": the robot's own model, its joint states and the camera's pose are what a
-        real robot has. The hand is a box around the hand and fingers; the target is its model's
-        box at the tracked pose; each is projected and their silhouettes (convex hulls) intersected.
-        Uses the commanded joints of now, close to the frame's of a latency ago.
-        """
-        if not self.tracker.initialised:
-            return False
-        K, T = self.camera.intrinsics, self.camera.T_world_cam
-        T_cam_world = T.inverse()
-        tp = self.tracker.predict(time_s)
-        hand = self.kin.forward(self.motion.q).transform_points(HAND_BOX_TCP)
-        half = np.array(
-            self.model.size if self.model.shape == "box" else (self.model.size[0],) * 2 + (self.model.size[1],)
-        )
-        target = Pose.from_xyz_rpy(tp.position, yaw=tp.yaw_rad).transform_points(0.5 * half * UNIT_CUBE)
-        p_hand, p_target = T_cam_world.transform_points(hand), T_cam_world.transform_points(target)
-        if np.any(p_hand[:, 2] <= 1e-3) or np.min(p_hand[:, 2]) > np.max(p_target[:, 2]):
-            return False  # behind the camera, or wholly behind the target
-        hull_hand = cv2.convexHull(project(p_hand, K).astype(np.float32))
-        hull_target = cv2.convexHull(project(p_target, K).astype(np.float32))
-        area, _ = cv2.intersectConvexConvex(hull_hand, hull_target)
-        return bool(area > self.p.occlusion_fraction * cv2.contourArea(hull_target))
+    def _complete_view(self, estimate: PoseEstimate) -> bool:
+        """Whether the estimate saw the whole top face: its measured extents within
+        ``face_size_tolerance`` of the model's. A partly hidden face (the hand over it while it
+        descends) can mislead the fit consistently, so only a complete view may restart the track."""
+        if self.model.shape == "box":
+            expected = sorted(self.model.size[:2], reverse=True)
+        else:
+            expected = [self.model.size[0]] * 2
+        measured = sorted(estimate.top_face_size_m, reverse=True)
+        tol = self.p.face_size_tolerance
+        return all(abs(m - e) <= tol * e for m, e in zip(measured, expected, strict=True))
 
     def _roi(self, now_s: float) -> tuple[int, int, int, int] | None:
         """Around the tracked target, widened by its uncertainty (None: the whole image)."""
@@ -489,10 +471,13 @@ class PickMachine:
 
     def _tick_approach(self, obs: Observation) -> tuple[State, str] | None:
         if not self.open_loop and self.tracker.lost(obs.time_s):
-            lost_for = obs.time_s - max(self._since_s, self.tracker.last_accept_s or 0.0)
-            if lost_for > self.p.lost_fail_s:
-                self._fail(Stage.PERCEPTION, f"target lost: no estimate accepted for {lost_for:.1f} s")
+            # Nothing it sees agrees with its belief any more: look again from home, a few times.
+            self._relooks += 1
+            if self._relooks > self.p.max_relooks:
+                self._fail(Stage.PERCEPTION, f"target lost: no estimate accepted for {self.p.tracker.lost_after_s} s")
                 return None
+            self._after_back_off = State.LOOK
+            return State.BACK_OFF, "target lost while approaching: looking again"
         plan = self._track_plan()
         if plan is not None:
             self.plan = plan

@@ -124,12 +124,12 @@ class TargetTracker:
         )
 
     # ---------------------------------------------------------------------------------- updates
-    def update(self, estimate: PoseEstimate, time_s: float, *, occluded: bool = False) -> TrackerUpdate:
+    def update(self, estimate: PoseEstimate, time_s: float, *, partial: bool = False) -> TrackerUpdate:
         """Take in an estimate from a frame taken at ``time_s`` (estimates must come in time order).
 
-        ``occluded``: the robot knows something of its own hides part of the target in this frame; a
-        run of rejected estimates then does not restart the track (a partly hidden face can mislead
-        the fit consistently), and the filter predicts through.
+        ``partial``: the estimate saw only part of the target (the hand over it); if rejected, it
+        never counts towards a restart (a partly hidden face can mislead the fit consistently), and
+        the filter predicts through.
         """
         z, R = self._measurement(estimate)
         if self._x is None:
@@ -146,9 +146,9 @@ class TargetTracker:
         d2 = float(innov @ np.linalg.solve(S, innov))
         if d2 > CHI2_999[len(innov)]:
             self.rejected += 1
-            if occluded:
+            if partial:
                 self._rejected.clear()
-                return TrackerUpdate(False, d2, reason=f"beyond the gate ({np.sqrt(d2):.1f} sigma) while occluded")
+                return TrackerUpdate(False, d2, reason=f"beyond the gate ({np.sqrt(d2):.1f} sigma), a partial view")
             self._rejected.append((time_s, z, R))
             if self._jump_confirmed():
                 self._start(z, R, time_s)

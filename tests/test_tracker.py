@@ -65,12 +65,12 @@ def test_a_real_move_restarts_the_track_after_agreeing_rejections() -> None:
     np.testing.assert_allclose(tr.predict(0.7).position[:2], [0.54, 0.02], atol=1e-4)
 
 
-def test_occluded_rejections_never_restart_the_track() -> None:
+def test_partial_views_never_restart_the_track() -> None:
     tr = TargetTracker(np.pi / 2)
     for k in range(5):
         tr.update(_est(0.5, 0.0), 0.1 * k)
     for k in range(6):
-        assert not tr.update(_est(0.51, 0.04), 0.5 + 0.1 * k, occluded=True).accepted
+        assert not tr.update(_est(0.51, 0.04), 0.5 + 0.1 * k, partial=True).accepted
     assert tr.jumps == 0
     assert tr.predict(1.1).position[0] == pytest.approx(0.5, abs=1e-4)
 
