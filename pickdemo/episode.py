@@ -1,10 +1,10 @@
 """One episode, wired: scenario -> scene -> the control loop -> metrics -> :class:`EpisodeResult`.
 
-The control loop here is the only place that advances simulated time, one control tick at a time.
-Each tick: observe (joint states, finger opening, finger contacts), hand over the estimates whose
-latency has passed, decide (:class:`pickdemo.pick.PickMachine`), command, take a camera frame when
-one is due (rendering only the region perception asked for), then step the physics. The step budget
-lives here: the scenario's simulated-time budget, counted in ticks.
+The control loop here (:meth:`_Episode.loop`) is the only place that advances simulated time, one
+control tick at a time. Each tick: observe (joint states, finger opening, finger contacts), hand over
+the estimates whose latency has passed, decide (:class:`pickdemo.pick.PickMachine`), command, take
+a camera frame when one is due (rendering only the region perception asked for), then step the
+physics. The step budget lives here: the scenario's simulated-time budget, counted in steps.
 
 The controller acts only on the camera frames (RGB, depth, intrinsics, camera pose) and the joint
 states. The simulator's true poses are read here for scoring and the trace only. Every random draw
@@ -14,6 +14,7 @@ bit.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -22,13 +23,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.geometry import wrap_angle
+from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.kinematics import panda_kinematics
-from pickdemo.layout import LayoutError, camera_position, sample_layout
+from pickdemo.layout import LayoutError, Placement, camera_position, sample_layout
 from pickdemo.metrics import score_perception, score_place
-from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, estimate_pose
-from pickdemo.pick import TRACKING_STATES, CameraModel, MachineParams, PickMachine, State
-from pickdemo.result import EpisodeResult, EpisodeTrace, Failure, PerceptionScore, PhaseRecord, Stage
+from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
+from pickdemo.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
+from pickdemo.result import (
+    EpisodeFailure,
+    EpisodeResult,
+    EpisodeTrace,
+    Failure,
+    PerceptionScore,
+    PhaseRecord,
+    Stage,
+)
 from pickdemo.scenario import Scenario
 from pickdemo.streams import spawn_rngs
 from pickdemo.task import target_model
@@ -36,6 +45,7 @@ from pickdemo.task import target_model
 PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each note), as it happens
 
 SETTLE_MAX_S = 2.0  # the objects come to rest before the first look, within this
+CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
 
 
 @dataclass(frozen=True)
@@ -45,55 +55,6 @@ class EpisodeOptions:
     perception: PerceptionParams = PerceptionParams()
     machine: MachineParams = MachineParams()
     record_trace: bool = False  # keep the per-tick trace (EpisodeResult.trace)
-
-
-class _Timer:
-    def __init__(self) -> None:
-        self.times: dict[str, float] = {}
-
-    @contextmanager
-    def __call__(self, name: str) -> Iterator[None]:
-        t0 = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - t0
-
-
-def _symmetry(shape: str, size: tuple[float, ...]) -> float:
-    if shape == "cylinder":
-        return 0.0
-    return np.pi / 2.0 if abs(size[0] - size[1]) < 1e-9 else np.pi
-
-
-@dataclass
-class _TraceRows:
-    """Rows of the trace, appended per tick (turned into arrays once at the end)."""
-
-    rows: list[tuple] = field(default_factory=list)
-
-    def freeze(self) -> EpisodeTrace:
-        nan4 = np.full(4, np.nan)
-        cols = list(zip(*self.rows, strict=True)) if self.rows else [()] * 13
-
-        def arr(i: int, width: int) -> np.ndarray:
-            return np.array(cols[i], dtype=float).reshape(-1, width) if cols[i] else np.zeros((0, width))
-
-        return EpisodeTrace(
-            time_s=np.array(cols[0], dtype=float),
-            state=tuple(cols[1]),
-            setpoint=arr(2, 4),
-            velocity=arr(3, 4),
-            acceleration=arr(4, 4),
-            jerk=arr(5, 4),
-            max_velocity=arr(6, 4),
-            max_acceleration=arr(7, 4),
-            max_jerk=arr(8, 4),
-            retarget=np.array(cols[9], dtype=bool),
-            q=arr(10, 7),
-            tcp_true=arr(11, 3),
-            tracked=np.array([nan4 if t is None else t for t in cols[12]], dtype=float).reshape(-1, 4),
-        )
 
 
 def run_episode(
@@ -109,223 +70,310 @@ def run_episode(
     ``open_loop=True`` (or ``options.open_loop``) looks once and plays the plan, for comparison.
     Never raises for an episode that goes wrong: the result names the stage and the reason.
     """
-    from pickdemo.sim.controller import RobotInterface  # simulator side, imported late
-    from pickdemo.sim.disturb import PushPlayer, draw_push
-    from pickdemo.sim.render import Camera
-    from pickdemo.sim.scene import Scene
-
     options = options or EpisodeOptions()
     if open_loop is not None:
-        options = EpisodeOptions(**{**options.__dict__, "open_loop": open_loop})
-    timer = _Timer()
-    wall0 = time.perf_counter()
-    rngs = spawn_rngs(seed)
-    phases: list[PhaseRecord] = []
-    failure: Failure | None = None
-    scene = None
-    machine: PickMachine | None = None
-    perception: PerceptionScore | None = None
-    place_error_mm = lift_height_mm = grasp_width_mm = None
-    tracking_error_mm = tracking_yaw_deg = None
-    pushes: list[PushPlayer] = []
-    frames = 0
-    tracking_frames = 0
-    tracking_ticks = 0
-    tick_ms: list[float] = []
-    trace = _TraceRows() if options.record_trace else None
-    dt_ctl = 1.0 / scenario.control.control_rate_hz
+        options = dataclasses.replace(options, open_loop=open_loop)
+    return _Episode(scenario, seed, options, on_phase).run()
 
-    def phase(name: str, msg: str, t: float) -> None:
-        phases.append(PhaseRecord(name, round(t, 6), msg))
-        if on_phase is not None:
-            on_phase(phases[-1])
 
-    try:
-        if len(scenario.targets) != 1:
-            raise _End(Stage.ERROR, f"a pick needs exactly one target; the scenario has {len(scenario.targets)}")
+class _Timer:
+    def __init__(self) -> None:
+        self.times: dict[str, float] = {}
+
+    @contextmanager
+    def __call__(self, name: str) -> Iterator[None]:
+        t0 = time.perf_counter()
         try:
-            layout = sample_layout(scenario, rngs["layout"])
-        except LayoutError as exc:
-            raise _End(Stage.ERROR, str(exc)) from None
-        target_name = scenario.target.name
-        placement = next(p for p in layout if p.name == target_name)
-        model = target_model(scenario, placement)
-        with timer("scene"):
-            scene = Scene(scenario, layout, gui=options.gui)
-            camera = Camera(
-                scenario.camera, rngs["camera"], position=camera_position(scenario.camera, rngs["camera_pose"])
-            )
-            robot = RobotInterface(scene)
-            kin = panda_kinematics()
-        dt = scene.time_step_s
-        substeps = max(1, round(dt_ctl / dt))
-        dt_ctl = substeps * dt
-        max_steps = int(round(scenario.sim.max_sim_time_s / dt))
-        frame_ticks = max(1, round(1.0 / (scenario.control.perception_rate_hz * dt_ctl)))
-        latency_s = scenario.control.perception_latency_s
+            yield
+        finally:
+            self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - t0
 
-        with timer("settle"):
-            scene.settle(int(SETTLE_MAX_S / dt))
-        start_pose = scene.true_pose(target_name)  # truth: for scoring only
-        machine = PickMachine(
+
+def yaw_symmetry(shape: str, size: tuple[float, ...]) -> float:
+    """The turn (rad) after which the shape looks the same about its axis (0: any turn, a cylinder)."""
+    if shape == "cylinder":
+        return 0.0
+    return np.pi / 2.0 if abs(size[0] - size[1]) < 1e-9 else np.pi
+
+
+@dataclass
+class _Record:
+    """What the loop measures as it runs (typed; turned into the frozen result at the end)."""
+
+    phases: list[PhaseRecord] = field(default_factory=list)
+    frames: int = 0
+    tracking_frames: int = 0  # frames taken while tracking (approach, descend, close, back off)
+    tracking_ticks: int = 0
+    tick_ms: list[float] = field(default_factory=list)
+    perception: PerceptionScore | None = None  # the first estimate against the truth
+    tracking_error_mm: float | None = None
+    tracking_yaw_deg: float | None = None
+    start_pose: Pose | None = None
+    max_z_m: float | None = None  # highest the target got while carried
+    place_error_mm: float | None = None
+    trace_rows: list[tuple] = field(default_factory=list)
+
+
+class _Episode:
+    """One episode's world, controller and loop."""
+
+    def __init__(self, scenario: Scenario, seed: int, options: EpisodeOptions, on_phase: PhaseCallback | None):
+        self.scenario = scenario
+        self.seed = seed
+        self.options = options
+        self.on_phase = on_phase
+        self.rngs = spawn_rngs(seed)
+        self.timer = _Timer()
+        self.rec = _Record()
+        self.scene = None
+        self.machine: PickMachine | None = None
+        self.pushes: list = []
+        self._events_logged = 0
+
+    # ========================================================================================= run
+    def run(self) -> EpisodeResult:
+        wall0 = time.perf_counter()
+        failure: Failure | None = None
+        try:
+            self.build()
+            self.loop()
+            self.score()
+        except EpisodeFailure as exc:
+            failure = exc.failure
+        except Exception as exc:  # noqa: BLE001 - one bad episode must not take a batch down
+            failure = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0])
+        finally:
+            sim_time = self.scene.sim_time_s if self.scene is not None else 0.0
+            if self.scene is not None:
+                self.scene.close()
+        if failure is not None and not (self.rec.phases and self.rec.phases[-1].phase == State.FAILED.value):
+            self._phase(PhaseRecord(State.FAILED.value, round(sim_time, 6), f"{failure.stage.value}: {failure.reason}"))
+        return self.result(failure, sim_time, time.perf_counter() - wall0)
+
+    # ======================================================================================= build
+    def build(self) -> None:
+        from pickdemo.sim.controller import RobotInterface  # simulator side, imported late
+        from pickdemo.sim.render import Camera
+        from pickdemo.sim.scene import Scene
+
+        sc = self.scenario
+        if len(sc.targets) != 1:
+            raise EpisodeFailure(Stage.ERROR, f"a pick needs exactly one target; the scenario has {len(sc.targets)}")
+        try:
+            layout = sample_layout(sc, self.rngs["layout"])
+        except LayoutError as exc:
+            raise EpisodeFailure(Stage.ERROR, str(exc)) from None
+        self.target_name = sc.target.name
+        self.placement: Placement = next(p for p in layout if p.name == self.target_name)
+        self.model: TargetModel = target_model(sc, self.placement)
+        with self.timer("scene"):
+            self.scene = Scene(sc, layout, gui=self.options.gui)
+            where = camera_position(sc.camera, self.rngs["camera_pose"])
+            self.camera = Camera(sc.camera, self.rngs["camera"], position=where)
+            self.robot = RobotInterface(self.scene)
+            kin = panda_kinematics()
+        dt = self.scene.time_step_s
+        self.substeps = max(1, round(1.0 / (sc.control.control_rate_hz * dt)))
+        self.dt_ctl = self.substeps * dt
+        self.max_steps = int(round(sc.sim.max_sim_time_s / dt))
+        self.frame_ticks = max(1, round(1.0 / (sc.control.perception_rate_hz * self.dt_ctl)))
+        with self.timer("settle"):
+            self.scene.settle(int(SETTLE_MAX_S / dt))
+        self.rec.start_pose = self.scene.true_pose(self.target_name)  # truth: for scoring only
+        self.rec.max_z_m = float(self.rec.start_pose.position[2])
+        self.machine = PickMachine(
             kin=kin,
-            model=model,
-            symmetry_rad=_symmetry(model.shape, model.size),
-            place_xy=scenario.place.position,
-            camera=CameraModel(camera.intrinsics, camera.T_world_cam),
-            q0=robot.observe().arm_q,
-            dt_s=dt_ctl,
-            rng=rngs["ik"],
-            max_attempts=scenario.control.max_attempts,
-            open_loop=options.open_loop,
-            params=options.machine,
+            model=self.model,
+            symmetry_rad=yaw_symmetry(self.model.shape, self.model.size),
+            place_xy=sc.place.position,
+            camera=CameraModel(self.camera.intrinsics, self.camera.T_world_cam),
+            q0=self.robot.observe().arm_q,
+            dt_s=self.dt_ctl,
+            rng=self.rngs["ik"],
+            max_attempts=sc.control.max_attempts,
+            open_loop=self.options.open_loop,
+            params=self.options.machine,
         )
-        pending: deque[tuple[float, float, PoseEstimate | PerceptionError]] = deque()
+
+    # ======================================================================================== loop
+    def loop(self) -> None:
+        """The control loop: one tick at a time until the machine is done, failed or out of time."""
+        assert self.machine is not None and self.scene is not None
+        machine, scene = self.machine, self.scene
+        pending: deque[tuple[float, float, PoseEstimate | PerceptionError]] = deque()  # (arrival, taken, result)
         last_frame_tick = -(10**9)
-        max_z = float(start_pose.position[2])
-        n_events = 0
-        first_look_s: float | None = None
         tick = 0
         while not machine.finished:
-            if scene.steps + substeps > max_steps:
-                budget = scenario.sim.max_sim_time_s
+            if scene.steps + self.substeps > self.max_steps:
+                budget = self.scenario.sim.max_sim_time_s
                 machine.abort(Stage.TIMEOUT, f"simulated-time budget of {budget:.1f} s spent in {machine.state.value}")
                 break
             now = scene.sim_time_s
-            obs = robot.observe()
+            obs = self.robot.observe()
             while pending and pending[0][0] <= now + 1e-9:
-                _, t_frame, result = pending.popleft()
-                machine.on_estimate(result, t_frame)
+                _, taken, result = pending.popleft()
+                machine.on_estimate(result, taken)
             t0 = time.perf_counter()
             cmd = machine.update(obs)
-            tick_ms.append((time.perf_counter() - t0) * 1e3)
-            for ev in machine.events[n_events:]:
-                phase(ev.state.value, ev.message, ev.time_s)
-                if ev.state is State.CLOSE and not ev.note:  # commit: how far the tracker is from the truth (scoring)
-                    truth = scene.true_pose(target_name)
-                    tp = machine.tracker.predict(now)
-                    tracking_error_mm = float(np.linalg.norm(tp.position - truth.position)) * 1e3
-                    if machine.symmetry > 0:
-                        dyaw = wrap_angle(tp.yaw_rad - float(truth.rpy[2]), machine.symmetry)
-                        tracking_yaw_deg = float(abs(np.degrees(dyaw)))
-            n_events = len(machine.events)
+            self.rec.tick_ms.append((time.perf_counter() - t0) * 1e3)
+            self._log_events(now)
             if machine.finished:
                 break
-            robot.apply(cmd)
-            if machine.state in TRACKING_STATES:
-                tracking_ticks += 1
+            self.robot.apply(cmd)
+            tracking = machine.state in TRACKING_STATES
+            self.rec.tracking_ticks += tracking
             request = machine.frame_request(now)
-            if request is not None and tick - last_frame_tick >= frame_ticks:
+            if request is not None and tick - last_frame_tick >= self.frame_ticks:
                 last_frame_tick = tick
-                with timer("render"):
-                    frame = camera.capture(scene, request.roi)
-                with timer("perceive"):
-                    try:
-                        result: PoseEstimate | PerceptionError = estimate_pose(frame, model, options.perception)
-                    except PerceptionError as exc:
-                        result = exc
-                frames += 1
-                if machine.state in TRACKING_STATES:
-                    tracking_frames += 1
-                if perception is None and isinstance(result, PoseEstimate):
-                    perception = score_perception(result, scene.true_pose(target_name))  # truth: scoring
-                if first_look_s is None:
-                    first_look_s = now
-                    pushes = [
-                        PushPlayer(draw_push(d, now, rngs["disturbance"]), target_name) for d in scenario.disturbances
-                    ]
-                pending.append((now + latency_s, now, result))
-            if trace is not None:
-                s = machine.last_sample
-                lim = machine.motion.limits
-                v, a, j = lim.arrays()
-                tracked = None
-                if machine.tracker.initialised:
-                    tp = machine.tracker.predict(now)
-                    tracked = np.array([*tp.position, tp.yaw_rad])
-                trace.rows.append(
-                    (now, machine.state.value, s.setpoint, s.velocity, s.acceleration, s.jerk, v, a, j,
-                     s.new_calculation, s.q, scene.true_tcp_pose().position, tracked)
-                )  # fmt: skip
-            with timer("physics"):
-                for _ in range(substeps):
-                    for push in pushes:
+                pending.append((now + self.scenario.control.perception_latency_s, now, self._look(request, now)))
+                self.rec.tracking_frames += tracking
+            if self.options.record_trace:
+                self._trace(now)
+            with self.timer("physics"):
+                for _ in range(self.substeps):
+                    for push in self.pushes:
                         push.step(scene)
                     scene.step()
-            if machine.state in (State.LIFT, State.TRANSPORT, State.LOWER):
-                max_z = max(max_z, float(scene.true_pose(target_name).position[2]))
+            if machine.state in CARRY_STATES:  # truth: how high it was carried, for scoring
+                self.rec.max_z_m = max(self.rec.max_z_m, float(scene.true_pose(self.target_name).position[2]))
             tick += 1
+        self._log_events(scene.sim_time_s)
         if machine.failure is not None:
-            raise _End(machine.failure.stage, machine.failure.reason)
-        # ---------------------------------------------------------------------------- scoring
-        final = scene.true_pose(target_name)  # truth: for scoring only
+            raise EpisodeFailure(machine.failure.stage, machine.failure.reason)
+
+    def _look(self, request: FrameRequest, now: float) -> PoseEstimate | PerceptionError:
+        """Render the requested frame and run perception on it (its result is delivered later)."""
+        from pickdemo.sim.disturb import PushPlayer, draw_push
+
+        with self.timer("render"):
+            frame = self.camera.capture(self.scene, request.roi)
+        with self.timer("perceive"):
+            try:
+                result: PoseEstimate | PerceptionError = estimate_pose(frame, self.model, self.options.perception)
+            except PerceptionError as exc:
+                result = exc
+        self.rec.frames += 1
+        if self.rec.perception is None and isinstance(result, PoseEstimate):
+            truth = self.scene.true_pose(self.target_name)  # truth: for scoring only
+            self.rec.perception = score_perception(result, truth)
+        if self.rec.frames == 1:  # the first look: disturbances are timed from here
+            self.pushes = [
+                PushPlayer(draw_push(d, now, self.rngs["disturbance"]), self.target_name)
+                for d in self.scenario.disturbances
+            ]
+        return result
+
+    def _log_events(self, now: float) -> None:
+        assert self.machine is not None
+        for ev in self.machine.events[self._events_logged :]:
+            self._phase(PhaseRecord(ev.state.value, round(ev.time_s, 6), ev.message))
+            if ev.state is State.CLOSE and not ev.note:  # committing: the tracker against the truth
+                truth = self.scene.true_pose(self.target_name)
+                tp = self.machine.tracker.predict(now)
+                self.rec.tracking_error_mm = float(np.linalg.norm(tp.position - truth.position)) * 1e3
+                if self.machine.symmetry > 0:
+                    dyaw = wrap_angle(tp.yaw_rad - float(truth.rpy[2]), self.machine.symmetry)
+                    self.rec.tracking_yaw_deg = float(abs(np.degrees(dyaw)))
+        self._events_logged = len(self.machine.events)
+
+    def _phase(self, record: PhaseRecord) -> None:
+        self.rec.phases.append(record)
+        if self.on_phase is not None:
+            self.on_phase(record)
+
+    def _trace(self, now: float) -> None:
+        m = self.machine
+        s = m.last_sample
+        v, a, j = m.motion.limits.arrays()
+        tracked = None
+        if m.tracker.initialised:
+            tp = m.tracker.predict(now)
+            tracked = np.array([*tp.position, tp.yaw_rad])
+        tcp = self.scene.true_tcp_pose().position
+        self.rec.trace_rows.append(
+            (now, m.state.value, s.setpoint, s.velocity, s.acceleration, s.jerk, v, a, j, s.new_calculation, s.q,
+             tcp, tracked)
+        )  # fmt: skip
+
+    # ===================================================================================== scoring
+    def score(self) -> None:
+        """Success, scored on the truth: lifted high enough, put down where asked, upright and at rest."""
+        sc = self.scenario
+        final = self.scene.true_pose(self.target_name)  # truth: for scoring only
         outcome = score_place(
-            start=start_pose,
-            max_z_m=max_z,
+            start=self.rec.start_pose,
+            max_z_m=self.rec.max_z_m,
             final=final,
-            final_speed_m_s=scene.true_speed(target_name),
-            place_xy=scenario.place.position,
-            height_m=placement.height_m,
-            lift_height_m=scenario.success.lift_height,
-            place_tolerance_m=scenario.success.place_tolerance,
+            final_speed_m_s=self.scene.true_speed(self.target_name),
+            place_xy=sc.place.position,
+            height_m=self.placement.height_m,
+            lift_height_m=sc.success.lift_height,
+            place_tolerance_m=sc.success.place_tolerance,
         )
-        place_error_mm = outcome.place_error_m * 1e3
+        self.rec.place_error_mm = outcome.place_error_m * 1e3
         if not outcome.success:
-            stage = Stage.LIFT if outcome.lifted_m < scenario.success.lift_height else Stage.PLACE
-            raise _End(stage, outcome.reason)
-    except _End as exc:
-        failure = exc.failure
-    except Exception as exc:  # noqa: BLE001 - one bad episode must not take a batch down
-        failure = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0])
-    finally:
-        sim_time = scene.sim_time_s if scene is not None else 0.0
-        if scene is not None and machine is not None and machine.attempts:
-            lift_height_mm = (max_z - float(start_pose.position[2])) * 1e3
-        if scene is not None:
-            scene.close()
-    attempts = tuple(machine.attempts) if machine is not None else ()
-    counters = machine.counters if machine is not None else None
-    if machine is not None and machine.grasp_width_m is not None:
-        grasp_width_mm = machine.grasp_width_m * 1e3
-    if failure is not None:
-        phases.append(PhaseRecord("failed", round(sim_time, 6), f"{failure.stage.value}: {failure.reason}"))
-    tick_arr = np.array(tick_ms) if tick_ms else np.zeros(1)
-    return EpisodeResult(
-        scenario=scenario.name,
-        seed=seed,
-        success=failure is None,
-        failure=failure,
-        perception=perception,
-        place_error_mm=place_error_mm,
-        lift_height_mm=lift_height_mm,
-        grasp_width_mm=grasp_width_mm,
-        sim_time_s=sim_time,
-        wall_time_s=time.perf_counter() - wall0,
-        stage_wall_times_s={k: round(v, 6) for k, v in timer.times.items()},
-        phases=tuple(phases),
-        open_loop=options.open_loop,
-        attempts=attempts,
-        perception_frames=frames,
-        perception_rate_hz=(tracking_frames / (tracking_ticks * dt_ctl)) if tracking_ticks else None,
-        estimates_rejected=counters.rejected if counters else 0,
-        perception_failures=counters.perception_errors if counters else 0,
-        target_moves_detected=counters.jumps if counters else 0,
-        retargets=counters.retargets if counters else 0,
-        tracking_error_mm=tracking_error_mm,
-        tracking_yaw_error_deg=tracking_yaw_deg,
-        disturbances=tuple(p.push.to_dict() for p in pushes),
-        control_tick_wall_ms={
-            "median": float(np.median(tick_arr)),
-            "p95": float(np.percentile(tick_arr, 95)),
-            "ticks": len(tick_ms),
-        },
-        trace=trace.freeze() if trace is not None else None,
+            stage = Stage.LIFT if outcome.lifted_m < sc.success.lift_height else Stage.PLACE
+            raise EpisodeFailure(stage, outcome.reason)
+
+    def result(self, failure: Failure | None, sim_time_s: float, wall_time_s: float) -> EpisodeResult:
+        rec, m = self.rec, self.machine
+        ticks = np.array(rec.tick_ms) if rec.tick_ms else np.zeros(1)
+        lifted = None
+        if m is not None and m.attempts and rec.start_pose is not None:
+            lifted = (rec.max_z_m - float(rec.start_pose.position[2])) * 1e3
+        return EpisodeResult(
+            scenario=self.scenario.name,
+            seed=self.seed,
+            success=failure is None,
+            failure=failure,
+            perception=rec.perception,
+            place_error_mm=rec.place_error_mm,
+            lift_height_mm=lifted,
+            grasp_width_mm=None if m is None or m.grasp_width_m is None else m.grasp_width_m * 1e3,
+            sim_time_s=sim_time_s,
+            wall_time_s=wall_time_s,
+            stage_wall_times_s={k: round(v, 6) for k, v in self.timer.times.items()},
+            phases=tuple(rec.phases),
+            open_loop=self.options.open_loop,
+            attempts=tuple(m.attempts) if m is not None else (),
+            perception_frames=rec.frames,
+            perception_rate_hz=rec.tracking_frames / (rec.tracking_ticks * self.dt_ctl) if rec.tracking_ticks else None,
+            estimates_rejected=m.counters.rejected if m is not None else 0,
+            perception_failures=m.counters.perception_errors if m is not None else 0,
+            target_moves_detected=m.counters.jumps if m is not None else 0,
+            retargets=m.counters.retargets if m is not None else 0,
+            tracking_error_mm=rec.tracking_error_mm,
+            tracking_yaw_error_deg=rec.tracking_yaw_deg,
+            disturbances=tuple(p.push.to_dict() for p in self.pushes),
+            control_tick_wall_ms={
+                "median": float(np.median(ticks)),
+                "p95": float(np.percentile(ticks, 95)),
+                "ticks": len(rec.tick_ms),
+            },
+            trace=_freeze_trace(rec.trace_rows) if self.options.record_trace else None,
+        )
+
+
+def _freeze_trace(rows: list[tuple]) -> EpisodeTrace:
+    """The per-tick rows as arrays."""
+    nan4 = np.full(4, np.nan)
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 13
+
+    def arr(i: int, width: int) -> np.ndarray:
+        return np.array(cols[i], dtype=float).reshape(-1, width)
+
+    return EpisodeTrace(
+        time_s=np.array(cols[0], dtype=float),
+        state=tuple(cols[1]),
+        setpoint=arr(2, 4),
+        velocity=arr(3, 4),
+        acceleration=arr(4, 4),
+        jerk=arr(5, 4),
+        max_velocity=arr(6, 4),
+        max_acceleration=arr(7, 4),
+        max_jerk=arr(8, 4),
+        retarget=np.array(cols[9], dtype=bool),
+        q=arr(10, 7),
+        tcp_true=arr(11, 3),
+        tracked=np.array([nan4 if t is None else t for t in cols[12]], dtype=float).reshape(-1, 4),
     )
-
-
-class _End(Exception):
-    """Ends an episode in a named stage."""
-
-    def __init__(self, stage: Stage, reason: str) -> None:
-        super().__init__(f"{stage.value}: {reason}")
-        self.failure = Failure(stage, reason)
