@@ -337,7 +337,7 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
                 f"  first attempt: {s['first_attempt_successes']}/{s['episodes']}; attempts per episode: "
                 f"mean {att['mean']:.2f}, max {att['max']:.0f}"
             )
-        if s["perception_rate_hz"]:
+        if s["perception_rate_hz"] and s["perception_rate_hz"]["median"] > 0:
             trk = s["tracking_error_mm"]
             lines.append(
                 f"  closed loop: perception {s['perception_rate_hz']['median']:.1f} Hz, "

@@ -306,7 +306,8 @@ class _Episode:
             final=final,
             final_speed_m_s=self.scene.true_speed(self.target_name),
             place_xy=sc.place.position,
-            height_m=self.placement.height_m,
+            shape=self.placement.shape,
+            size=self.placement.size,
             lift_height_m=sc.success.lift_height,
             place_tolerance_m=sc.success.place_tolerance,
         )

@@ -42,6 +42,19 @@ class PlaceOutcome:
     reason: str  # why it failed, or ""
 
 
+def resting_face(final: Pose, shape: str, size: tuple[float, ...]) -> tuple[float, float]:
+    """The tilt (deg) of the object's body axis nearest the vertical, and its extent along it (m).
+
+    A box rests on any face; a cylinder stands only on a cap (its axis is its body z).
+    """
+    if shape == "cylinder":
+        tilt = float(np.degrees(np.arccos(np.clip(abs(final.rotation[2, 2]), -1.0, 1.0))))
+        return tilt, float(size[1])
+    axis = int(np.argmax(np.abs(final.rotation[2])))  # body axis with the largest world-z component
+    tilt = float(np.degrees(np.arccos(np.clip(abs(final.rotation[2, axis]), -1.0, 1.0))))
+    return tilt, float(size[axis])
+
+
 def score_place(
     *,
     start: Pose,
@@ -49,15 +62,19 @@ def score_place(
     final: Pose,
     final_speed_m_s: float,
     place_xy: tuple[float, float],
-    height_m: float,
+    shape: str,
+    size: tuple[float, ...],
     lift_height_m: float,
     place_tolerance_m: float,
 ) -> PlaceOutcome:
-    """Success: rose at least ``lift_height_m``, ended within tolerance of the place position, at rest."""
+    """Success: rose at least ``lift_height_m``, ended within tolerance of the place position, upright
+    and at rest. Upright: on the face it stood on, or one the same height (a cube on any face) with
+    that face within 10 deg of level; a cylinder on a cap."""
+    height_m = float(size[2] if shape == "box" else size[1])
     lifted = max_z_m - float(start.position[2])
     err = float(np.hypot(final.position[0] - place_xy[0], final.position[1] - place_xy[1]))
-    tilt = float(np.degrees(np.arccos(np.clip(final.rotation[2, 2], -1.0, 1.0))))
-    upright = tilt < 10.0 and abs(float(final.position[2]) - height_m / 2.0) < 0.01
+    tilt, extent = resting_face(final, shape, size)
+    upright = tilt < 10.0 and abs(extent - height_m) < 2e-3 and abs(float(final.position[2]) - height_m / 2.0) < 0.01
     at_rest = final_speed_m_s < 0.01
     reason = ""
     if lifted < lift_height_m:
@@ -65,7 +82,10 @@ def score_place(
     elif err > place_tolerance_m:
         reason = f"target ended {err * 1e3:.1f} mm from the place position (tolerance {place_tolerance_m * 1e3:.0f} mm)"
     elif not upright:
-        reason = f"target did not end upright on the table (tilt {tilt:.1f} deg, z {final.position[2] * 1e3:.1f} mm)"
+        reason = (
+            f"target did not end upright on the table (resting face tilted {tilt:.1f} deg, "
+            f"{extent * 1e3:.0f} mm tall against {height_m * 1e3:.0f} mm, z {final.position[2] * 1e3:.1f} mm)"
+        )
     elif not at_rest:
         reason = f"target still moving at {final_speed_m_s:.3f} m/s"
     return PlaceOutcome(lifted, err, upright, at_rest, reason == "", reason)

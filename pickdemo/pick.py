@@ -31,7 +31,7 @@ import numpy as np
 from pickdemo import robot_model as rm
 from pickdemo.camera import Intrinsics, roi_around
 from pickdemo.geometry import Pose, wrap_angle
-from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, plan_grasp
+from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, joint7_centre_yaw, plan_grasp
 from pickdemo.interfaces import Command, Observation
 from pickdemo.kinematics import IKParams, PandaKinematics
 from pickdemo.motion import CartesianLimits, MotionError, MotionSample, OnlineMotion, pose_to_x4
@@ -367,7 +367,15 @@ class PickMachine:
                 return None
         candidates: list[float | None] = [None]
         if self._turn_hand and self.plan is not None:
-            candidates.insert(0, self.plan.hand_yaw_rad + np.pi / 2.0)
+            # The other pair of faces: a quarter turn from the usual angle, towards the middle of
+            # joint 7's range (q7 ~ centre - psi), so the wrist keeps room.
+            centre = joint7_centre_yaw(tuple(pose.position[:2]), tuple(self.place_xy))
+            try:
+                usual = plan_grasp(pose, self.model, self.place_xy, self.p.grasp).hand_yaw_rad
+            except GraspPlanningError as exc:
+                self._fail(Stage.GRASP_PLANNING, str(exc))
+                return None
+            candidates.insert(0, usual + (np.pi / 2.0 if usual < centre else -np.pi / 2.0))
         self._turn_hand = False
         reason = ""
         for near in candidates:
