@@ -181,6 +181,13 @@ class _Episode:
             self.scene.settle(int(SETTLE_MAX_S / dt))
         self.rec.start_pose = self.scene.true_pose(self.target_name)  # truth: for scoring only
         self.rec.max_z_m = float(self.rec.start_pose.position[2])
+        params = self.options.machine
+        m = sc.motion
+        scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
+        if scales != (1.0, 1.0, 1.0):
+            params = dataclasses.replace(
+                params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales)
+            )
         self.machine = PickMachine(
             kin=kin,
             model=self.model,
@@ -192,7 +199,7 @@ class _Episode:
             rng=self.rngs["ik"],
             max_attempts=sc.control.max_attempts,
             open_loop=self.options.open_loop,
-            params=self.options.machine,
+            params=params,
         )
 
     # ======================================================================================== loop

@@ -59,6 +59,17 @@ class CartesianLimits:
             self.yaw_jerk * factor**3,
         )
 
+    def scaled_by(self, velocity: float, acceleration: float, jerk: float) -> CartesianLimits:
+        """Each kind of limit scaled by its own factor (a scenario's ``[motion]``)."""
+        return CartesianLimits(
+            self.velocity * velocity,
+            self.acceleration * acceleration,
+            self.jerk * jerk,
+            self.yaw_velocity * velocity,
+            self.yaw_acceleration * acceleration,
+            self.yaw_jerk * jerk,
+        )
+
     def arrays(self) -> tuple[list[float], list[float], list[float]]:
         return (
             [self.velocity] * 3 + [self.yaw_velocity],

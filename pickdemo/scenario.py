@@ -195,11 +195,11 @@ class SuccessSpec(_Model):
 
 
 class MotionSpec(_Model):
-    """Motion limits: the Panda's datasheet limits scaled by these factors."""
+    """Slower motion: pickdemo's Cartesian limits (near the object and in free space) scaled by these."""
 
-    velocity_scale: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
-    acceleration_scale: Annotated[float, Field(gt=0.0, le=1.0)] = 0.3
-    jerk_scale: Annotated[float, Field(gt=0.0, le=1.0)] = 0.1
+    velocity_scale: Annotated[float, Field(ge=0.05, le=1.0)] = 1.0
+    acceleration_scale: Annotated[float, Field(ge=0.05, le=1.0)] = 1.0
+    jerk_scale: Annotated[float, Field(ge=0.05, le=1.0)] = 1.0
 
 
 class LayoutSpec(_Model):

@@ -146,3 +146,12 @@ def test_simulated_time_budget_is_a_timeout(cube_scenario: Scenario) -> None:
     assert r.sim_time_s == pytest.approx(2.0, abs=0.01)
     assert np.isfinite(r.perception.position_error_mm)
     assert r.attempts and r.attempts[-1].outcome == "failed"
+
+
+def test_motion_scales_slow_the_arm(cube_scenario: Scenario) -> None:
+    slow = cube_scenario.model_copy(
+        update={"motion": cube_scenario.motion.model_copy(update={"velocity_scale": 0.5, "acceleration_scale": 0.5})}
+    )
+    fast, slowed = run_episode(cube_scenario, 2), run_episode(slow, 2)
+    assert fast.success and slowed.success, (fast.failure, slowed.failure)
+    assert slowed.sim_time_s > fast.sim_time_s + 3.0
