@@ -67,9 +67,9 @@ def _footprint_mm(obj: ObjectSpec) -> np.ndarray:
 def check_scenario(sc: Scenario) -> None:
     """Raise :class:`ScenarioError` (``key: what is impossible``) for a scenario that cannot run."""
     _check_objects(sc)
-    _check_camera(sc)
     if sc.task == "pick":
         _check_pick(sc)
+    _check_camera(sc)
     _check_layout(sc)
 
 

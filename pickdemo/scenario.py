@@ -12,6 +12,7 @@ object on the table, in reach, in view?) is checked by :mod:`pickdemo.checks`.
 
 from __future__ import annotations
 
+import codecs
 import difflib
 import sys
 from importlib import resources
@@ -465,6 +466,10 @@ def load_scenario(name_or_path: str | Path, *, check: bool = True) -> Scenario:
         raw = path.read_bytes()
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    for bom, enc in ((codecs.BOM_UTF32_LE, "UTF-32"), (codecs.BOM_UTF32_BE, "UTF-32"), (codecs.BOM_UTF16_LE, "UTF-16"),
+                     (codecs.BOM_UTF16_BE, "UTF-16")):  # fmt: skip
+        if raw.startswith(bom):
+            raise ScenarioError(f"{path}: {enc} text; TOML files are UTF-8 (save it as UTF-8)")
     if b"\x00" in raw:
         raise ScenarioError(f"{path}: a binary file, not TOML text")
     try:
