@@ -362,10 +362,27 @@ def _tuples(value: object, depth: int = 0) -> object:
     return value
 
 
+def _data_loc(loc: tuple, data: object) -> tuple[int | str, ...]:
+    """Pydantic's error location less the parts it adds (union branches, validator names): only keys
+    and indices that exist in the document are kept, plus a last key that is missing or unknown."""
+    out: list[int | str] = []
+    node = data
+    for i, item in enumerate(loc):
+        if isinstance(node, dict) and isinstance(item, str) and item in node:
+            out.append(item)
+            node = node[item]
+        elif isinstance(node, (list, tuple)) and isinstance(item, int) and 0 <= item < len(node):
+            out.append(item)
+            node = node[item]
+        elif i == len(loc) - 1 and isinstance(item, str) and isinstance(node, dict):
+            out.append(item)  # a missing key (or an unknown one) at the end
+    return tuple(out)
+
+
 def _message(err: dict, data: object) -> str:
-    loc = tuple(x for x in err["loc"] if not (isinstance(x, str) and (x.startswith("function-") or "[" in x)))
+    loc = _data_loc(err["loc"], data)
     where = _format_loc(loc, data)
-    if err["type"] == "extra_forbidden":
+    if err["type"] == "extra_forbidden" and loc:
         model = _model_at(loc)
         valid = sorted(model.model_fields) if model is not None else []
         close = difflib.get_close_matches(str(loc[-1]), valid, n=1, cutoff=0.6)
