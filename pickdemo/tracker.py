@@ -36,12 +36,15 @@ class TrackerParams:
     """Noise and gating; SI units."""
 
     accel_sigma_m_s2: float = 0.01  # white-noise acceleration (m/s^2): a real move beyond it is a jump
+    vertical_accel_sigma_m_s2: float = 1e-4  # it rests on a table or a belt: its height hardly moves
     yaw_accel_sigma_rad_s2: float = 0.05
     position_floor_m: float = 0.0007  # added to each estimate's standard deviation, per axis
     yaw_floor_rad: float = float(np.radians(0.7))
-    initial_speed_sigma_m_s: float = 0.05  # prior on the rates when a track starts
+    initial_speed_sigma_m_s: float = 0.05  # prior on the horizontal rates when a track starts
+    initial_vertical_speed_sigma_m_s: float = 1e-3
     initial_yaw_rate_sigma_rad_s: float = 0.2
     jump_confirm: int = 3  # rejected estimates in a row that agree with each other: the target moved
+    partial_floor_factor: float = 5.0  # a partial view's floor is this many times the usual
     lost_after_s: float = 1.0
 
     def __post_init__(self) -> None:
@@ -127,11 +130,11 @@ class TargetTracker:
     def update(self, estimate: PoseEstimate, time_s: float, *, partial: bool = False) -> TrackerUpdate:
         """Take in an estimate from a frame taken at ``time_s`` (estimates must come in time order).
 
-        ``partial``: the estimate saw only part of the target (the hand over it); if rejected, it
-        never counts towards a restart (a partly hidden face can mislead the fit consistently), and
-        the filter predicts through.
+        ``partial``: the estimate saw only part of the target (the hand over it); it is trusted less
+        (its noise floor times ``partial_floor_factor``), and if rejected it never counts towards a
+        restart (a partly hidden face can mislead the fit consistently): the filter predicts through.
         """
-        z, R = self._measurement(estimate)
+        z, R = self._measurement(estimate, floor_factor=self.params.partial_floor_factor if partial else 1.0)
         if self._x is None:
             self._start(z, R, time_s)
             return TrackerUpdate(True, 0.0)
@@ -171,7 +174,7 @@ class TargetTracker:
         rows = [0, 1, 2, 3] if self.has_yaw else [0, 1, 2]
         return np.eye(8)[rows]
 
-    def _measurement(self, est: PoseEstimate) -> tuple[np.ndarray, np.ndarray]:
+    def _measurement(self, est: PoseEstimate, *, floor_factor: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
         p = self.params
         z = np.zeros(8)
         z[:3] = est.pose.position
@@ -181,8 +184,8 @@ class TargetTracker:
         z[3] = yaw
         R = np.zeros((8, 8))
         w, V = np.linalg.eigh(est.position_cov)
-        R[:3, :3] = V @ np.diag((np.sqrt(np.maximum(w, 0.0)) + p.position_floor_m) ** 2) @ V.T
-        R[3, 3] = (np.sqrt(max(float(est.rpy_cov[2, 2]), 0.0)) + p.yaw_floor_rad) ** 2
+        R[:3, :3] = V @ np.diag((np.sqrt(np.maximum(w, 0.0)) + floor_factor * p.position_floor_m) ** 2) @ V.T
+        R[3, 3] = (np.sqrt(max(float(est.rpy_cov[2, 2]), 0.0)) + floor_factor * p.yaw_floor_rad) ** 2
         return z, R
 
     def _start(self, z: np.ndarray, R: np.ndarray, time_s: float) -> None:
@@ -193,7 +196,9 @@ class TargetTracker:
         P[:4, :4] = R[:4, :4]
         if not self.has_yaw:
             P[3, 3] = np.pi**2
-        P[4:7, 4:7] = np.eye(3) * p.initial_speed_sigma_m_s**2
+        P[4:7, 4:7] = (
+            np.diag([p.initial_speed_sigma_m_s, p.initial_speed_sigma_m_s, p.initial_vertical_speed_sigma_m_s]) ** 2
+        )
         P[7, 7] = p.initial_yaw_rate_sigma_rad_s**2
         self._P = P
         self._t = time_s
@@ -205,7 +210,11 @@ class TargetTracker:
         assert self._x is not None
         F = np.eye(8)
         F[:4, 4:] = np.eye(4) * dt
-        q = np.array([self.params.accel_sigma_m_s2] * 3 + [self.params.yaw_accel_sigma_rad_s2]) ** 2
+        p = self.params
+        q = (
+            np.array([p.accel_sigma_m_s2, p.accel_sigma_m_s2, p.vertical_accel_sigma_m_s2, p.yaw_accel_sigma_rad_s2])
+            ** 2
+        )
         Q = np.zeros((8, 8))
         Q[:4, :4] = np.diag(q * dt**3 / 3.0)
         Q[:4, 4:] = Q[4:, :4] = np.diag(q * dt**2 / 2.0)
