@@ -32,6 +32,7 @@ from pickdemo.result import Stage
 from pickdemo.stats import describe
 
 DEFAULT_GUARD_S = 300.0  # wall-clock guard of one episode (a typical one takes 1-2 s)
+MAX_EPISODES = 100_000  # in one bench run (a day on a 2-core machine); more is split into several runs
 
 JobFn = Callable[["Job"], dict[str, Any]]
 
@@ -55,29 +56,36 @@ class Job:
 
 
 # ------------------------------------------------------------------------------------ small pieces
-def parse_seeds(text: str) -> list[int]:
-    """``"0-49"``, ``"3"``, ``"0-9,20,30-31"`` -> a sorted list of distinct seeds."""
-    seeds: set[int] = set()
+def parse_seeds(text: str, *, limit: int = MAX_EPISODES) -> list[int]:
+    """``"0-49"``, ``"3"``, ``"0-9,20,30-31"`` -> a sorted list of distinct seeds.
+
+    The ranges are counted before any is expanded: more than ``limit`` seeds is an error, not a
+    list that fills the memory.
+    """
+    ranges: list[tuple[int, int]] = []
+    if len(text) > 10_000:
+        raise BenchError("seed list longer than 10000 characters")
     for part in text.split(","):
         part = part.strip()
         if not part:
             continue
         try:
-            if "-" in part:
-                lo, hi = part.split("-", 1)
-                a, b = int(lo), int(hi)
-                if a < 0 or b < a:
-                    raise ValueError
-                seeds.update(range(a, b + 1))
-            else:
-                s = int(part)
-                if s < 0:
-                    raise ValueError
-                seeds.add(s)
+            lo, _, hi = part.partition("-") if not part.startswith("-") else ("", "", "")
+            a, b = int(lo), int(hi if hi else lo)
+            if not (0 <= a <= b <= 2**63 - 1) or not (lo.isdigit() and (not hi or hi.isdigit())):
+                raise ValueError
         except ValueError:
-            raise BenchError(f"bad seeds {part!r} (use e.g. 0-49 or 0-9,20)") from None
-    if not seeds:
+            shown = part if part.isprintable() else part.encode("unicode_escape").decode("ascii")
+            raise BenchError(f"bad seeds {shown[:40]!r} (use e.g. 0-49 or 0-9,20)") from None
+        ranges.append((a, b))
+    if not ranges:
         raise BenchError("no seeds given")
+    count = sum(b - a + 1 for a, b in ranges)
+    if count > limit:
+        raise BenchError(f"{count} seeds; at most {limit} in one run")
+    seeds: set[int] = set()
+    for a, b in ranges:
+        seeds.update(range(a, b + 1))
     return sorted(seeds)
 
 
@@ -129,7 +137,7 @@ def run_job(job: Job) -> dict[str, Any]:
 
     t0 = time.perf_counter()
     try:
-        scenario = load_scenario(job.scenario_path)
+        scenario = load_scenario(job.scenario_path, check=False)  # checked once, before the batch started
     except Exception as exc:  # noqa: BLE001 - a job must always come back with a result
         return failed_result(job, Stage.ERROR, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
     return run_episode(scenario, job.seed, open_loop=job.open_loop).to_dict()
@@ -352,6 +360,17 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+_XML_INVALID = dict.fromkeys([*range(0, 9), 11, 12, *range(14, 32), 0xFFFE, 0xFFFF])
+
+
+def xml_text(text: object) -> str:
+    """Text XML 1.0 can hold: characters it forbids (control characters) written as ``\\xNN``."""
+    s = str(text)
+    if not any(ord(c) in _XML_INVALID or 0xD800 <= ord(c) <= 0xDFFF for c in s):
+        return s
+    return "".join(f"\\x{ord(c):02x}" if (ord(c) in _XML_INVALID or 0xD800 <= ord(c) <= 0xDFFF) else c for c in s)
+
+
 def junit_xml(results: Iterable[dict[str, Any]]) -> str:
     """JUnit XML: one test suite per scenario, one test case per episode, the failure as message."""
     by_scenario: dict[str, list[dict[str, Any]]] = {}
@@ -362,21 +381,21 @@ def junit_xml(results: Iterable[dict[str, Any]]) -> str:
         rs = sorted(rs, key=lambda r: r["seed"])
         failures = sum(1 for r in rs if not r["success"])
         suite = ET.SubElement(
-            root, "testsuite", name=name, tests=str(len(rs)), failures=str(failures), errors="0",
+            root, "testsuite", name=xml_text(name), tests=str(len(rs)), failures=str(failures), errors="0",
             time=f"{sum(r['wall_time_s'] for r in rs):.3f}",
         )  # fmt: skip
         for r in rs:
             case = ET.SubElement(
                 suite,
                 "testcase",
-                classname=f"pickdemo.{name}",
+                classname=xml_text(f"pickdemo.{name}"),
                 name=f"seed {r['seed']}",
                 time=f"{r['wall_time_s']:.3f}",
             )
             if not r["success"]:
                 f = r["failure"] or {"stage": "unknown", "reason": ""}
-                msg = f"{f['stage']}: {f['reason']}"
-                ET.SubElement(case, "failure", message=msg, type=f["stage"]).text = msg
+                msg = xml_text(f"{f['stage']}: {f['reason']}")
+                ET.SubElement(case, "failure", message=msg, type=xml_text(f["stage"])).text = msg
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 

@@ -59,6 +59,19 @@ class Intrinsics:
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
 
+#: Where PyBullet's TinyRenderer puts the optical axis of a symmetric frustum, relative to the image
+#: size (measured, and checked by the rendered-tile test): cx = W / 2 + 0, cy = H / 2 - 1.
+TINY_CX_OFFSET = 0.0
+TINY_CY_OFFSET = -1.0
+
+
+def rendered_intrinsics(width: int, height: int, fov_x_deg: float, fov_y_deg: float) -> Intrinsics:
+    """The intrinsics of images rendered by TinyRenderer with this field of view."""
+    return Intrinsics.from_fov(
+        width, height, fov_x_deg, fov_y_deg, cx=width / 2.0 + TINY_CX_OFFSET, cy=height / 2.0 + TINY_CY_OFFSET
+    )
+
+
 def look_at_pose(position: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0, 0.0, 1.0)) -> Pose:
     """``T_world_cam`` of a camera at ``position`` whose optical axis points at ``target``."""
     position = np.asarray(position, dtype=float)

@@ -8,15 +8,27 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 from pickdemo.result import EpisodeResult, PhaseRecord
-from pickdemo.scenario import ScenarioError, list_scenarios, load_scenario, resolve_scenario_path, suite_scenarios
+from pickdemo.scenario import (
+    Scenario,
+    ScenarioError,
+    list_scenarios,
+    load_scenario,
+    resolve_scenario_path,
+    suite_scenarios,
+)
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+MAX_SEED = 2**63 - 1
+MAX_WORKERS = 256
+MAX_GUARD_S = 86400.0
 
 
 class UsageError(Exception):
@@ -71,6 +83,14 @@ def _build_parser() -> argparse.ArgumentParser:
     perceive.add_argument("--methods", default="paper,pixel,centroid,icp", help="comma-separated (default: all)")
     perceive.add_argument("--out", type=Path, help="directory for perception.json and perception.png")
     perceive.add_argument("--repeat", type=int, default=1, help="time each method N times per frame (median)")
+    validate = sub.add_parser(
+        "validate",
+        help="check scenarios without running them",
+        description="Loads each scenario and checks everything that can be checked without running it: the "
+        "schema, the geometry (objects on the table, apart, out of the robot), reach of the pick and place "
+        "regions, the camera's view of the target. Prints `ok NAME` or the error; exit 0 if all are ok, else 2.",
+    )
+    validate.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="names or paths")
     sub.add_parser("list", help="list the shipped scenarios")
     return parser
 
@@ -96,16 +116,55 @@ def _summary(result: EpisodeResult) -> str:
     return line
 
 
+def _check_seed(seed: int) -> None:
+    if not 0 <= seed <= MAX_SEED:
+        raise UsageError(f"--seed must be in 0..{MAX_SEED}, got {seed}")
+
+
+def _writable_dir(path: Path, flag: str) -> None:
+    """Create ``path`` if needed and prove it writable, before any work is done."""
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{flag} {path}: exists and is not a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".pickdemo-probe-"):
+            pass
+    except OSError as exc:
+        raise UsageError(f"{flag} {path}: not writable ({exc.strerror or exc})") from None
+
+
+def _pick_scenario(name: str) -> Scenario:
+    scenario = load_scenario(name)
+    if scenario.task != "pick":
+        raise UsageError(f'{name}: a perception-only scenario (task = "{scenario.task}"); use `pickdemo perceive`')
+    return scenario
+
+
+def _save_result(result: EpisodeResult, out: Path) -> Path:
+    """Write result.json; if that fails after all, write it where it can be written and say so."""
+    text = result.to_json() + "\n"
+    path = out / "result.json"
+    try:
+        path.write_text(text)
+        return path
+    except OSError as exc:
+        fd, fallback = tempfile.mkstemp(prefix="pickdemo-result-", suffix=".json")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        print(f"pickdemo: error: {path}: cannot write ({exc.strerror or exc}); the result is in {fallback}",
+              file=sys.stderr)  # fmt: skip
+        return Path(fallback)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from pickdemo.episode import EpisodeOptions, run_episode  # heavy imports only when running
 
-    scenario = load_scenario(args.scenario)
-    if args.seed < 0:
-        raise UsageError(f"--seed must be >= 0, got {args.seed}")
+    _check_seed(args.seed)
+    scenario = _pick_scenario(args.scenario)
     if args.gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
         raise UsageError("--gui needs a display (DISPLAY is not set); run without --gui for headless")
-    if args.out is not None and args.out.exists() and not args.out.is_dir():
-        raise UsageError(f"--out {args.out}: exists and is not a directory")
+    if args.out is not None:
+        _writable_dir(args.out, "--out")
 
     t0 = time.perf_counter()
 
@@ -121,9 +180,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     result = run_episode(scenario, args.seed, options=options, on_phase=on_phase)
     print(_summary(result), flush=True)
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        path = args.out / "result.json"
-        path.write_text(result.to_json() + "\n")
+        path = _save_result(result, args.out)
         if not args.quiet:
             print(f"wrote {path}")
     return EXIT_OK if result.success else EXIT_FAILED
@@ -137,20 +194,30 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     except bench.BenchError as exc:
         raise UsageError(f"--seeds: {exc}") from None
     if not 0.0 <= args.min_success <= 1.0:
-        raise UsageError("--min-success must be in [0, 1]")
-    if args.workers < 1:
-        raise UsageError("--workers must be at least 1")
-    if args.episode_timeout <= 0:
-        raise UsageError("--episode-timeout must be positive")
+        raise UsageError(f"--min-success must be in [0, 1], got {args.min_success}")
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise UsageError(f"--workers must be in 1..{MAX_WORKERS}, got {args.workers}")
+    if not (math.isfinite(args.episode_timeout) and 0 < args.episode_timeout <= MAX_GUARD_S):
+        raise UsageError(
+            f"--episode-timeout must be a number of seconds in (0, {MAX_GUARD_S:.0f}], got {args.episode_timeout}"
+        )
     if args.resume and args.out is None:
         raise UsageError("--resume needs --out DIR (where episodes.jsonl is)")
+    if args.out is not None:
+        _writable_dir(args.out, "--out")
+    if args.junit is not None:
+        _writable_dir(args.junit.parent if str(args.junit.parent) else Path("."), "--junit")
     names = args.scenarios or suite_scenarios()
     if not names:
         raise UsageError("no scenario given and none is tagged 'suite'")
     jobs, seen = [], {}
+    if len(names) * len(seeds) > bench.MAX_EPISODES:
+        raise UsageError(
+            f"{len(names)} scenario(s) x {len(seeds)} seed(s) is more than {bench.MAX_EPISODES} episodes; split the run"
+        )
     for name in names:
         path = resolve_scenario_path(name)
-        scenario = load_scenario(path)  # validate every scenario before running anything
+        scenario = _pick_scenario(str(path))  # validate every scenario before running anything
         if scenario.name in seen and seen[scenario.name] != path.resolve():
             raise UsageError(f"two scenarios are named {scenario.name!r}: {seen[scenario.name]} and {path}")
         seen[scenario.name] = path.resolve()
@@ -221,8 +288,8 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
     samples: list[dict] = []
     from tqdm import tqdm
 
-    if args.repeat < 1:
-        raise UsageError("--repeat must be at least 1")
+    if not 1 <= args.repeat <= 100:
+        raise UsageError(f"--repeat must be in 1..100, got {args.repeat}")
     batches = perceive.iter_samples(scenario, seeds, methods, repeat=args.repeat)
     for batch in tqdm(batches, total=len(seeds), unit="seed", disable=not sys.stderr.isatty()):
         samples += batch
@@ -240,6 +307,19 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_validate(args: argparse.Namespace) -> int:
+    bad = 0
+    for name in args.scenarios:
+        try:
+            scenario = load_scenario(name)
+        except ScenarioError as exc:
+            print(f"error {exc}")
+            bad += 1
+        else:
+            print(f"ok {scenario.name}")
+    return EXIT_BAD_INPUT if bad else EXIT_OK
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = _build_parser()
     try:
@@ -250,6 +330,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_bench(args)
         if args.command == "perceive":
             return _cmd_perceive(args)
+        if args.command == "validate":
+            return _cmd_validate(args)
         if args.command == "list":
             print("\n".join(list_scenarios()))
             return EXIT_OK

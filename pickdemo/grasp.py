@@ -100,7 +100,9 @@ def plan_grasp(
     psi, width = hand_yaw_for(pose, model, centre)
     if width > 2.0 * rm.FINGER_MAX_M - params.width_margin_m:
         raise GraspPlanningError(
-            f"object is {width * 1e3:.0f} mm wide; the gripper opens to {2e3 * rm.FINGER_MAX_M:.0f} mm"
+            f"object is {width * 1e3:.0f} mm across its narrower side; the gripper opens to "
+            f"{2e3 * rm.FINGER_MAX_M:.0f} mm and needs {params.width_margin_m * 1e3:.0f} mm of clearance, "
+            f"so at most {(2.0 * rm.FINGER_MAX_M - params.width_margin_m) * 1e3:.0f} mm"
         )
     center = pose.position
     top_z = center[2] + model.height_m / 2.0

@@ -419,6 +419,8 @@ def _target_roi(
     """
     cand = color_match(frame.rgb[::stride, ::stride], model.color, params.color_cos_min)
     ys, xs = np.nonzero(cand)
+    if len(xs) == 0:
+        raise PerceptionError("the target is not in view: no pixel has its colour")
     if len(xs) * stride * stride < params.min_target_px:
         raise PerceptionError(f"only about {len(xs) * stride * stride} pixels have the target's colour")
     h, w = frame.rgb.shape[:2]

@@ -3,10 +3,17 @@
 A scenario describes a scene (camera, table, objects), the task (which object to pick, where to
 place it) and the success criteria. It is validated when loaded; a bad file raises
 :class:`ScenarioError` whose message is one line naming the file and the offending key.
+
+The schema is strict: every number is finite and within physical bounds, nothing is coerced (a
+string or a boolean is never a number, a number never a boolean), names are printable and not
+reserved, and an unknown key names itself and the closest valid key. What needs geometry (is the
+object on the table, in reach, in view?) is checked by :mod:`pickdemo.checks`.
 """
 
 from __future__ import annotations
 
+import codecs
+import difflib
 import sys
 from importlib import resources
 from pathlib import Path
@@ -21,8 +28,18 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 PositiveFloat = Annotated[float, Field(gt=0.0)]
 UnitFloat = Annotated[float, Field(ge=0.0, le=1.0)]
-Vec2 = tuple[float, float]
-Vec3 = tuple[float, float, float]
+Coord = Annotated[float, Field(ge=-10.0, le=10.0)]  # m, a place in the world
+Angle = Annotated[float, Field(ge=-720.0, le=720.0)]  # deg
+Extent = Annotated[float, Field(ge=0.001, le=0.5)]  # m, an object's size: 1 mm to 50 cm
+Friction = Annotated[float, Field(ge=0.0, le=5.0)]
+Vec2 = tuple[Coord, Coord]
+Vec3 = tuple[Coord, Coord, Coord]
+#: Names: printable, no spaces or control characters (they end up in terminals, files and JUnit XML).
+Name = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}$")]
+#: Bodies of the scene that an object may not be named after.
+RESERVED_NAMES = frozenset({"robot", "table", "world", "camera"})
+MAX_FILE_BYTES = 1 << 20
+MAX_NESTING = 16
 
 
 class ScenarioError(ValueError):
@@ -30,7 +47,7 @@ class ScenarioError(ValueError):
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", strict=True, allow_inf_nan=False)
 
 
 class CameraSpec(_Model):
@@ -46,11 +63,13 @@ class CameraSpec(_Model):
     )  # horizontal, vertical
     depth_noise: Literal["none", "kinect"] = "kinect"
     # Instead of a fixed position: sampled around look_at per seed (all three, or none).
-    distance_range_m: tuple[PositiveFloat, PositiveFloat] | None = None
-    elevation_range_deg: tuple[float, float] | None = None  # above the table plane
-    azimuth_range_deg: tuple[float, float] | None = None  # about world z, 0 = from +x
-    near_m: PositiveFloat = 0.1
-    far_m: PositiveFloat = 3.0
+    distance_range_m: tuple[Annotated[float, Field(ge=0.2, le=5.0)], Annotated[float, Field(ge=0.2, le=5.0)]] | None = (
+        None
+    )
+    elevation_range_deg: tuple[Angle, Angle] | None = None  # above the table plane
+    azimuth_range_deg: tuple[Angle, Angle] | None = None  # about world z, 0 = from +x
+    near_m: Annotated[float, Field(ge=0.01, le=1.0)] = 0.1
+    far_m: Annotated[float, Field(gt=0.1, le=20.0)] = 3.0
 
     @model_validator(mode="after")
     def _check(self) -> CameraSpec:
@@ -78,16 +97,21 @@ class CameraSpec(_Model):
 class TableSpec(_Model):
     """The table; its top surface is the world plane z = 0 and the robot stands on it at the origin."""
 
-    size: tuple[PositiveFloat, PositiveFloat] = (1.4, 1.2)  # m, x and y extents
+    size: tuple[Annotated[float, Field(ge=0.3, le=5.0)], Annotated[float, Field(ge=0.3, le=5.0)]] = (1.4, 1.2)  # m
     center: Vec2 = (0.45, 0.0)  # m, x, y of the table's centre
     color: tuple[UnitFloat, UnitFloat, UnitFloat] = (0.55, 0.42, 0.30)
-    friction: Annotated[float, Field(ge=0.0)] = 0.8
+    friction: Friction = 0.8
+
+    def holds(self, x: float, y: float, margin: float = 0.0) -> bool:
+        """Whether the point (x, y) lies on the table top, ``margin`` inside its edges."""
+        hx, hy = self.size[0] / 2.0 - margin, self.size[1] / 2.0 - margin
+        return abs(x - self.center[0]) <= hx and abs(y - self.center[1]) <= hy
 
 
 class ReferenceSpec(_Model):
     """Published figures to show beside ours (for example a row of the paper's Tables 1 and 2)."""
 
-    label: str = ""
+    label: Annotated[str, Field(max_length=80)] = ""
     position_error_mm: Annotated[float, Field(ge=0.0)]
     yaw_error_deg: Annotated[float, Field(ge=0.0)]
     pitch_error_deg: Annotated[float, Field(ge=0.0)] = 0.0
@@ -97,24 +121,31 @@ class ReferenceSpec(_Model):
 class ObjectSpec(_Model):
     """One object on the table: a box or a cylinder (upright unless tilted)."""
 
-    name: Annotated[str, Field(min_length=1)]
+    name: Name
     shape: Literal["box", "cylinder"]
-    size: tuple[PositiveFloat, ...] | None = None  # box: x, y, z extents; cylinder: diameter, height (m)
-    size_range: tuple[tuple[PositiveFloat, PositiveFloat], ...] | None = None  # per dimension: [min, max]
+    size: tuple[Extent, ...] | None = None  # box: x, y, z extents; cylinder: diameter, height (m)
+    size_range: tuple[tuple[Extent, Extent], ...] | None = None  # per dimension: [min, max]
     color: tuple[UnitFloat, UnitFloat, UnitFloat]
-    mass: PositiveFloat = 0.1  # kg
-    friction: Annotated[float, Field(ge=0.0)] = 0.9
-    position: tuple[float, float] | tuple[float, float, float] | None = None  # m: x, y (and centre z)
+    mass: Annotated[float, Field(ge=0.001, le=20.0)] = 0.1  # kg: 1 g to 20 kg (the Panda carries 3 kg)
+    friction: Friction = 0.9
+    position: tuple[Coord, Coord] | tuple[Coord, Coord, Coord] | None = None  # m: x, y (and centre z)
     position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
-    yaw_deg: float | None = None
-    yaw_range_deg: Vec2 | None = None
-    pitch_deg: float | None = None
-    pitch_range_deg: Vec2 | None = None
-    roll_deg: float | None = None
-    roll_range_deg: Vec2 | None = None
+    yaw_deg: Angle | None = None
+    yaw_range_deg: tuple[Angle, Angle] | None = None
+    pitch_deg: Angle | None = None
+    pitch_range_deg: tuple[Angle, Angle] | None = None
+    roll_deg: Angle | None = None
+    roll_range_deg: tuple[Angle, Angle] | None = None
     static: bool = False  # held where it is placed (no gravity): for tilted objects in perception tests
     target: bool = False
     reference: ReferenceSpec | None = None  # published errors for this object, shown by `perceive`
+
+    @field_validator("name")
+    @classmethod
+    def _not_reserved(cls, name: str) -> str:
+        if name.lower() in RESERVED_NAMES:
+            raise ValueError(f"{name!r} is reserved (a body of the scene: {', '.join(sorted(RESERVED_NAMES))})")
+        return name
 
     @field_validator("size", "size_range")
     @classmethod
@@ -160,8 +191,8 @@ class PlaceSpec(_Model):
 
 
 class SuccessSpec(_Model):
-    lift_height: PositiveFloat = 0.05  # m the target must rise
-    place_tolerance: PositiveFloat = 0.02  # m, horizontal distance to the place position
+    lift_height: Annotated[float, Field(gt=0.0, le=1.0)] = 0.05  # m the target must rise
+    place_tolerance: Annotated[float, Field(ge=0.001, le=1.0)] = 0.02  # m, horizontal distance to the place
 
 
 class MotionSpec(_Model):
@@ -173,7 +204,7 @@ class MotionSpec(_Model):
 
 
 class LayoutSpec(_Model):
-    clearance_m: Annotated[float, Field(ge=0.0)] = 0.01  # free space between objects' footprints
+    clearance_m: Annotated[float, Field(ge=0.0, le=0.5)] = 0.01  # free space between objects' footprints
 
 
 class ControlSpec(_Model):
@@ -185,6 +216,9 @@ class ControlSpec(_Model):
     control_rate_hz: Annotated[float, Field(ge=30.0, le=240.0)] = 120.0  # control ticks per simulated second
 
 
+Push = Annotated[float, Field(ge=-0.5, le=0.5)]  # m, how far a push moves the target along one axis
+
+
 class DisturbanceSpec(_Model):
     """The target is pushed across the table while the robot works (a slide of ``duration_s``).
 
@@ -193,12 +227,14 @@ class DisturbanceSpec(_Model):
     ``yaw_either_way`` is set.
     """
 
-    at_time_s: Annotated[float, Field(ge=0.0)]  # simulated time after the first look
-    offset_m: Vec2 | None = None
-    offset_range_m: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max))
-    distance_range_m: tuple[Annotated[float, Field(ge=0.0)], Annotated[float, Field(ge=0.0)]] | None = None
-    yaw_deg: float = 0.0
-    yaw_range_deg: Vec2 | None = None
+    at_time_s: Annotated[float, Field(ge=0.0, le=600.0)]  # simulated time after the first look
+    offset_m: tuple[Push, Push] | None = None
+    offset_range_m: tuple[tuple[Push, Push], tuple[Push, Push]] | None = None  # ((x_min, x_max), (y_min, y_max))
+    distance_range_m: tuple[Annotated[float, Field(ge=0.0, le=0.5)], Annotated[float, Field(ge=0.0, le=0.5)]] | None = (
+        None
+    )
+    yaw_deg: Angle = 0.0
+    yaw_range_deg: tuple[Angle, Angle] | None = None
     yaw_either_way: bool = False
     duration_s: Annotated[float, Field(gt=0.0, le=2.0)] = 0.3
 
@@ -214,16 +250,18 @@ class DisturbanceSpec(_Model):
 
 
 class SimSpec(_Model):
-    time_step_s: Annotated[float, Field(gt=0.0, le=1.0 / 240.0)] = 1.0 / 240.0
-    max_sim_time_s: PositiveFloat = 60.0  # simulated-time budget of one episode
+    # 1/1000 s at the finest: a finer step multiplies the work and changes nothing a user would see.
+    time_step_s: Annotated[float, Field(ge=1.0 / 1000.0, le=1.0 / 240.0)] = 1.0 / 240.0
+    max_sim_time_s: Annotated[float, Field(gt=0.0, le=600.0)] = 60.0  # simulated-time budget of one episode
 
 
 class Scenario(_Model):
     """A whole scenario file, validated."""
 
-    name: Annotated[str, Field(min_length=1)]
-    description: str = ""
-    tags: tuple[str, ...] = ()  # e.g. "suite": run by `pickdemo bench` when no scenario is named
+    name: Name
+    description: Annotated[str, Field(max_length=300)] = ""
+    tags: tuple[Name, ...] = ()  # e.g. "suite": run by `pickdemo bench` when no scenario is named
+    task: Literal["pick", "perceive"] = "pick"  # "perceive": for `pickdemo perceive` only (any number of targets)
     camera: CameraSpec = CameraSpec()
     table: TableSpec = TableSpec()
     objects: tuple[ObjectSpec, ...]
@@ -245,6 +283,18 @@ class Scenario(_Model):
         names = [o.name for o in self.objects]
         if len(set(names)) != len(names):
             raise ValueError("object names must be unique")
+        if not self.description.isprintable():
+            raise ValueError("description: control characters are not allowed")
+        if self.task == "pick":
+            if len(targets) != 1:
+                names_t = ", ".join(o.name for o in targets)
+                raise ValueError(
+                    f"objects: a pick needs exactly one object with target = true; {len(targets)} have it ({names_t})"
+                )
+            if targets[0].static:
+                raise ValueError(
+                    f"objects.{targets[0].name}: the target of a pick cannot be static (it could never be lifted)"
+                )
         return self
 
     @property
@@ -264,26 +314,105 @@ def _format_loc(loc: tuple[int | str, ...], data: object) -> str:
     for item in loc:
         if isinstance(item, int):
             name = None
-            if isinstance(node, list) and 0 <= item < len(node) and isinstance(node[item], dict):
+            if isinstance(node, (list, tuple)) and 0 <= item < len(node) and isinstance(node[item], dict):
                 name = node[item].get("name")
-            parts[-1] = f"{parts[-1]}[{item}]" + (f"({name})" if name else "") if parts else f"[{item}]"
-            node = node[item] if isinstance(node, list) and 0 <= item < len(node) else None
+            label = f"({_printable(name)})" if isinstance(name, str) and name else ""
+            parts[-1] = f"{parts[-1]}[{item}]" + label if parts else f"[{item}]"
+            node = node[item] if isinstance(node, (list, tuple)) and 0 <= item < len(node) else None
         else:
-            parts.append(str(item))
+            parts.append(_printable(str(item)))
             node = node.get(item) if isinstance(node, dict) else None
     return ".".join(parts) or "(top level)"
 
 
+def _printable(text: str, limit: int = 60) -> str:
+    """Text safe for one line of a terminal: control characters escaped, long text cut."""
+    out = text if text.isprintable() else text.encode("unicode_escape").decode("ascii")
+    return out if len(out) <= limit else out[: limit - 3] + "..."
+
+
+def _model_at(loc: tuple[int | str, ...]) -> type[BaseModel] | None:
+    """The schema model that the location ``loc`` (without its last key) points into."""
+    model: type[BaseModel] | None = Scenario
+    for item in loc[:-1]:
+        if isinstance(item, int) or model is None:
+            continue
+        field = model.model_fields.get(str(item))
+        if field is None:
+            return None
+        model = next((t for t in _types_in(field.annotation) if isinstance(t, type) and issubclass(t, BaseModel)), None)
+    return model
+
+
+def _types_in(annotation: object) -> list[object]:
+    args = getattr(annotation, "__args__", None)
+    if not args:
+        return [annotation]
+    return [t for a in args for t in _types_in(a)]
+
+
+def _tuples(value: object, depth: int = 0) -> object:
+    """TOML arrays as tuples (the strict schema takes tuples), and a bound on nesting."""
+    if depth > MAX_NESTING:
+        raise ScenarioError(f"nested more than {MAX_NESTING} levels deep")
+    if isinstance(value, list):
+        return tuple(_tuples(v, depth + 1) for v in value)
+    if isinstance(value, dict):
+        return {k: _tuples(v, depth + 1) for k, v in value.items()}
+    return value
+
+
+def _data_loc(loc: tuple, data: object) -> tuple[int | str, ...]:
+    """Pydantic's error location less the parts it adds (union branches, validator names): only keys
+    and indices that exist in the document are kept, plus a last key that is missing or unknown."""
+    out: list[int | str] = []
+    node = data
+    for i, item in enumerate(loc):
+        if isinstance(node, dict) and isinstance(item, str) and item in node:
+            out.append(item)
+            node = node[item]
+        elif isinstance(node, (list, tuple)) and isinstance(item, int) and 0 <= item < len(node):
+            out.append(item)
+            node = node[item]
+        elif i == len(loc) - 1 and isinstance(item, str) and isinstance(node, dict):
+            out.append(item)  # a missing key (or an unknown one) at the end
+    return tuple(out)
+
+
+def _message(err: dict, data: object) -> str:
+    loc = _data_loc(err["loc"], data)
+    where = _format_loc(loc, data)
+    if err["type"] == "extra_forbidden" and loc:
+        model = _model_at(loc)
+        valid = sorted(model.model_fields) if model is not None else []
+        close = difflib.get_close_matches(str(loc[-1]), valid, n=1, cutoff=0.6)
+        hint = f"; did you mean {close[0]!r}?" if close else (f" (valid keys: {', '.join(valid)})" if valid else "")
+        return f"{where}: unknown key{hint}"
+    msg = err["msg"].removeprefix("Value error, ")
+    if not loc:
+        return msg
+    if err["type"] in ("float_type", "int_type", "bool_type", "string_type", "tuple_type"):
+        got = err.get("input")
+        shown = _printable(repr(got), 40)
+        msg = f'{msg}, got {type(got).__name__} {shown} (values are not converted: write 0.1, not "0.1")'
+    return f"{where}: {msg}"
+
+
 def parse_scenario(data: dict, *, source: str = "<scenario>") -> Scenario:
     """Validate a scenario given as a parsed TOML table."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{source}: a scenario is a TOML table, got {type(data).__name__}")
     try:
-        return Scenario.model_validate(data)
+        tupled = _tuples(data)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{source}: {exc}") from None
+    try:
+        return Scenario.model_validate(tupled)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = tuple(x for x in err["loc"] if not (isinstance(x, str) and x.startswith("function-")))
-        msg = err["msg"].removeprefix("Value error, ")
-        extra = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
-        raise ScenarioError(f"{source}: {_format_loc(loc, data)}: {msg}{extra}") from None
+        # An unknown key first: a misspelt key also makes the one it meant "missing".
+        errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
+        extra = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+        raise ScenarioError(f"{source}: {_message(errors[0], data)}{extra}") from None
 
 
 def builtin_scenario_dirs() -> list[Path]:
@@ -310,7 +439,7 @@ def suite_scenarios() -> list[str]:
     out = []
     for name in list_scenarios():
         try:
-            if "suite" in load_scenario(name).tags:
+            if "suite" in load_scenario(name, check=False).tags:
                 out.append(name)
         except ScenarioError:
             continue
@@ -318,28 +447,64 @@ def suite_scenarios() -> list[str]:
 
 
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
-    """A path to a file, or the name of a shipped scenario (``pick_cube``)."""
-    path = Path(name_or_path)
+    """A path to a ``.toml`` file, or the name of a shipped scenario (``pick_cube``)."""
+    text = str(name_or_path)
+    if not text or not text.isprintable():
+        raise ScenarioError(f"{_printable(text) or '(empty)'}: not a scenario name or path")
+    path = Path(text)
     if path.suffix == ".toml" or path.exists() or len(path.parts) > 1:
+        if path.is_dir():
+            raise ScenarioError(f"{path}: is a directory, not a scenario file")
         if not path.is_file():
             raise ScenarioError(f"{path}: no such scenario file")
+        if path.suffix != ".toml":
+            raise ScenarioError(f"{path}: not a .toml file")
         return path
     for d in builtin_scenario_dirs():
         candidate = d / f"{path.name}.toml"
         if candidate.is_file():
             return candidate
-    known = ", ".join(list_scenarios()) or "none found"
-    raise ScenarioError(f"{name_or_path}: unknown scenario (known: {known})")
+    known = list_scenarios()
+    close = difflib.get_close_matches(text, known, n=1)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    raise ScenarioError(f"{text}: unknown scenario ({hint}known: {', '.join(known) or 'none found'})")
 
 
-def load_scenario(name_or_path: str | Path) -> Scenario:
-    """Load and validate a scenario by name or path; raises :class:`ScenarioError` on bad input."""
+def load_scenario(name_or_path: str | Path, *, check: bool = True) -> Scenario:
+    """Load and validate a scenario by name or path; raises :class:`ScenarioError` on bad input.
+
+    With ``check`` (the default) it also runs what can be checked without running it
+    (:func:`pickdemo.checks.check_scenario`: geometry, reach, the camera's view).
+    """
     path = resolve_scenario_path(name_or_path)
     try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: invalid TOML: {exc}") from None
+        if path.stat().st_size > MAX_FILE_BYTES:
+            raise ScenarioError(f"{path}: {path.stat().st_size} bytes; a scenario file is at most {MAX_FILE_BYTES}")
+        raw = path.read_bytes()
     except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
-    return parse_scenario(data, source=str(path))
+        raise ScenarioError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    for bom, enc in ((codecs.BOM_UTF32_LE, "UTF-32"), (codecs.BOM_UTF32_BE, "UTF-32"), (codecs.BOM_UTF16_LE, "UTF-16"),
+                     (codecs.BOM_UTF16_BE, "UTF-16")):  # fmt: skip
+        if raw.startswith(bom):
+            raise ScenarioError(f"{path}: {enc} text; TOML files are UTF-8 (save it as UTF-8)")
+    if b"\x00" in raw:
+        raise ScenarioError(f"{path}: a binary file, not TOML text")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{path}: not UTF-8 text (byte {exc.start}); TOML files are UTF-8") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: invalid TOML: {_printable(str(exc), 120)}") from None
+    except RecursionError:
+        raise ScenarioError(f"{path}: invalid TOML: nested too deeply") from None
+    scenario = parse_scenario(data, source=str(path))
+    if check:
+        from pickdemo.checks import check_scenario  # imports the kinematics: only when asked
+
+        try:
+            check_scenario(scenario)
+        except ScenarioError as exc:
+            raise ScenarioError(f"{path}: {exc}") from None
+    return scenario

@@ -187,15 +187,16 @@ def test_cli_bench_bad_input() -> None:
 
 @pytest.mark.sim
 def test_gate_fails_below_min_success(tmp_path: Path) -> None:
-    bad = tmp_path / "unreachable.toml"
-    bad.write_text('name = "unreachable"\n[[objects]]\nname = "c"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\n'
-                   'color = [0.85, 0.1, 0.1]\nposition = [1.2, 0.0]\ntarget = true\n[table]\nsize = [2.6, 1.2]\n'
+    # Well-formed and possible, but given too little simulated time: it fails when it runs.
+    bad = tmp_path / "too_short.toml"
+    bad.write_text('name = "too_short"\n[[objects]]\nname = "c"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\n'
+                   'color = [0.85, 0.1, 0.1]\nposition = [0.5, 0.0]\ntarget = true\n[sim]\nmax_sim_time_s = 2.0\n'
                    '[place]\nposition = [0.4, 0.3]\n')  # fmt: skip
     proc = _cli(
         "bench", str(bad), "--seeds", "0", "--min-success", "0.5", "--no-progress", "--junit", str(tmp_path / "j.xml")
     )
     assert proc.returncode == 1, proc.stdout + proc.stderr
-    assert "GATE FAILED" in proc.stdout and "FAIL unreachable seed 0" in proc.stdout + proc.stderr
+    assert "GATE FAILED" in proc.stdout and "FAIL too_short seed 0: timeout" in proc.stdout + proc.stderr
 
 
 @pytest.mark.sim

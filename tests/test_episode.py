@@ -155,3 +155,16 @@ def test_motion_scales_slow_the_arm(cube_scenario: Scenario) -> None:
     fast, slowed = run_episode(cube_scenario, 2), run_episode(slow, 2)
     assert fast.success and slowed.success, (fast.failure, slowed.failure)
     assert slowed.sim_time_s > fast.sim_time_s + 3.0
+
+
+def test_unreachable_place_ends_in_ik_with_the_reason(cube_scenario: Scenario) -> None:
+    # Well formed, impossible, and run from Python without the loader's checks: a named stage, a reason.
+    far = cube_scenario.model_copy(
+        update={
+            "place": cube_scenario.place.model_copy(update={"position": (1.05, 0.5)}),
+            "table": cube_scenario.table.model_copy(update={"size": (2.4, 1.4)}),
+        }
+    )
+    r = run_episode(far, 0)
+    assert not r.success and r.failure.stage is Stage.IK
+    assert "place pose out of reach" in r.failure.reason

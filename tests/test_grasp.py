@@ -60,7 +60,7 @@ def test_plan_heights() -> None:
 
 def test_too_wide_for_the_gripper() -> None:
     model = TargetModel("box", (0.09, 0.09, 0.05), (1.0, 0.0, 0.0))
-    with pytest.raises(GraspPlanningError, match="wide"):
+    with pytest.raises(GraspPlanningError, match="clearance"):
         plan_grasp(_estimate(0.0), model, (0.45, 0.3))
 
 

@@ -84,7 +84,8 @@ def test_tilted_object_must_be_static(tmp_path: Path) -> None:
     f.write_text(GOOD.replace("target = true", "target = true\npitch_deg = 5.0"))
     with pytest.raises(ScenarioError, match="static"):
         load_scenario(f)
-    f.write_text(GOOD.replace("target = true", "target = true\npitch_deg = 5.0\nstatic = true"))
+    perceive = GOOD.replace('name = "t"', 'name = "t"\ntask = "perceive"')
+    f.write_text(perceive.replace("target = true", "target = true\npitch_deg = 5.0\nstatic = true"))
     assert load_scenario(f).target.static
 
 

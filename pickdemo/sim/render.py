@@ -21,28 +21,18 @@ from pickdemo.camera import (
     look_at_pose,
     opengl_projection_matrix,
     opengl_view_matrix,
+    rendered_intrinsics,
 )
 from pickdemo.geometry import Pose
 from pickdemo.scenario import CameraSpec
 from pickdemo.sim.scene import Scene
-
-# Where TinyRenderer puts the optical axis of a symmetric frustum, relative to the image size.
-TINY_CX_OFFSET = 0.0  # cx = W / 2 + offset
-TINY_CY_OFFSET = -1.0  # cy = H / 2 + offset
 
 LIGHT_DIRECTION = (0.4, -0.3, 1.0)  # world frame; mostly from above, so faces shade differently
 
 
 def camera_intrinsics(spec: CameraSpec) -> Intrinsics:
     """The intrinsics of the rendered images, with TinyRenderer's principal point."""
-    return Intrinsics.from_fov(
-        spec.width,
-        spec.height,
-        spec.fov_deg[0],
-        spec.fov_deg[1],
-        cx=spec.width / 2.0 + TINY_CX_OFFSET,
-        cy=spec.height / 2.0 + TINY_CY_OFFSET,
-    )
+    return rendered_intrinsics(spec.width, spec.height, spec.fov_deg[0], spec.fov_deg[1])
 
 
 class Camera:

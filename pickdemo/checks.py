@@ -1,0 +1,183 @@
+"""What can be checked of a scenario without running it: geometry, reach, the camera's view.
+
+Pure: no simulator (reach is checked with the arm's kinematics). :func:`check_scenario` raises
+:class:`~pickdemo.scenario.ScenarioError` naming the key and what is impossible, so that a task that
+could never succeed is refused before any simulation starts (exit 2), not failed after it (exit 1).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from pickdemo import robot_model as rm
+from pickdemo.camera import look_at_pose, project, rendered_intrinsics
+from pickdemo.grasp import GraspParams, top_down
+from pickdemo.layout import LayoutError, footprint_radius_m, sample_layout
+from pickdemo.scenario import ObjectSpec, Scenario, ScenarioError
+from pickdemo.streams import spawn_rngs
+
+#: The robot's base on the table: nothing may stand within this radius of the origin (m).
+ROBOT_BASE_RADIUS_M = 0.12
+#: Clearance the open gripper needs around the target's narrower side (m).
+GRIPPER_CLEARANCE_M = 0.010
+#: The Panda's payload (kg).
+MAX_PAYLOAD_KG = 3.0
+#: Seeds whose layouts must be possible (a range that leaves no room fails on most seeds).
+LAYOUT_SEEDS = range(3)
+#: Pixels the pick region keeps from the image's edges.
+VIEW_MARGIN_PX = 2.0
+
+
+def _extents(obj: ObjectSpec) -> tuple[float, ...]:
+    """The largest size the object may have (its size, or the top of each size range)."""
+    if obj.size is not None:
+        return tuple(obj.size)
+    return tuple(hi for _, hi in obj.size_range)  # type: ignore[union-attr]
+
+
+def _height(obj: ObjectSpec) -> float:
+    ext = _extents(obj)
+    return ext[2] if obj.shape == "box" else ext[1]
+
+
+def _region(obj: ObjectSpec) -> list[tuple[float, float]]:
+    """Corners of where the object's centre may be (one point for a fixed position)."""
+    if obj.position is not None:
+        return [(obj.position[0], obj.position[1])]
+    (x0, x1), (y0, y1) = obj.position_range  # type: ignore[misc]
+    return [(x0, y0), (x0, y1), (x1, y0), (x1, y1)]
+
+
+def _footprint_mm(obj: ObjectSpec) -> np.ndarray:
+    """The outline (mm, float32 polygon) of an object at a fixed position seen from above, untilted."""
+    ext = _extents(obj)
+    x, y = obj.position[:2]  # type: ignore[index]
+    if obj.shape == "box":
+        yaw = np.radians(obj.yaw_deg or 0.0)
+        local = np.array([[sx * ext[0], sy * ext[1]] for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]) / 2.0
+        rot = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
+        pts = local @ rot.T
+    else:
+        a = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+        pts = ext[0] / 2.0 * np.column_stack([np.cos(a), np.sin(a)])
+    return ((pts + [x, y]) * 1e3).astype(np.float32)
+
+
+def check_scenario(sc: Scenario) -> None:
+    """Raise :class:`ScenarioError` (``key: what is impossible``) for a scenario that cannot run."""
+    _check_objects(sc)
+    if sc.task == "pick":
+        _check_pick(sc)
+    _check_camera(sc)
+    _check_layout(sc)
+
+
+def _check_objects(sc: Scenario) -> None:
+    table = sc.table
+    fixed: list[tuple[str, np.ndarray]] = []
+    for obj in sc.objects:
+        key = f"objects.{obj.name}"
+        r = footprint_radius_m(obj.shape, _extents(obj))
+        for x, y in _region(obj):
+            if not table.holds(x, y, margin=r):
+                raise ScenarioError(
+                    f"{key}: at ({x:.3f}, {y:.3f}) m its footprint ({r * 1e3:.0f} mm radius) is off the table "
+                    f"(x {table.center[0] - table.size[0] / 2:.2f}..{table.center[0] + table.size[0] / 2:.2f}, "
+                    f"y {table.center[1] - table.size[1] / 2:.2f}..{table.center[1] + table.size[1] / 2:.2f} m)"
+                )
+            if np.hypot(x, y) < ROBOT_BASE_RADIUS_M + r:
+                raise ScenarioError(
+                    f"{key}: at ({x:.3f}, {y:.3f}) m it stands inside the robot's base "
+                    f"(keep {(ROBOT_BASE_RADIUS_M + r) * 1e3:.0f} mm from the origin)"
+                )
+        if obj.position is not None and len(obj.position) == 3:
+            h = _height(obj)
+            if obj.position[2] < h / 2.0 - 1e-3 and not any((obj.pitch_deg, obj.roll_deg)):
+                raise ScenarioError(f"{key}.position: centre z {obj.position[2]:.3f} m sinks it into the table")
+        if obj.position is not None:
+            mine = _footprint_mm(obj)
+            for other, theirs in fixed:
+                area, _ = cv2.intersectConvexConvex(mine, theirs)
+                if area > 1.0:  # mm^2
+                    raise ScenarioError(f"{key}: overlaps objects.{other} on the table ({area:.0f} mm^2 in common)")
+            fixed.append((obj.name, mine))
+    px, py = sc.place.position
+    if not table.holds(px, py):
+        raise ScenarioError(f"place.position: ({px:.3f}, {py:.3f}) m is off the table")
+
+
+def _check_camera(sc: Scenario) -> None:
+    cam = sc.camera
+    if cam.sampled:
+        return  # placed per seed around look_at, above the table by construction (elevation > 0)
+    if cam.position[2] <= 0.05:
+        raise ScenarioError(f"camera.position: z = {cam.position[2]:.3f} m; the camera must be above the table")
+    K = rendered_intrinsics(cam.width, cam.height, cam.fov_deg[0], cam.fov_deg[1])
+    T_cam_world = look_at_pose(np.array(cam.position), np.array(cam.look_at)).inverse()
+    for obj in sc.objects:
+        if not obj.target:
+            continue
+        h = _height(obj)
+        r = footprint_radius_m(obj.shape, _extents(obj))
+        pts = np.array([[x + dx, y + dy, z] for x, y in _region(obj) for dx in (-r, r) for dy in (-r, r)
+                        for z in (0.0, h)])  # fmt: skip
+        p_cam = T_cam_world.transform_points(pts)
+        if np.any(p_cam[:, 2] <= cam.near_m) or np.any(p_cam[:, 2] >= cam.far_m):
+            raise ScenarioError(
+                f"camera: objects.{obj.name} is not in front of the camera (within near_m..far_m) everywhere "
+                "it may stand"
+            )
+        uv = project(p_cam, K)
+        m = VIEW_MARGIN_PX
+        inside = (uv[:, 0] >= m) & (uv[:, 0] <= K.width - 1 - m) & (uv[:, 1] >= m) & (uv[:, 1] <= K.height - 1 - m)
+        if not inside.all():
+            u, v = uv[~inside][0]
+            raise ScenarioError(
+                f"camera: objects.{obj.name} can stand out of the camera's view (a corner of its region projects "
+                f"to pixel ({u:.0f}, {v:.0f}) of {K.width}x{K.height}); aim look_at at it or widen fov_deg"
+            )
+
+
+def _check_pick(sc: Scenario) -> None:
+    from pickdemo.kinematics import IKParams, panda_kinematics  # loads the URDF: only when needed
+
+    target = sc.target
+    key = f"objects.{target.name}"
+    ext = _extents(target)
+    narrow = min(ext[0], ext[1]) if target.shape == "box" else ext[0]
+    opening = 2.0 * rm.FINGER_MAX_M
+    if narrow > opening - GRIPPER_CLEARANCE_M:
+        raise ScenarioError(
+            f"{key}.size: its narrower side is {narrow * 1e3:.0f} mm; the gripper opens to {opening * 1e3:.0f} mm "
+            f"and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance, so at most "
+            f"{(opening - GRIPPER_CLEARANCE_M) * 1e3:.0f} mm"
+        )
+    if target.mass > MAX_PAYLOAD_KG:
+        raise ScenarioError(f"{key}.mass: {target.mass} kg is more than the Panda carries ({MAX_PAYLOAD_KG} kg)")
+    grasp = GraspParams()
+    carried = grasp.transport_height_m
+    if sc.success.lift_height >= carried - 0.005:
+        raise ScenarioError(
+            f"success.lift_height: {sc.success.lift_height:.3f} m; the arm lifts the target {carried:.3f} m, so "
+            f"lift_height must stay below {carried - 0.005:.3f} m"
+        )
+    kin = panda_kinematics()
+    rng = np.random.default_rng(0)
+    z = max(_height(target) / 2.0, grasp.min_tcp_height_m)
+    spots = [(f"{key} at ({x:.2f}, {y:.2f})", x, y) for x, y in _region(target)]
+    spots.append(("place.position", *sc.place.position))
+    for what, x, y in spots:
+        for dz in (0.0, grasp.pregrasp_height_m):
+            res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), rm.HOME_Q, rng, IKParams())
+            if not res.success:
+                raise ScenarioError(f"{what}: out of the arm's reach from above ({res.reason})")
+
+
+def _check_layout(sc: Scenario) -> None:
+    for seed in LAYOUT_SEEDS:
+        try:
+            sample_layout(sc, spawn_rngs(seed)["layout"])
+        except LayoutError as exc:
+            hint = "widen the position ranges or lower clearance_m"
+            raise ScenarioError(f"layout (seed {seed}): {exc}; {hint}") from None

@@ -1,0 +1,332 @@
+"""Bad input gets a clear answer, every time: exit 2 and one line naming the file and the key (or the
+argument), before any simulation starts; never a traceback, a hang or an accepted nonsense."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from pickdemo.cli import main
+
+GOOD = """name = "t"
+description = "a good scenario"
+[camera]
+position = [1.1, 0.0, 0.75]
+look_at = [0.5, 0.0, 0.0]
+width = 640
+[[objects]]
+name = "cube"
+shape = "box"
+size = [0.05, 0.05, 0.05]
+color = [0.85, 0.1, 0.1]
+mass = 0.1
+position_range = [[0.45, 0.55], [-0.05, 0.05]]
+target = true
+[place]
+position = [0.45, 0.3]
+[success]
+lift_height = 0.05
+[sim]
+max_sim_time_s = 60.0
+time_step_s = 0.004166666666666667
+[motion]
+velocity_scale = 1.0
+[control]
+max_attempts = 3
+"""
+
+SECOND = '\n[[objects]]\nname = "other"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.1, 0.1, 0.9]\n'
+
+
+def _edit(old: str, new: str) -> str:
+    assert old in GOOD, old
+    return GOOD.replace(old, new, 1)
+
+
+# (id, file text, what the one line must say)
+FILE_CASES: list[tuple[str, str, str]] = [
+    # ---- the schema: no NaN or inf, no coercion, bounds, names
+    ("nan in a range", _edit("[[0.45, 0.55]", "[[nan, 0.55]"), "position_range[0][0]: Input should be a finite number"),
+    (
+        "inf budget",
+        _edit("max_sim_time_s = 60.0", "max_sim_time_s = inf"),
+        "sim.max_sim_time_s: Input should be a finite",
+    ),
+    ("inf far plane", _edit("width = 640", "width = 640\nfar_m = inf"), "camera.far_m: Input should be a finite"),
+    ("nan size", _edit("size = [0.05, 0.05, 0.05]", "size = [0.05, nan, 0.05]"), "size[1]: Input should be a finite"),
+    ("string mass", _edit("mass = 0.1", 'mass = "0.1"'), "mass: Input should be a valid number, got str '0.1'"),
+    ("boolean mass", _edit("mass = 0.1", "mass = true"), "mass: Input should be a valid number, got bool True"),
+    ("integer target", _edit("target = true", "target = 1"), "target: Input should be a valid boolean, got int 1"),
+    ("string width", _edit("width = 640", 'width = "640"'), "camera.width: Input should be a valid integer, got str"),
+    ("float width", _edit("width = 640", "width = 640.5"), "camera.width: Input should be a valid integer"),
+    (
+        "tiny time step",
+        _edit("time_step_s = 0.004166666666666667", "time_step_s = 1e-7"),
+        "sim.time_step_s: Input should be greater than or equal to 0.001",
+    ),
+    (
+        "huge time step",
+        _edit("time_step_s = 0.004166666666666667", "time_step_s = 0.1"),
+        "sim.time_step_s: Input should be less than or equal",
+    ),
+    (
+        "tiny velocity scale",
+        _edit("velocity_scale = 1.0", "velocity_scale = 1e-6"),
+        "motion.velocity_scale: Input should be greater than or equal to 0.05",
+    ),
+    (
+        "long budget",
+        _edit("max_sim_time_s = 60.0", "max_sim_time_s = 1e9"),
+        "sim.max_sim_time_s: Input should be less than or equal to 600",
+    ),
+    (
+        "negative size",
+        _edit("size = [0.05, 0.05, 0.05]", "size = [0.05, -0.05, 0.05]"),
+        "size[1]: Input should be greater than or equal to 0.001",
+    ),
+    (
+        "huge size",
+        _edit("size = [0.05, 0.05, 0.05]", "size = [0.05, 0.05, 3.0]"),
+        "size[2]: Input should be less than or equal to 0.5",
+    ),
+    ("two sizes for a box", _edit("size = [0.05, 0.05, 0.05]", "size = [0.05, 0.05]"), "a box needs 3 values"),
+    ("huge mass", _edit("mass = 0.1", "mass = 100.0"), "mass: Input should be less than or equal to 20"),
+    (
+        "zero attempts",
+        _edit("max_attempts = 3", "max_attempts = 0"),
+        "control.max_attempts: Input should be greater than or equal to 1",
+    ),
+    ("far before near", _edit("width = 640", "width = 640\nnear_m = 0.5\nfar_m = 0.3"), "far_m must exceed near_m"),
+    ("reversed range", _edit("[[0.45, 0.55]", "[[0.55, 0.45]"), "position_range bounds must be [min, max]"),
+    ("reserved name", _edit('name = "cube"', 'name = "robot"'), "'robot' is reserved"),
+    (
+        "control characters in a name",
+        _edit('name = "cube"', 'name = "cu\\u001b[31mbe"'),
+        "name: String should match pattern",
+    ),
+    ("empty name", _edit('name = "cube"', 'name = ""'), "name: String should match pattern"),
+    (
+        "control characters in the description",
+        _edit('description = "a good scenario"', 'description = "bad\\u0007"'),
+        "description: control characters are not allowed",
+    ),
+    (
+        "misspelt colour",
+        _edit("color = [0.85, 0.1, 0.1]", "colour = [0.85, 0.1, 0.1]"),
+        "objects[0](cube).colour: unknown key; did you mean 'color'?",
+    ),
+    ("misspelt table", "[cammera]\nwidth = 640\n" + GOOD, "cammera: unknown key; did you mean 'camera'?"),
+    (
+        "unknown key, nothing close",
+        _edit("mass = 0.1", "mass = 0.1\nflavour = 3"),
+        "objects[0](cube).flavour: unknown key (valid keys:",
+    ),
+    (
+        "two targets",
+        GOOD + SECOND + "position = [0.5, -0.2]\ntarget = true\n",
+        "a pick needs exactly one object with target = true; 2 have it (cube, other)",
+    ),
+    ("no target", _edit("target = true", "target = false"), "one object must have target = true"),
+    ("static target", _edit("target = true", "target = true\nstatic = true"), "the target of a pick cannot be static"),
+    ("tilted, not static", _edit("target = true", "target = true\npitch_deg = 10.0"), "needs static = true"),
+    (
+        "duplicate names",
+        GOOD + SECOND.replace('"other"', '"cube"') + "position = [0.5, -0.2]\n",
+        "object names must be unique",
+    ),
+    (
+        "an array for a table",
+        "success = [1, 2]\n" + _edit("[success]\nlift_height = 0.05\n", ""),
+        "success: Input should be a valid dictionary",
+    ),
+    # ---- geometry: what cannot succeed is refused before it runs
+    (
+        "off the table",
+        _edit("position_range = [[0.45, 0.55], [-0.05, 0.05]]", "position = [1.3, 0.0]"),
+        "objects.cube: at (1.300, 0.000) m its footprint (35 mm radius) is off the table",
+    ),
+    (
+        "inside the robot",
+        _edit("position_range = [[0.45, 0.55], [-0.05, 0.05]]", "position = [0.05, 0.0]"),
+        "objects.cube: at (0.050, 0.000) m it stands inside the robot's base",
+    ),
+    (
+        "sunk into the table",
+        _edit("position_range = [[0.45, 0.55], [-0.05, 0.05]]", "position = [0.5, 0.0, 0.0]"),
+        "sinks it into the table",
+    ),
+    (
+        "overlapping at fixed positions",
+        _edit("position_range = [[0.45, 0.55], [-0.05, 0.05]]", "position = [0.5, 0.0]")
+        + SECOND
+        + "position = [0.52, 0.01]\n",
+        "objects.other: overlaps objects.cube",
+    ),
+    (
+        "lift higher than carried",
+        _edit("lift_height = 0.05", "lift_height = 0.2"),
+        "success.lift_height: 0.200 m; the arm lifts the target 0.120 m",
+    ),
+    (
+        "place out of reach",
+        _edit("position = [0.45, 0.3]\n[success]", "position = [1.0, 0.55]\n[success]")
+        + "[table]\nsize = [2.4, 1.2]\n",
+        "place.position: out of the arm's reach",
+    ),
+    (
+        "place off the table",
+        _edit("position = [0.45, 0.3]\n[success]", "position = [0.45, 0.9]\n[success]"),
+        "place.position: (0.450, 0.900) m is off the table",
+    ),
+    (
+        "pick region out of reach",
+        _edit("[[0.45, 0.55], [-0.05, 0.05]]", "[[0.95, 1.05], [-0.05, 0.05]]") + "[table]\nsize = [2.4, 1.2]\n",
+        "out of the arm's reach",
+    ),
+    (
+        "camera under the table",
+        _edit("position = [1.1, 0.0, 0.75]", "position = [1.1, 0.0, -0.2]"),
+        "camera.position: z = -0.200 m; the camera must be above the table",
+    ),
+    (
+        "target out of view",
+        _edit("look_at = [0.5, 0.0, 0.0]", "look_at = [0.5, 0.6, 0.0]"),
+        "camera: objects.cube can stand out of the camera's view",
+    ),
+    (
+        "too wide for the gripper",
+        _edit("size = [0.05, 0.05, 0.05]", "size = [0.073, 0.09, 0.05]"),
+        "its narrower side is 73 mm; the gripper opens to 80 mm and needs 10 mm of clearance, so at most 70 mm",
+    ),
+    ("too heavy", _edit("mass = 0.1", "mass = 5.0"), "objects.cube.mass: 5.0 kg is more than the Panda carries"),
+    (
+        "impossible layout",
+        _edit("[[0.45, 0.55], [-0.05, 0.05]]", "[[0.49, 0.51], [-0.01, 0.01]]")
+        + SECOND
+        + "position_range = [[0.49, 0.51], [-0.01, 0.01]]\n",
+        "layout (seed 0): objects.other: no free spot found",
+    ),
+    ("empty file", "", "name: Field required (and 2 more)"),
+    ("invalid TOML", GOOD + "\n[[objects]\n", "invalid TOML"),
+]
+
+
+@pytest.mark.parametrize(("text", "expected"), [c[1:] for c in FILE_CASES], ids=[c[0] for c in FILE_CASES])
+def test_bad_scenario_file(tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, expected: str) -> None:
+    f = tmp_path / "s.toml"
+    f.write_text(text)
+    assert main(["run", str(f), "--quiet"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"pickdemo: error: {f}: ") and expected in err, err
+    assert err.isascii() and "\x1b" not in err  # nothing raw reaches the terminal
+
+
+def test_the_good_scenario_validates(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    f = tmp_path / "s.toml"
+    f.write_text(GOOD)
+    assert main(["validate", str(f), "pick_cube"]) == 0
+    assert capsys.readouterr().out.splitlines() == ["ok t", "ok pick_cube"]
+
+
+def _bytes_case(tmp_path: Path, name: str, data: bytes) -> Path:
+    f = tmp_path / name
+    f.write_bytes(data)
+    return f
+
+
+@pytest.mark.parametrize(
+    ("make", "expected"),
+    [
+        (lambda d: _bytes_case(d, "u16.toml", GOOD.encode("utf-16")), "UTF-16 text; TOML files are UTF-8"),
+        (lambda d: _bytes_case(d, "bin.toml", bytes(range(256)) * 4), "a binary file, not TOML text"),
+        (lambda d: _bytes_case(d, "deep.toml", b"x = " + b"[" * 5000 + b"]" * 5000 + b"\n"), "nested"),
+        (lambda d: _bytes_case(d, "big.toml", b"# " + b"x" * (2 << 20) + b"\n"), "a scenario file is at most"),
+        (lambda d: d / "missing.toml", "no such scenario file"),
+        (lambda d: d, "is a directory, not a scenario file"),
+        (lambda d: _bytes_case(d, "notes.txt", GOOD.encode()), "not a .toml file"),
+        (lambda d: Path("../../../../etc/passwd"), "not a .toml file"),
+        (lambda d: "pick_cub", "unknown scenario (did you mean 'pick_cube'?"),
+        (lambda d: "no\x1bscenario", "not a scenario name or path"),
+    ],
+    ids=[
+        "utf-16",
+        "binary",
+        "deep nesting",
+        "too large",
+        "missing",
+        "directory",
+        "not .toml",
+        "escaping path",
+        "misspelt name",
+        "control characters",
+    ],  # fmt: skip
+)
+def test_bad_file_or_name(tmp_path: Path, capsys: pytest.CaptureFixture[str], make, expected: str) -> None:
+    target = make(tmp_path)
+    for command in (["run", str(target)], ["bench", str(target), "--seeds", "0"], ["validate", str(target)]):
+        code = main(command)
+        out, err = capsys.readouterr()
+        assert code == 2, (command, out, err)
+        line = err if command[0] != "validate" else out
+        assert expected in line and line.count("\n") == 1 and "Traceback" not in line + err, (command, line)
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["run", "pick_cube", "--seed", "-1"], "--seed must be in 0.."),
+        (["run", "pick_cube", "--seed", "99999999999999999999999"], "--seed must be in 0.."),
+        (["run", "pick_cube", "--seed", "x"], "invalid int value"),
+        (["run", "perceive_boxes"], "a perception-only scenario"),
+        (["bench", "pick_cube", "--seeds", "0-999999999999"], "1000000000000 seeds; at most 100000"),
+        (["bench", "pick_cube", "--seeds", "3-1"], "bad seeds '3-1'"),
+        (["bench", "pick_cube", "--seeds", "a-b"], "bad seeds"),
+        (["bench", "pick_cube", "--seeds", ""], "no seeds given"),
+        (["bench", "pick_cube", "--episode-timeout", "nan"], "--episode-timeout must be a number of seconds"),
+        (["bench", "pick_cube", "--episode-timeout", "inf"], "--episode-timeout must be a number of seconds"),
+        (["bench", "pick_cube", "--episode-timeout", "-1"], "--episode-timeout must be a number of seconds"),
+        (["bench", "pick_cube", "--workers", "0"], "--workers must be in 1..256"),
+        (["bench", "pick_cube", "--min-success", "nan"], "--min-success must be in [0, 1]"),
+        (["bench", "pick_cube", "--min-success", "1.5"], "--min-success must be in [0, 1]"),
+        (["bench", "pick_cube", "--resume"], "--resume needs --out DIR"),
+        (["perceive", "pick_cube", "--repeat", "0"], "--repeat must be in 1..100"),
+        (["perceive", "pick_cube", "--methods", "magic"], "--methods: unknown magic"),
+        (["frobnicate"], "invalid choice: 'frobnicate'"),
+    ],
+)
+def test_bad_arguments(capsys: pytest.CaptureFixture[str], args: list[str], expected: str) -> None:
+    assert main(args) == 2
+    out, err = capsys.readouterr()
+    assert expected in err and err.count("\n") == 1 and "Traceback" not in err, err
+
+
+def test_out_must_be_a_writable_directory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    a_file = tmp_path / "f"
+    a_file.write_text("")
+    assert main(["run", "pick_cube", "--out", str(a_file)]) == 2
+    assert "exists and is not a directory" in capsys.readouterr().err
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    if not __import__("os").access(locked, __import__("os").W_OK):  # root writes anywhere
+        assert main(["run", "pick_cube", "--out", str(locked / "o")]) == 2
+        assert "not writable" in capsys.readouterr().err
+    assert main(["run", "pick_cube", "--out", "/proc/pickdemo"]) == 2
+    assert "--out /proc/pickdemo: not writable" in capsys.readouterr().err
+
+
+def test_junit_is_valid_xml_whatever_the_names_and_messages_hold() -> None:
+    from pickdemo.bench import junit_xml
+
+    nasty = "fingers \x00\x01\x1b[31m <closed> & \"'\ud800 \ufffe"
+    results = [
+        {"scenario": "s\x07", "seed": 0, "success": False, "wall_time_s": 1.0,
+         "failure": {"stage": "grasp\x0b", "reason": nasty}},
+        {"scenario": "s\x07", "seed": 1, "success": True, "wall_time_s": 1.0, "failure": None},
+    ]  # fmt: skip
+    text = junit_xml(results)
+    root = ET.fromstring(text.encode("utf-8"))
+    failure = root.find("testsuite/testcase/failure")
+    assert failure is not None and "\\x1b[31m <closed> &" in failure.get("message")
