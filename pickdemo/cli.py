@@ -50,6 +50,9 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--gui", action="store_true", help="open the PyBullet window (needs a display)")
     run.add_argument("--quiet", action="store_true", help="print only the summary line")
     run.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
+    run.add_argument(
+        "--video", action="store_true", help="with --out: write DIR/episode.mp4 (needs pip install 'pickdemo[video]')"
+    )
     bench = sub.add_parser(
         "bench",
         help="run many seeded episodes in parallel and gate on the success rate",
@@ -156,6 +159,22 @@ def _save_result(result: EpisodeResult, out: Path) -> Path:
         return Path(fallback)
 
 
+def _run_pictures(result: EpisodeResult, out: Path, *, video: bool) -> list[Path]:
+    """motion.png and report.html beside result.json (the plots extra); never fails the run."""
+    from pickdemo import report
+
+    images: list[Path] = []
+    try:
+        if result.trace is not None and len(result.trace.time_s) > 3:
+            title = f"{result.scenario} seed {result.seed}: commanded arm motion"
+            images.append(report.write_motion_plot(result.trace, out / "motion.png", title))
+    except report.PlotsUnavailable as exc:
+        print(f"pickdemo: note: no plots ({exc})", file=sys.stderr)
+    mp4 = out / "episode.mp4"
+    page = report.write_run_report(result, out, video=mp4 if video and mp4.exists() else None, images=images)
+    return [*images, *([mp4] if video and mp4.exists() else []), page]
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from pickdemo.episode import EpisodeOptions, run_episode  # heavy imports only when running
 
@@ -165,6 +184,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("--gui needs a display (DISPLAY is not set); run without --gui for headless")
     if args.out is not None:
         _writable_dir(args.out, "--out")
+    if args.video:
+        if args.out is None:
+            raise UsageError("--video needs --out DIR (where episode.mp4 is written)")
+        try:
+            import av  # noqa: F401
+        except ImportError:
+            raise UsageError("--video needs PyAV: pip install 'pickdemo[video]'") from None
 
     t0 = time.perf_counter()
 
@@ -176,13 +202,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if not args.quiet:
         loop = "open loop (one look)" if args.open_loop else "closed loop"
         print(f"pickdemo: {scenario.name} seed {args.seed} ({loop}): {scenario.description}", flush=True)
-    options = EpisodeOptions(gui=args.gui, open_loop=args.open_loop)
+    options = EpisodeOptions(
+        gui=args.gui,
+        open_loop=args.open_loop,
+        record_trace=args.out is not None,
+        video_path=str(args.out / "episode.mp4") if args.video else None,
+    )
     result = run_episode(scenario, args.seed, options=options, on_phase=on_phase)
     print(_summary(result), flush=True)
     if args.out is not None:
         path = _save_result(result, args.out)
+        written = [path] + _run_pictures(result, args.out, video=args.video)
         if not args.quiet:
-            print(f"wrote {path}")
+            print("wrote " + ", ".join(str(p) for p in written))
     return EXIT_OK if result.success else EXIT_FAILED
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pickdemo.camera import look_at_pose, rendered_intrinsics
 from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.kinematics import panda_kinematics
 from pickdemo.layout import LayoutError, Placement, camera_position, sample_layout
@@ -46,6 +47,10 @@ PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each no
 
 SETTLE_MAX_S = 2.0  # the objects come to rest before the first look, within this
 CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
+#: The video's third-person view: from the front left, above the table.
+THIRD_PERSON_POSE = look_at_pose(np.array([1.15, -0.75, 0.65]), np.array([0.3, 0.08, 0.18]))
+THIRD_PERSON_K = rendered_intrinsics(256, 192, 60.0, 46.8)  # shown at 320x240: most of the cost is its rendering
+VIDEO_CROP_PX = (160, 120)  # the camera's view in the video: this much around the target, shown twice the size
 
 
 @dataclass(frozen=True)
@@ -55,6 +60,8 @@ class EpisodeOptions:
     perception: PerceptionParams = PerceptionParams()
     machine: MachineParams = MachineParams()
     record_trace: bool = False  # keep the per-tick trace (EpisodeResult.trace)
+    video_path: str | None = None  # write the episode's video here (needs PyAV: the video extra)
+    video_fps: int = 10
 
 
 def run_episode(
@@ -129,6 +136,8 @@ class _Episode:
         self.machine: PickMachine | None = None
         self.pushes: list = []
         self._events_logged = 0
+        self.video = None
+        self.last_estimate: PoseEstimate | None = None
 
     # ========================================================================================= run
     def run(self) -> EpisodeResult:
@@ -144,6 +153,9 @@ class _Episode:
             failure = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0])
         finally:
             sim_time = self.scene.sim_time_s if self.scene is not None else 0.0
+            if self.video is not None:
+                with self.timer("video"):
+                    self.video.close()
             if self.scene is not None:
                 self.scene.close()
         if failure is not None and not (self.rec.phases and self.rec.phases[-1].phase == State.FAILED.value):
@@ -177,6 +189,11 @@ class _Episode:
         self.dt_ctl = self.substeps * dt
         self.max_steps = int(round(sc.sim.max_sim_time_s / dt))
         self.frame_ticks = max(1, round(1.0 / (sc.control.perception_rate_hz * self.dt_ctl)))
+        self.video_ticks = max(1, round(1.0 / (self.options.video_fps * self.dt_ctl)))
+        if self.options.video_path is not None:
+            from pickdemo.video import VideoWriter
+
+            self.video = VideoWriter(self.options.video_path, fps=round(1.0 / (self.video_ticks * self.dt_ctl)))
         with self.timer("settle"):
             self.scene.settle(int(SETTLE_MAX_S / dt))
         self.rec.start_pose = self.scene.true_pose(self.target_name)  # truth: for scoring only
@@ -220,6 +237,8 @@ class _Episode:
             while pending and pending[0][0] <= now + 1e-9:
                 _, taken, result = pending.popleft()
                 machine.on_estimate(result, taken)
+                if isinstance(result, PoseEstimate):
+                    self.last_estimate = result
             t0 = time.perf_counter()
             cmd = machine.update(obs)
             self.rec.tick_ms.append((time.perf_counter() - t0) * 1e3)
@@ -236,6 +255,9 @@ class _Episode:
                 self.rec.tracking_frames += tracking
             if self.options.record_trace:
                 self._trace(now)
+            if self.video is not None and tick % self.video_ticks == 0:
+                with self.timer("video"):
+                    self._video_frame(now)
             with self.timer("physics"):
                 for _ in range(self.substeps):
                     for push in self.pushes:
@@ -282,6 +304,35 @@ class _Episode:
                     dyaw = wrap_angle(tp.yaw_rad - float(truth.rpy[2]), self.machine.symmetry)
                     self.rec.tracking_yaw_deg = float(abs(np.degrees(dyaw)))
         self._events_logged = len(self.machine.events)
+
+    def _video_frame(self, now: float) -> None:
+        """One frame of the video: a third-person view beside the camera's, perception drawn on it."""
+        from pickdemo.sim.render import render_rgb
+        from pickdemo.video import Overlay, compose, draw_overlay, magnify
+
+        m = self.machine
+        tracked = path = None
+        if m.tracker.initialised:
+            tp = m.tracker.predict(now)
+            tracked = tp.position
+            path = tp.position + np.linspace(0.0, 1.0, 11)[:, None] * tp.velocity
+        plan = m.plan
+        overlay = Overlay(
+            caption=f"{m.state.value}  |  t = {now:5.2f} s  |  attempt {m.attempt}"
+            + ("  |  open loop" if self.options.open_loop else ""),
+            estimate=self.last_estimate,
+            truth=self.scene.true_pose(self.target_name),  # a label for the viewer
+            tracked=tracked,
+            tracked_path=path,
+            grasp=None if plan is None else plan.grasp,
+            grasp_width_m=0.0 if plan is None else plan.object_width_m,
+        )
+        centre = tracked if tracked is not None else np.array([*self.scenario.place.position, 0.0])
+        view, K = self.camera.preview_around(self.scene, centre, VIDEO_CROP_PX)
+        view, K = magnify(view, K, 2)
+        right = draw_overlay(view, K, self.camera.T_world_cam, overlay)
+        left = render_rgb(self.scene, THIRD_PERSON_POSE, THIRD_PERSON_K)
+        self.video.add(compose(left, right, overlay.caption))
 
     def _phase(self, record: PhaseRecord) -> None:
         self.rec.phases.append(record)

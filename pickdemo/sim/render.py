@@ -21,6 +21,7 @@ from pickdemo.camera import (
     look_at_pose,
     opengl_projection_matrix,
     opengl_view_matrix,
+    project,
     rendered_intrinsics,
 )
 from pickdemo.geometry import Pose
@@ -90,6 +91,34 @@ class Camera:
             rgb=rgb, depth_m=depth, intrinsics=K, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s, roi=roi
         )
 
+    def preview(self, scene: Scene, scale: float = 0.5) -> tuple[np.ndarray, Intrinsics]:
+        """The camera's view for a video, at ``scale`` of its resolution: RGB and its intrinsics.
+
+        No noise is drawn (the camera's random stream is untouched), so recording a video never
+        changes an episode.
+        """
+        w, h = max(int(self.spec.width * scale), 16), max(int(self.spec.height * scale), 16)
+        K = rendered_intrinsics(w, h, self.spec.fov_deg[0], self.spec.fov_deg[1])
+        return render_rgb(scene, self.T_world_cam, K, self.spec.near_m, self.spec.far_m), K
+
+    def preview_around(
+        self, scene: Scene, centre_world: np.ndarray, size_px: tuple[int, int]
+    ) -> tuple[np.ndarray, Intrinsics]:
+        """The camera's view for a video: a ``size_px`` region at full resolution around a world
+        point (clamped to the image), RGB and its intrinsics. No noise: the random stream is untouched."""
+        K = self.intrinsics
+        w, h = min(size_px[0], K.width), min(size_px[1], K.height)
+        uv = project(self.T_world_cam.inverse().transform_points(np.atleast_2d(centre_world)), K)[0]
+        x0 = int(np.clip(round(uv[0] - w / 2), 0, K.width - w)) if np.all(np.isfinite(uv)) else (K.width - w) // 2
+        y0 = int(np.clip(round(uv[1] - h / 2), 0, K.height - h)) if np.all(np.isfinite(uv)) else (K.height - h) // 2
+        roi = (x0, y0, x0 + w, y0 + h)
+        proj = opengl_projection_matrix(K, self.spec.near_m, self.spec.far_m, roi)
+        _, _, rgba, _, _ = scene.client.getCameraImage(
+            w, h, viewMatrix=self._view, projectionMatrix=proj, shadow=0,
+            lightDirection=list(LIGHT_DIRECTION), renderer=p.ER_TINY_RENDERER,
+        )  # fmt: skip
+        return np.asarray(rgba, dtype=np.uint8).reshape(h, w, 4)[:, :, :3].copy(), crop_intrinsics(K, roi)
+
     def capture_labels(self, scene: Scene) -> tuple[RGBDFrame, np.ndarray]:
         """A noise-free frame and its segmentation (body ids): for tests and labels, never for control."""
         rgb, depth, seg = self._render(scene)
@@ -97,3 +126,17 @@ class Camera:
             rgb=rgb, depth_m=depth, intrinsics=self.intrinsics, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s
         )
         return frame, seg
+
+
+def render_rgb(scene: Scene, T_world_cam: Pose, K: Intrinsics, near_m: float = 0.05, far_m: float = 5.0) -> np.ndarray:
+    """An RGB image of the scene from any pose (a third-person view for a video)."""
+    _, _, rgba, _, _ = scene.client.getCameraImage(
+        K.width,
+        K.height,
+        viewMatrix=opengl_view_matrix(T_world_cam),
+        projectionMatrix=opengl_projection_matrix(K, near_m, far_m),
+        shadow=0,
+        lightDirection=list(LIGHT_DIRECTION),
+        renderer=p.ER_TINY_RENDERER,
+    )
+    return np.asarray(rgba, dtype=np.uint8).reshape(K.height, K.width, 4)[:, :, :3].copy()

@@ -1,0 +1,174 @@
+"""Episode video: perception drawn on the camera's view, beside a third-person view, as H.264 MP4.
+
+Pure: images (arrays) in, an MP4 file out. Drawing is OpenCV's; encoding is PyAV's (FFmpeg with
+libx264 inside its wheel, nothing downloaded), an optional extra: ``pip install "pickdemo[video]"``.
+What is drawn on the camera's view:
+
+- the Shi-Tomasi feature points of the newest estimate, each with its covariance ellipse (eq. 14,
+  projected into the image; 3 sigma, magnified ``ELLIPSE_GAIN`` times, as they are sub-pixel);
+- the estimated pose's axes (solid) beside the true pose's (thin, white: a label, for the viewer);
+- the tracker's predicted path for the next second (a dotted line) and its position now;
+- the chosen grasp: the two finger pads' positions across the object;
+- a caption: the state of the pick, the simulated time, the attempt.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from pickdemo.camera import Intrinsics, project
+from pickdemo.geometry import Pose
+from pickdemo.perception import PoseEstimate
+
+ELLIPSE_GAIN = 1.0  # covariance ellipses drawn at this many times their 3-sigma size
+AXIS_M = 0.04  # length of the drawn pose axes
+AXIS_COLOURS = ((230, 40, 40), (40, 200, 40), (60, 90, 240))  # x, y, z in RGB
+
+
+class VideoUnavailable(RuntimeError):
+    """PyAV is not installed."""
+
+
+@dataclass(frozen=True)
+class Overlay:
+    """What to draw on the camera's view at one video frame (world frame, metres)."""
+
+    caption: str
+    estimate: PoseEstimate | None = None
+    truth: Pose | None = None  # a label for the viewer, never for control
+    tracked: np.ndarray | None = None  # (3,) where the tracker puts the target now
+    tracked_path: np.ndarray | None = None  # (N, 3) where it predicts the target over the next second
+    grasp: Pose | None = None  # the planned grasp (TCP) pose
+    grasp_width_m: float = 0.0
+
+
+def _to_pixels(points_world: np.ndarray, K: Intrinsics, T_world_cam: Pose) -> np.ndarray | None:
+    p_cam = T_world_cam.inverse().transform_points(np.atleast_2d(points_world))
+    if np.any(p_cam[:, 2] <= 1e-3):
+        return None
+    return project(p_cam, K)
+
+
+def _pt(uv: np.ndarray) -> tuple[int, int]:
+    return int(round(float(uv[0]))), int(round(float(uv[1])))
+
+
+def draw_axes(img: np.ndarray, pose: Pose, K: Intrinsics, T: Pose, *, thickness: int, colours=AXIS_COLOURS) -> None:
+    ends = pose.transform_points(np.vstack([np.zeros(3), np.eye(3) * AXIS_M]))
+    uv = _to_pixels(ends, K, T)
+    if uv is None:
+        return
+    for k in range(3):
+        cv2.line(img, _pt(uv[0]), _pt(uv[k + 1]), colours[k], thickness, cv2.LINE_AA)
+
+
+def draw_overlay(img: np.ndarray, K: Intrinsics, T_world_cam: Pose, ov: Overlay) -> np.ndarray:
+    """The camera's view with perception and the plan drawn on it (a copy)."""
+    out = np.ascontiguousarray(img.copy())
+    T = T_world_cam
+    if ov.truth is not None:
+        draw_axes(out, ov.truth, K, T, thickness=1, colours=((255, 255, 255),) * 3)
+    if ov.estimate is not None:
+        for fp in ov.estimate.features:
+            uv = _to_pixels(fp.mean_world, K, T)
+            if uv is None:
+                continue
+            # Eq. (14)'s covariance, projected: J C J^T with J the projection's Jacobian at the point.
+            pc = T.inverse().transform_points(fp.mean_world[None])[0]
+            Rcw = T.rotation.T
+            J = np.array([[K.fx / pc[2], 0.0, -K.fx * pc[0] / pc[2] ** 2],
+                          [0.0, K.fy / pc[2], -K.fy * pc[1] / pc[2] ** 2]]) @ Rcw  # fmt: skip
+            C2 = J @ fp.cov_world @ J.T
+            w, V = np.linalg.eigh(0.5 * (C2 + C2.T))
+            axes = tuple(int(max(1, round(3.0 * ELLIPSE_GAIN * np.sqrt(max(x, 0.0))))) for x in w[::-1])
+            angle = float(np.degrees(np.arctan2(V[1, -1], V[0, -1])))
+            cv2.ellipse(out, _pt(uv[0]), axes, angle, 0, 360, (255, 200, 0), 1, cv2.LINE_AA)
+            cv2.circle(out, _pt(uv[0]), 1, (255, 255, 0), -1)
+        draw_axes(out, ov.estimate.pose, K, T, thickness=2)
+    if ov.tracked_path is not None and len(ov.tracked_path) > 1:
+        uv = _to_pixels(ov.tracked_path, K, T)
+        if uv is not None:
+            for a in uv[::2]:
+                cv2.circle(out, _pt(a), 1, (255, 0, 255), -1)
+    if ov.tracked is not None:
+        uv = _to_pixels(ov.tracked, K, T)
+        if uv is not None:
+            cv2.drawMarker(out, _pt(uv[0]), (255, 0, 255), cv2.MARKER_CROSS, 10, 1, cv2.LINE_AA)
+    if ov.grasp is not None and ov.grasp_width_m > 0:
+        half = ov.grasp_width_m / 2.0
+        pads = ov.grasp.transform_points(np.array([[0.0, -half, 0.0], [0.0, half, 0.0]]))
+        uv = _to_pixels(pads, K, T)
+        if uv is not None:
+            cv2.line(out, _pt(uv[0]), _pt(uv[1]), (255, 140, 0), 1, cv2.LINE_AA)
+            for a in uv:
+                cv2.circle(out, _pt(a), 3, (255, 140, 0), 1, cv2.LINE_AA)
+    return out
+
+
+def magnify(img: np.ndarray, K: Intrinsics, factor: int) -> tuple[np.ndarray, Intrinsics]:
+    """An image enlarged ``factor`` times (each pixel a block, as perception saw it) and its intrinsics."""
+    big = cv2.resize(img, (img.shape[1] * factor, img.shape[0] * factor), interpolation=cv2.INTER_NEAREST)
+    # Pixel centres: u_big = factor * u + (factor - 1) / 2.
+    off = (factor - 1) / 2.0
+    Kb = Intrinsics(
+        width=big.shape[1], height=big.shape[0], fx=K.fx * factor, fy=K.fy * factor,
+        cx=K.cx * factor + off, cy=K.cy * factor + off,
+    )  # fmt: skip
+    return big, Kb
+
+
+def compose(left: np.ndarray, right: np.ndarray, caption: str) -> np.ndarray:
+    """Two views side by side (heights matched) above a caption bar; even width and height (H.264)."""
+    h = max(left.shape[0], right.shape[0])
+
+    def fit(img: np.ndarray) -> np.ndarray:
+        if img.shape[0] == h:
+            return img
+        w = int(round(img.shape[1] * h / img.shape[0]))
+        return cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
+
+    row = np.hstack([fit(left), fit(right)])
+    bar = np.full((28, row.shape[1], 3), 24, np.uint8)
+    cv2.putText(bar, caption, (8, 19), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (240, 240, 240), 1, cv2.LINE_AA)
+    frame = np.vstack([row, bar])
+    return frame[: frame.shape[0] // 2 * 2, : frame.shape[1] // 2 * 2]
+
+
+class VideoWriter:
+    """Frames to an H.264 MP4 (yuv420p, plays in a browser) with PyAV."""
+
+    def __init__(self, path: str | Path, fps: int) -> None:
+        try:
+            import av  # optional: pip install "pickdemo[video]"
+        except ImportError as exc:
+            raise VideoUnavailable('video needs PyAV: pip install "pickdemo[video]"') from exc
+        self._av = av
+        self.path = Path(path)
+        self.fps = fps
+        self._container = None
+        self._stream = None
+        self.frames = 0
+
+    def add(self, frame: np.ndarray) -> None:
+        if self._container is None:
+            self._container = self._av.open(str(self.path), mode="w")
+            self._stream = self._container.add_stream("libx264", rate=self.fps)
+            self._stream.width, self._stream.height = frame.shape[1], frame.shape[0]
+            self._stream.pix_fmt = "yuv420p"
+            self._stream.options = {"crf": "23", "preset": "veryfast", "movflags": "+faststart"}
+        vf = self._av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="rgb24")
+        for packet in self._stream.encode(vf):
+            self._container.mux(packet)
+        self.frames += 1
+
+    def close(self) -> None:
+        if self._container is None:
+            return
+        for packet in self._stream.encode():
+            self._container.mux(packet)
+        self._container.close()
+        self._container = None
