@@ -51,8 +51,8 @@ class Job:
     open_loop: bool = False
 
     @property
-    def key(self) -> tuple[str, int]:
-        return (self.scenario_name, self.seed)
+    def key(self) -> tuple[str, int, bool]:
+        return (self.scenario_name, self.seed, self.open_loop)
 
 
 # ------------------------------------------------------------------------------------ small pieces
@@ -237,7 +237,7 @@ class RayExecutor:
 
 # ----------------------------------------------------------------------------------- result files
 def load_episodes(path: Path) -> list[dict[str, Any]]:
-    """Results already in ``episodes.jsonl``, each (scenario, seed) once.
+    """Results already in ``episodes.jsonl``, each (scenario, seed, open loop or not) once.
 
     A line cut short by a kill is dropped, and the file is rewritten with the good lines only, so
     that appending after it keeps one object per line.
@@ -250,7 +250,7 @@ def load_episodes(path: Path) -> list[dict[str, Any]]:
             continue
         try:
             r = json.loads(line)
-            key = (r["scenario"], int(r["seed"]))
+            key = (r["scenario"], int(r["seed"]), bool(r.get("open_loop", False)))
         except (json.JSONDecodeError, KeyError, TypeError, ValueError):
             continue
         good.setdefault(key, r)
@@ -301,6 +301,11 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "control_tick_wall_ms": describe([(r.get("control_tick_wall_ms") or {}).get("median") for r in rs]),
         }
     return out
+
+
+def result_key(result: dict[str, Any]) -> tuple[str, int, bool]:
+    """Which job a result belongs to: scenario, seed, open or closed loop."""
+    return (result["scenario"], result["seed"], bool(result.get("open_loop", False)))
 
 
 def summary_name(result: dict[str, Any]) -> str:
@@ -433,8 +438,8 @@ def run_bench(
         else:
             jsonl.write_text("")
     wanted = {j.key for j in jobs}
-    done = [r for r in done if (r["scenario"], r["seed"]) in wanted]
-    done_keys = {(r["scenario"], r["seed"]) for r in done}
+    done = [r for r in done if result_key(r) in wanted]
+    done_keys = {result_key(r) for r in done}
     todo = [j for j in jobs if j.key not in done_keys]
     results = list(done)
     ok = sum(1 for r in results if r["success"])

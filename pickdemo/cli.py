@@ -170,9 +170,30 @@ def _run_pictures(result: EpisodeResult, out: Path, *, video: bool) -> list[Path
             images.append(report.write_motion_plot(result.trace, out / "motion.png", title))
     except report.PlotsUnavailable as exc:
         print(f"pickdemo: note: no plots ({exc})", file=sys.stderr)
+    except Exception as exc:  # noqa: BLE001 - a plot must never lose the episode's result
+        print(f"pickdemo: note: motion.png not drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
     mp4 = out / "episode.mp4"
     page = report.write_run_report(result, out, video=mp4 if video and mp4.exists() else None, images=images)
     return [*images, *([mp4] if video and mp4.exists() else []), page]
+
+
+def _bench_pictures(outcome, out: Path, title: str, open_loop: bool) -> list[Path]:
+    """bench.png and report.html beside summary.json (the plots extra); never fails the bench."""
+    from pickdemo import bench, report
+
+    sections = [("Summary", report.pre(bench.format_summary(outcome.summary)))]
+    written: list[Path] = []
+    try:
+        plot = report.write_bench_plots(outcome.summary, outcome.results, out / "bench.png", title)
+        sections.append(("Plots", report.image(plot)))
+        written.append(plot)
+    except report.PlotsUnavailable as exc:
+        print(f"pickdemo: note: no plots ({exc})", file=sys.stderr)
+    except Exception as exc:  # noqa: BLE001 - a plot must never lose what the bench measured
+        print(f"pickdemo: note: bench.png not drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
+    loop = " (open loop)" if open_loop else ""
+    written.append(report.write_page(out, f"pickdemo bench{loop}: {title}", sections))
+    return written
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -288,6 +309,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.out is not None:
         (args.out / "summary.json").write_text(json.dumps(outcome.summary, indent=2) + "\n")
         print(f"wrote {args.out / 'episodes.jsonl'} and {args.out / 'summary.json'}")
+    if args.out is not None:
+        written = _bench_pictures(outcome, args.out, f"{', '.join(names)}; seeds {args.seeds}", args.open_loop)
+        print("wrote " + ", ".join(str(p) for p in written))
     if args.junit is not None:
         args.junit.parent.mkdir(parents=True, exist_ok=True)
         args.junit.write_text(bench.junit_xml(outcome.results))
@@ -333,6 +357,11 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
         print(rows)
     if args.out is not None:
         written = perceive.write_outputs(args.out, samples, summary, f"{scenario.name}, seeds {args.seeds}")
+        from pickdemo import report
+
+        sections = [("Summary", report.pre(perceive.format_summary(summary) + ("\n\n" + rows if rows else "")))]
+        sections += [("Plots", report.image(p)) for p in written if p.suffix == ".png"]
+        written.append(report.write_page(args.out, f"pickdemo perceive: {scenario.name}, seeds {args.seeds}", sections))
         print("wrote " + ", ".join(str(p) for p in written))
         if len(written) == 1:
             print("(no plot: install the plots extra, pip install 'pickdemo[plots]')")

@@ -62,6 +62,7 @@ class EpisodeOptions:
     record_trace: bool = False  # keep the per-tick trace (EpisodeResult.trace)
     video_path: str | None = None  # write the episode's video here (needs PyAV: the video extra)
     video_fps: int = 10
+    debug_draw: bool = False  # draw the overlays as debug lines (always with gui)
 
 
 def run_episode(
@@ -137,6 +138,7 @@ class _Episode:
         self.pushes: list = []
         self._events_logged = 0
         self.video = None
+        self.debug = None
         self.last_estimate: PoseEstimate | None = None
 
     # ========================================================================================= run
@@ -190,6 +192,10 @@ class _Episode:
         self.max_steps = int(round(sc.sim.max_sim_time_s / dt))
         self.frame_ticks = max(1, round(1.0 / (sc.control.perception_rate_hz * self.dt_ctl)))
         self.video_ticks = max(1, round(1.0 / (self.options.video_fps * self.dt_ctl)))
+        if self.options.gui or self.options.debug_draw:
+            from pickdemo.sim.debug import DebugDraw
+
+            self.debug = DebugDraw(self.scene)
         if self.options.video_path is not None:
             from pickdemo.video import VideoWriter
 
@@ -258,6 +264,8 @@ class _Episode:
             if self.video is not None and tick % self.video_ticks == 0:
                 with self.timer("video"):
                     self._video_frame(now)
+            if self.debug is not None and tick % self.video_ticks == 0:
+                self.debug.draw(self._overlay(now))
             with self.timer("physics"):
                 for _ in range(self.substeps):
                     for push in self.pushes:
@@ -305,10 +313,10 @@ class _Episode:
                     self.rec.tracking_yaw_deg = float(abs(np.degrees(dyaw)))
         self._events_logged = len(self.machine.events)
 
-    def _video_frame(self, now: float) -> None:
-        """One frame of the video: a third-person view beside the camera's, perception drawn on it."""
-        from pickdemo.sim.render import render_rgb
-        from pickdemo.video import Overlay, compose, draw_overlay, magnify
+    def _overlay(self, now: float):
+        """What the video and the GUI draw now: the newest estimate, the truth (a label), the
+        tracker's belief and path, the chosen grasp, and a caption."""
+        from pickdemo.video import Overlay
 
         m = self.machine
         tracked = path = None
@@ -327,6 +335,15 @@ class _Episode:
             grasp=None if plan is None else plan.grasp,
             grasp_width_m=0.0 if plan is None else plan.object_width_m,
         )
+        return overlay
+
+    def _video_frame(self, now: float) -> None:
+        """One frame of the video: a third-person view beside the camera's, perception drawn on it."""
+        from pickdemo.sim.render import render_rgb
+        from pickdemo.video import compose, draw_overlay, magnify
+
+        overlay = self._overlay(now)
+        tracked = overlay.tracked
         centre = tracked if tracked is not None else np.array([*self.scenario.place.position, 0.0])
         view, K = self.camera.preview_around(self.scene, centre, VIDEO_CROP_PX)
         view, K = magnify(view, K, 2)

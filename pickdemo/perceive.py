@@ -184,7 +184,7 @@ def write_plot(samples: list[dict[str, Any]], path: Path, title: str) -> bool:
     except ImportError:
         return False
     methods = list(dict.fromkeys(s["method"] for s in samples))
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
     for ax, key, label in ((axes[0], "position_error_mm", "3-D position error (mm)"),
                            (axes[1], "yaw_error_deg", "yaw error (deg)")):  # fmt: skip
         data, names = [], []
@@ -199,6 +199,18 @@ def write_plot(samples: list[dict[str, Any]], path: Path, title: str) -> bool:
             ax.set_yscale("log")
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
+    ax = axes[2]  # error against the camera's distance
+    for m in methods:
+        pts = [(s["camera_distance_m"], s["position_error_mm"]) for s in samples
+               if s["method"] == m and s["position_error_mm"] is not None]  # fmt: skip
+        if pts:
+            d, e = np.array(pts).T
+            ax.scatter(d, e, s=8, alpha=0.6, label=m)
+    ax.set_yscale("log")
+    ax.set_xlabel("camera distance to the workspace (m)")
+    ax.set_ylabel("3-D position error (mm)")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -107,6 +107,73 @@ def _rows(pairs: list[tuple[str, object]]) -> str:
     return "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>" for k, v in pairs)
 
 
+def write_page(out_dir: Path, title: str, sections: list[tuple[str, str]]) -> Path:
+    """``out_dir/report.html``: a self-contained page of (heading, HTML) sections."""
+    body = "\n".join((f"<h2>{html.escape(h)}</h2>" if h else "") + content for h, content in sections)
+    path = out_dir / "report.html"
+    path.write_text(_page(title, body))
+    return path
+
+
+def pre(text: str) -> str:
+    return f"<pre>{html.escape(text)}</pre>"
+
+
+def image(path: Path) -> str:
+    return _img(path)
+
+
+def write_bench_plots(summary: dict, results: list[dict], path: Path, title: str = "") -> Path:
+    """What a bench measured, per scenario: success rate with its Wilson 95 % interval, failures by
+    stage, pose and place error distributions, wall time per episode."""
+    plt = _pyplot()
+    names = list(summary)
+    by_name: dict[str, list[dict]] = {n: [] for n in names}
+    from pickdemo.bench import summary_name
+
+    for r in results:
+        by_name.setdefault(summary_name(r), []).append(r)
+    fig, axes = plt.subplots(2, 2, figsize=(12, 2.2 + 0.45 * len(names) * 2))
+    y = np.arange(len(names))
+    ax = axes[0, 0]
+    rate = np.array([summary[n]["success_rate"] for n in names]) * 100
+    lo = np.array([summary[n]["success_rate_wilson95"][0] for n in names]) * 100
+    hi = np.array([summary[n]["success_rate_wilson95"][1] for n in names]) * 100
+    ax.errorbar(rate, y, xerr=[np.maximum(rate - lo, 0.0), np.maximum(hi - rate, 0.0)], fmt="o", capsize=3)
+    ax.set_yticks(y, names, fontsize=8)
+    ax.set_xlim(min(50.0, float(lo.min()) - 5), 101)
+    ax.set_xlabel("success % (Wilson 95 % interval)")
+    ax.invert_yaxis()
+    ax = axes[0, 1]
+    stages = sorted({s for n in names for s in summary[n]["failures_by_stage"]})
+    left = np.zeros(len(names))
+    for st in stages:
+        counts = np.array([summary[n]["failures_by_stage"].get(st, 0) for n in names], dtype=float)
+        ax.barh(y, counts, left=left, label=st)
+        left += counts
+    ax.set_yticks(y, names, fontsize=8)
+    ax.set_xlabel("failed episodes by stage" + ("" if stages else " (none)"))
+    if stages:
+        ax.legend(fontsize=7)
+    ax.invert_yaxis()
+    for ax, key, label in ((axes[1, 0], "place_error_mm", "place error (mm)"),
+                           (axes[1, 1], "wall_time_s", "wall time per episode (s)")):  # fmt: skip
+        data = [[r[key] for r in by_name[n] if r.get(key) is not None] or [np.nan] for n in names]
+        ax.boxplot(data, vert=False, showfliers=True)
+        ax.set_yticks(y + 1, names, fontsize=8)
+        ax.set_xlabel(label)
+        ax.invert_yaxis()
+        if key == "place_error_mm":
+            ax.set_xscale("log")
+    for a in axes.flat:
+        a.grid(alpha=0.3)
+    fig.suptitle(title or "bench")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
 def write_run_report(result: EpisodeResult, out_dir: Path, *, video: Path | None, images: list[Path]) -> Path:
     """``out_dir/report.html``: the outcome, the measurements, the phases, the attempts, the video
     (beside the page) and the plots (embedded)."""

@@ -104,3 +104,14 @@ def test_a_browser_test_would_catch_a_console_error(tmp_path: Path) -> None:
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert any(":CONSOLE" in line and "undefinedFunction" in line for line in proc.stderr.splitlines())
+
+
+def test_debug_lines_change_nothing() -> None:
+    """`--gui` draws the overlays as debug lines; drawing them (here in DIRECT mode) changes nothing."""
+    from pickdemo import load_scenario, run_episode
+    from pickdemo.episode import EpisodeOptions
+
+    sc = load_scenario("pick_cube")
+    plain = run_episode(sc, 3).to_dict()
+    drawn = run_episode(sc, 3, options=EpisodeOptions(debug_draw=True)).to_dict()
+    assert _strip(plain) == _strip(drawn)
