@@ -133,7 +133,7 @@ def write_bench_plots(summary: dict, results: list[dict], path: Path, title: str
 
     for r in results:
         by_name.setdefault(summary_name(r), []).append(r)
-    fig, axes = plt.subplots(2, 2, figsize=(12, 2.2 + 0.45 * len(names) * 2))
+    fig, axes = plt.subplots(2, 2, figsize=(12, max(6.0, 2.5 + 0.5 * len(names) * 2)))
     y = np.arange(len(names))
     ax = axes[0, 0]
     rate = np.array([summary[n]["success_rate"] for n in names]) * 100
@@ -159,12 +159,11 @@ def write_bench_plots(summary: dict, results: list[dict], path: Path, title: str
     for ax, key, label in ((axes[1, 0], "place_error_mm", "place error (mm)"),
                            (axes[1, 1], "wall_time_s", "wall time per episode (s)")):  # fmt: skip
         data = [[r[key] for r in by_name[n] if r.get(key) is not None] or [np.nan] for n in names]
-        ax.boxplot(data, vert=False, showfliers=True)
-        ax.set_yticks(y + 1, names, fontsize=8)
-        ax.set_xlabel(label)
-        ax.invert_yaxis()
+        ax.boxplot(data, showfliers=True)
+        ax.set_xticks(y + 1, names, fontsize=7, rotation=20, ha="right")
+        ax.set_ylabel(label)
         if key == "place_error_mm":
-            ax.set_xscale("log")
+            ax.set_yscale("log")
     for a in axes.flat:
         a.grid(alpha=0.3)
     fig.suptitle(title or "bench")
