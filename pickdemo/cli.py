@@ -112,7 +112,11 @@ def _summary(result: EpisodeResult) -> str:
     if result.attempts:
         parts.append(f"{len(result.attempts)} attempt(s)")
     parts.append(f"{result.perception_frames} frames")
-    parts.append(f"{result.sim_time_s:.1f} s simulated in {result.wall_time_s:.2f} s")
+    video = result.stage_wall_times_s.get("video")
+    parts.append(
+        f"{result.sim_time_s:.1f} s simulated in {result.wall_time_s:.2f} s"
+        + (f" ({video:.2f} s of it the video)" if video else "")
+    )
     line = " | ".join(parts)
     if result.failure is not None:
         line += f"\n  reason: {result.failure.reason}"

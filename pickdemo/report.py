@@ -125,7 +125,7 @@ def image(path: Path) -> str:
 
 def write_bench_plots(summary: dict, results: list[dict], path: Path, title: str = "") -> Path:
     """What a bench measured, per scenario: success rate with its Wilson 95 % interval, failures by
-    stage, pose and place error distributions, wall time per episode."""
+    stage, the distributions of the pose, tracking and place errors, wall time per episode."""
     plt = _pyplot()
     names = list(summary)
     by_name: dict[str, list[dict]] = {n: [] for n in names}
@@ -133,7 +133,7 @@ def write_bench_plots(summary: dict, results: list[dict], path: Path, title: str
 
     for r in results:
         by_name.setdefault(summary_name(r), []).append(r)
-    fig, axes = plt.subplots(2, 2, figsize=(12, max(6.0, 2.5 + 0.5 * len(names) * 2)))
+    fig, axes = plt.subplots(2, 3, figsize=(16, max(6.0, 2.5 + 0.5 * len(names) * 2)))
     y = np.arange(len(names))
     ax = axes[0, 0]
     rate = np.array([summary[n]["success_rate"] for n in names]) * 100
@@ -156,13 +156,18 @@ def write_bench_plots(summary: dict, results: list[dict], path: Path, title: str
     if stages:
         ax.legend(fontsize=7)
     ax.invert_yaxis()
-    for ax, key, label in ((axes[1, 0], "place_error_mm", "place error (mm)"),
-                           (axes[1, 1], "wall_time_s", "wall time per episode (s)")):  # fmt: skip
-        data = [[r[key] for r in by_name[n] if r.get(key) is not None] or [np.nan] for n in names]
+    pose = [[(r.get("perception") or {}).get("position_error_mm") for r in by_name[n]] for n in names]
+    panels = ((axes[1, 0], "place_error_mm", "place error (mm)", None),
+              (axes[1, 1], "wall_time_s", "wall time per episode (s)", None),
+              (axes[0, 2], "pose", "pose error of the first estimate (mm)", pose),
+              (axes[1, 2], "tracking_error_mm", "tracking error at the grasp (mm)", None))  # fmt: skip
+    for ax, key, label, given in panels:
+        values = given or [[r.get(key) for r in by_name[n]] for n in names]
+        data = [[v for v in vs if v is not None] or [np.nan] for vs in values]
         ax.boxplot(data, showfliers=True)
         ax.set_xticks(y + 1, names, fontsize=7, rotation=20, ha="right")
         ax.set_ylabel(label)
-        if key == "place_error_mm":
+        if key != "wall_time_s":
             ax.set_yscale("log")
     for a in axes.flat:
         a.grid(alpha=0.3)

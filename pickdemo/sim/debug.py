@@ -10,7 +10,9 @@ import numpy as np
 
 from pickdemo.geometry import Pose
 from pickdemo.sim.scene import Scene
-from pickdemo.video import AXIS_M, Overlay
+from pickdemo.video import Overlay
+
+AXIS_M = 0.08  # longer than the video's: the window is seen from farther away
 
 _RGB = ((0.9, 0.15, 0.15), (0.15, 0.8, 0.15), (0.25, 0.35, 0.95))
 

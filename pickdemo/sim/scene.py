@@ -75,6 +75,10 @@ class Scene:
         c = self.client
         if gui:
             c.configureDebugVisualizer(p.COV_ENABLE_GUI, 0)
+            c.configureDebugVisualizer(p.COV_ENABLE_SHADOWS, 0)
+            c.resetDebugVisualizerCamera(
+                cameraDistance=0.9, cameraYaw=40.0, cameraPitch=-35.0, cameraTargetPosition=[0.45, 0.0, 0.05]
+            )
         c.setGravity(0.0, 0.0, -9.81)
         c.setTimeStep(scenario.sim.time_step_s)
         c.setPhysicsEngineParameter(numSolverIterations=150, deterministicOverlappingPairs=1)
