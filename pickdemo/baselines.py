@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 import pinocchio as pin
 
-from pickdemo.camera import RGBDFrame, kinect_sigma_m
+from pickdemo.camera import RGBDFrame
 from pickdemo.geometry import Pose
 from pickdemo.perception import (
     PerceptionError,
@@ -79,7 +79,7 @@ def estimate_pixel(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     p_cam = np.array([z * (u - K.cx) / K.fx, z * (v - K.cy) / K.fy, z])
     p = f.T_world_cam.transform_points(p_cam[None])[0]
     R = f.T_world_cam.rotation
-    cov = R @ point_covariance(u, v, z, float(kinect_sigma_m(z)) ** 2, K.fx, K.fy, K.cx, K.cy) @ R.T
+    cov = R @ point_covariance(u, v, z, float(f.depth_variance(z)), K.fx, K.fy, K.cx, K.cy) @ R.T
     centre = p - np.array([0.0, 0.0, model.height_m / 2.0])
     return _estimate(Pose(centre, np.eye(3)), cov, NO_ORIENTATION, model, int(mask.sum()))
 

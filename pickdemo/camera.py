@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from pickdemo.geometry import Pose
 
@@ -124,6 +125,84 @@ def kinect_sigma_m(z_m: np.ndarray | float) -> np.ndarray:
     return KINECT_NOISE_COEFF * np.square(z_m)
 
 
+#: Intel's depth RMS model for the D4xx stereo cameras: sigma_z = z^2 * subpixel / (f_px * baseline).
+D4XX_SUBPIXEL = 0.08
+D4XX_BASELINE_M = {"d415": 0.055, "d435": 0.050}
+#: Depth below this is no reading at all (drivers write 0 for "no return"; nothing is this close).
+MIN_VALID_DEPTH_M = 0.05
+
+
+def depth_noise_coeff(model: str, fx_px: float) -> float:
+    """``k`` of the sensor's depth noise ``sigma_z = k z^2`` (m^-1): Kinect's eq. (8), or Intel's RMS
+    model with this camera's focal length. ``"none"`` keeps eq. (8) as the model perception assumes."""
+    if model in D4XX_BASELINE_M:
+        return D4XX_SUBPIXEL / (fx_px * D4XX_BASELINE_M[model])
+    return KINECT_NOISE_COEFF
+
+
+def holes_as_nan(depth_m: np.ndarray) -> np.ndarray:
+    """Depth with every "no return" as NaN: 0 (what drivers write), NaN, inf, or nearer than any reading."""
+    d = np.asarray(depth_m, dtype=np.float64)
+    return np.where(np.isfinite(d) & (d > MIN_VALID_DEPTH_M), d, np.nan)
+
+
+def depth_edges(depth_m: np.ndarray, jump_m: float = 0.01) -> np.ndarray:
+    """Pixels next to a depth discontinuity (a jump of more than ``jump_m`` to a 4-neighbour)."""
+    d = np.nan_to_num(np.asarray(depth_m, dtype=np.float64), nan=10.0, posinf=10.0)
+    edge = np.zeros(d.shape, dtype=bool)
+    dx = np.abs(np.diff(d, axis=1)) > jump_m
+    dy = np.abs(np.diff(d, axis=0)) > jump_m
+    edge[:, 1:] |= dx
+    edge[:, :-1] |= dx
+    edge[1:, :] |= dy
+    edge[:-1, :] |= dy
+    return edge
+
+
+def sensor_faults(
+    rgb: np.ndarray,
+    depth_m: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    noise_coeff: float,
+    holes: float = 0.0,
+    edge_dropout: float = 0.0,
+    invalid: float = 0.0,
+    quantum_m: float = 0.0,
+    rgb_sigma: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """What a real RGB-D camera does to a perfect frame: depth noise ``k z^2``, holes at random and
+    at depth edges (written as ``invalid``: 0.0 like real drivers, or NaN), depth in steps of
+    ``quantum_m``, Gaussian RGB noise. Draws from ``rng`` only for the faults that are on."""
+    depth = np.asarray(depth_m, dtype=np.float64).copy()
+    finite = np.isfinite(depth)
+    if noise_coeff > 0.0:
+        depth[finite] += noise_coeff * depth[finite] ** 2 * rng.standard_normal(int(finite.sum()))
+    if quantum_m > 0.0:
+        depth[finite] = np.round(depth[finite] / quantum_m) * quantum_m
+    drop = np.zeros(depth.shape, dtype=bool)
+    if edge_dropout > 0.0:
+        drop |= depth_edges(depth_m) & (rng.random(depth.shape) < edge_dropout)
+    if holes > 0.0:
+        drop |= rng.random(depth.shape) < holes
+    depth[drop] = invalid
+    if rgb_sigma > 0.0:
+        rgb = np.clip(rgb.astype(np.float64) + rng.normal(0.0, rgb_sigma, rgb.shape), 0, 255).astype(np.uint8)
+    return rgb, depth
+
+
+def calibration_error(error_mm: float, error_deg: float, rng: np.random.Generator) -> Pose | None:
+    """A camera-frame pose error of exactly ``error_mm`` and ``error_deg``, in directions drawn from
+    ``rng``: the robot is told ``T_world_cam_true @ error``. None when both are 0."""
+    if error_mm <= 0.0 and error_deg <= 0.0:
+        return None
+    t = rng.standard_normal(3)
+    axis = rng.standard_normal(3)
+    t *= error_mm * 1e-3 / np.linalg.norm(t)
+    axis *= np.radians(error_deg) / np.linalg.norm(axis)
+    return Pose(t, pin.exp3(axis))
+
+
 def add_kinect_noise(depth_m: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """A noisy copy of a depth image, independent Gaussian per pixel with eq. (8)'s deviation."""
     noise = rng.standard_normal(depth_m.shape)
@@ -204,3 +283,11 @@ class RGBDFrame:
     T_world_cam: Pose
     time_s: float  # simulated time at which it was taken
     roi: tuple[int, int, int, int] | None = None  # (x0, y0, x1, y1) of the whole image, when a crop
+    # What the robot knows of its sensor (its datasheet and its calibration's accuracy):
+    depth_noise_coeff: float = KINECT_NOISE_COEFF  # sigma_z = k z^2 (m^-1)
+    depth_quantum_m: float = 0.0  # depth reported in steps of this (adds q^2 / 12 of variance)
+    calibration_sigma: tuple[float, float] = (0.0, 0.0)  # (m, rad): how far T_world_cam may be off
+
+    def depth_variance(self, z_m: np.ndarray | float) -> np.ndarray:
+        """Variance (m^2) of a depth reading at ``z_m``: the sensor's noise and its quantisation."""
+        return np.square(self.depth_noise_coeff * np.square(z_m)) + self.depth_quantum_m**2 / 12.0

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.camera import look_at_pose, rendered_intrinsics
+from pickdemo.camera import calibration_error, look_at_pose, rendered_intrinsics
 from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.kinematics import panda_kinematics
 from pickdemo.layout import LayoutError, Placement, camera_position, sample_layout
@@ -183,7 +183,8 @@ class _Episode:
         with self.timer("scene"):
             self.scene = Scene(sc, layout, gui=self.options.gui)
             where = camera_position(sc.camera, self.rngs["camera_pose"])
-            self.camera = Camera(sc.camera, self.rngs["camera"], position=where)
+            error = calibration_error(*sc.camera.extrinsic_error, self.rngs["calibration"])
+            self.camera = Camera(sc.camera, self.rngs["camera"], position=where, calibration_error=error)
             self.robot = RobotInterface(self.scene)
             kin = panda_kinematics()
         dt = self.scene.time_step_s

@@ -42,6 +42,7 @@ ERROR_KEYS = (
 def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: int = 1) -> list[dict[str, Any]]:
     """One sample per method and target for one seed. With ``repeat`` > 1 each method runs that many
     times on the frame and its time is the median (a steadier benchmark; the estimate is the same)."""
+    from pickdemo.camera import calibration_error
     from pickdemo.layout import camera_position, sample_layout
     from pickdemo.sim.render import Camera
     from pickdemo.sim.scene import Scene
@@ -53,7 +54,9 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
     with Scene(scenario, layout) as scene:
         if any(not o.static for o in scenario.objects):
             scene.step(120)  # let what is not held come to rest
-        camera = Camera(scenario.camera, rngs["camera"], position=camera_position(scenario.camera, rngs["camera_pose"]))
+        where = camera_position(scenario.camera, rngs["camera_pose"])
+        error = calibration_error(*scenario.camera.extrinsic_error, rngs["calibration"])
+        camera = Camera(scenario.camera, rngs["camera"], position=where, calibration_error=error)
         frame = camera.capture(scene)
         truths = {t.name: scene.true_pose(t.name) for t in scenario.targets}  # truth: scoring only
     distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))

@@ -33,13 +33,14 @@ depth; features selected on the outline in the image; the cylinder's side arc le
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 import pinocchio as pin
 
-from pickdemo.camera import Intrinsics, RGBDFrame, backproject_image, kinect_sigma_m, pixel_rays_cam
+from pickdemo.camera import Intrinsics, RGBDFrame, backproject_image, holes_as_nan, pixel_rays_cam
 from pickdemo.geometry import Pose, wrap_angle
 
 #: Eqs. (9)-(12): weight 1/4 at the feature, 1/8 on the four edge neighbours, 1/16 on the diagonals.
@@ -233,7 +234,7 @@ def top_face_mask(frame: RGBDFrame, mask: np.ndarray, z_world: np.ndarray, param
     zs = z[mask]
     zs = zs[np.isfinite(zs)]
     top = np.quantile(zs, 0.9)
-    sigma = float(kinect_sigma_m(np.nanmedian(frame.depth_m[mask])))
+    sigma = float(np.sqrt(frame.depth_variance(np.nanmedian(frame.depth_m[mask]))))
     high = mask & (np.nan_to_num(z, nan=-1.0) > top - params.face_depth_sigmas * sigma)
     face_rgb = np.median(frame.rgb[high].astype(np.float64), axis=0)
     diff = frame.rgb.astype(np.float32) - face_rgb.astype(np.float32)
@@ -397,15 +398,12 @@ def unoccluded(
 
 
 def crop_frame(frame: RGBDFrame, x0: int, y0: int, x1: int, y1: int) -> RGBDFrame:
-    """A frame cut to columns x0:x1 and rows y0:y1, with the principal point moved to match."""
+    """A frame cut to columns x0:x1 and rows y0:y1, with the principal point moved to match, and
+    every depth hole (0, NaN, inf, nearer than any reading) as NaN: a hole is never a point."""
     K = frame.intrinsics
     Kc = Intrinsics(width=x1 - x0, height=y1 - y0, fx=K.fx, fy=K.fy, cx=K.cx - x0, cy=K.cy - y0)
-    return RGBDFrame(
-        rgb=frame.rgb[y0:y1, x0:x1],
-        depth_m=frame.depth_m[y0:y1, x0:x1],
-        intrinsics=Kc,
-        T_world_cam=frame.T_world_cam,
-        time_s=frame.time_s,
+    return dataclasses.replace(
+        frame, rgb=frame.rgb[y0:y1, x0:x1], depth_m=holes_as_nan(frame.depth_m[y0:y1, x0:x1]), intrinsics=Kc
     )
 
 
@@ -520,7 +518,7 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
 
     # Eqs. (9)-(10) for every pixel, with eq. (8) as each pixel's own variance.
     depth = np.where(np.isfinite(f.depth_m), f.depth_m, np.nan)
-    mu_z, var_z = mixture_moments(depth, np.square(kinect_sigma_m(depth)))
+    mu_z, var_z = mixture_moments(depth, f.depth_variance(depth))
 
     # Pass 1: plane from the face pixels whose whole 3x3 window lies on the face (no edge mixing).
     inner = cv2.erode(face.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
@@ -604,6 +602,12 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     # is reported better than that, however many points agree.
     w, V = np.linalg.eigh(0.5 * (cov6[:3, :3] + cov6[:3, :3].T))
     pos_cov = V @ np.diag(np.maximum(w, 0.0) + MODEL_FLOOR_M**2) @ V.T
+    # The camera's pose is known only to its calibration's accuracy: a translation moves every point
+    # alike, a turn moves it by the range times the angle (both as isotropic, to first order).
+    s_t, s_r = f.calibration_sigma
+    if s_t > 0.0 or s_r > 0.0:
+        rng_m = float(np.linalg.norm(pose.position - f.T_world_cam.position))
+        pos_cov = pos_cov + np.eye(3) * (s_t**2 + (s_r * rng_m) ** 2)
     rpy_cov = cov6[3:, 3:]
     if model.shape == "cylinder":
         rpy_cov = rpy_cov.copy()

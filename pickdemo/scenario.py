@@ -50,6 +50,17 @@ class _Model(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", strict=True, allow_inf_nan=False)
 
 
+#: Realistic sensor faults at once (``[camera] sensor = "..."``); the file's own keys take precedence.
+SENSOR_PRESETS: dict[str, dict[str, object]] = {
+    "realsense_d435": {"depth_noise": "d435", "depth_holes": 0.02, "depth_edge_dropout": 0.2, "depth_invalid": 0.0,
+                       "depth_quantum_m": 0.001, "rgb_noise_sigma": 5.0, "extrinsic_error": (1.0, 0.1)},
+    "realsense_d415": {"depth_noise": "d415", "depth_holes": 0.01, "depth_edge_dropout": 0.1, "depth_invalid": 0.0,
+                       "depth_quantum_m": 0.001, "rgb_noise_sigma": 4.0, "extrinsic_error": (1.0, 0.1)},
+    "kinect": {"depth_noise": "kinect", "depth_holes": 0.01, "depth_edge_dropout": 0.1, "depth_invalid": 0.0,
+               "depth_quantum_m": 0.001, "rgb_noise_sigma": 3.0, "extrinsic_error": (2.0, 0.2)},
+}  # fmt: skip
+
+
 class CameraSpec(_Model):
     """A fixed RGB-D camera. Defaults match the paper's Xtion Pro Live (57 x 43 deg, 640x480)."""
 
@@ -61,7 +72,18 @@ class CameraSpec(_Model):
         57.0,
         43.0,
     )  # horizontal, vertical
-    depth_noise: Literal["none", "kinect"] = "kinect"
+    depth_noise: Literal["none", "kinect", "d415", "d435"] = "kinect"
+    # A real sensor's faults (all off by default; `sensor = "realsense_d435"` sets them all at once).
+    depth_holes: Annotated[float, Field(ge=0.0, le=0.5)] = 0.0  # fraction of pixels with no return, at random
+    depth_edge_dropout: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0  # fraction of pixels at depth edges dropped
+    depth_invalid: Literal[0.0, "nan"] = 0.0  # what a hole reads as: 0.0 (like real drivers) or "nan"
+    depth_quantum_m: Annotated[float, Field(ge=0.0, le=0.01)] = 0.0  # depth reported in steps of this (0: none)
+    rgb_noise_sigma: Annotated[float, Field(ge=0.0, le=50.0)] = 0.0  # 8-bit units
+    extrinsic_error: tuple[Annotated[float, Field(ge=0.0, le=50.0)], Annotated[float, Field(ge=0.0, le=5.0)]] = (
+        0.0,
+        0.0,
+    )  # mm, deg: the true camera pose differs from the one the robot is told, drawn per seed
+    sensor: Literal["realsense_d435", "realsense_d415", "kinect"] | None = None  # a preset for the keys above
     # Instead of a fixed position: sampled around look_at per seed (all three, or none).
     distance_range_m: tuple[Annotated[float, Field(ge=0.2, le=5.0)], Annotated[float, Field(ge=0.2, le=5.0)]] | None = (
         None
@@ -70,6 +92,14 @@ class CameraSpec(_Model):
     azimuth_range_deg: tuple[Angle, Angle] | None = None  # about world z, 0 = from +x
     near_m: Annotated[float, Field(ge=0.01, le=1.0)] = 0.1
     far_m: Annotated[float, Field(gt=0.1, le=20.0)] = 3.0
+
+    @model_validator(mode="before")
+    @classmethod
+    def _preset(cls, data: object) -> object:
+        """A sensor preset fills the fault keys the file does not give itself."""
+        if isinstance(data, dict) and isinstance(data.get("sensor"), str) and data["sensor"] in SENSOR_PRESETS:
+            return {**SENSOR_PRESETS[data["sensor"]], **data}
+        return data
 
     @model_validator(mode="after")
     def _check(self) -> CameraSpec:

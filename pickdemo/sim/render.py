@@ -18,11 +18,13 @@ from pickdemo.camera import (
     add_kinect_noise,
     crop_intrinsics,
     depth_from_buffer,
+    depth_noise_coeff,
     look_at_pose,
     opengl_projection_matrix,
     opengl_view_matrix,
     project,
     rendered_intrinsics,
+    sensor_faults,
 )
 from pickdemo.geometry import Pose
 from pickdemo.scenario import CameraSpec
@@ -39,13 +41,30 @@ def camera_intrinsics(spec: CameraSpec) -> Intrinsics:
 class Camera:
     """A fixed RGB-D camera placed by the scenario."""
 
-    def __init__(self, spec: CameraSpec, rng: np.random.Generator, *, position: np.ndarray | None = None) -> None:
-        """``position`` overrides the scenario's (for a camera placement sampled per seed)."""
+    def __init__(
+        self,
+        spec: CameraSpec,
+        rng: np.random.Generator,
+        *,
+        position: np.ndarray | None = None,
+        calibration_error: Pose | None = None,
+    ) -> None:
+        """``position`` overrides the scenario's (for a camera placement sampled per seed).
+
+        ``calibration_error``: the pose the robot is told is off the true one by this (in the
+        camera frame); frames report the told pose, the renderer uses the true one.
+        """
         self.spec = spec
         self.intrinsics = camera_intrinsics(spec)
         where = np.array(spec.position) if position is None else np.asarray(position, dtype=float)
-        self.T_world_cam: Pose = look_at_pose(where, np.array(spec.look_at))
-        self._view = opengl_view_matrix(self.T_world_cam)
+        self.T_world_cam_true: Pose = look_at_pose(where, np.array(spec.look_at))
+        self.T_world_cam: Pose = (
+            self.T_world_cam_true if calibration_error is None else self.T_world_cam_true @ calibration_error
+        )  # what the robot is told
+        err_mm, err_deg = spec.extrinsic_error
+        self.calibration_sigma = (err_mm * 1e-3, float(np.radians(err_deg)))
+        self.noise_coeff = depth_noise_coeff(spec.depth_noise, self.intrinsics.fx)
+        self._view = opengl_view_matrix(self.T_world_cam_true)
         self._proj = opengl_projection_matrix(self.intrinsics, spec.near_m, spec.far_m)
         self._rng = rng
 
@@ -79,16 +98,38 @@ class Camera:
         a 120x120 crop costs about a sixteenth of a 640x480 frame.
         """
         rgb, depth, _ = self._render(scene, roi)
-        if self.spec.depth_noise == "kinect":
+        sp = self.spec
+        faults = (sp.depth_holes, sp.depth_edge_dropout, sp.depth_quantum_m, sp.rgb_noise_sigma)
+        if sp.depth_noise == "kinect" and not any(faults):  # the original draw order: episodes unchanged
             finite = np.isfinite(depth)
             noisy = depth.copy()
             noisy[finite] = add_kinect_noise(depth[finite], self._rng)
             depth = noisy
+        elif sp.depth_noise != "none" or any(faults):
+            rgb, depth = sensor_faults(
+                rgb,
+                depth,
+                self._rng,
+                noise_coeff=self.noise_coeff if sp.depth_noise != "none" else 0.0,
+                holes=sp.depth_holes,
+                edge_dropout=sp.depth_edge_dropout,
+                invalid=0.0 if sp.depth_invalid == 0.0 else np.nan,
+                quantum_m=sp.depth_quantum_m,
+                rgb_sigma=sp.rgb_noise_sigma,
+            )
         rgb.setflags(write=False)
         depth.setflags(write=False)
         K = self.intrinsics if roi is None else crop_intrinsics(self.intrinsics, roi)
         return RGBDFrame(
-            rgb=rgb, depth_m=depth, intrinsics=K, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s, roi=roi
+            rgb=rgb,
+            depth_m=depth,
+            intrinsics=K,
+            T_world_cam=self.T_world_cam,
+            time_s=scene.sim_time_s,
+            roi=roi,
+            depth_noise_coeff=self.noise_coeff,
+            depth_quantum_m=sp.depth_quantum_m,
+            calibration_sigma=self.calibration_sigma,
         )
 
     def preview(self, scene: Scene, scale: float = 0.5) -> tuple[np.ndarray, Intrinsics]:
@@ -99,7 +140,7 @@ class Camera:
         """
         w, h = max(int(self.spec.width * scale), 16), max(int(self.spec.height * scale), 16)
         K = rendered_intrinsics(w, h, self.spec.fov_deg[0], self.spec.fov_deg[1])
-        return render_rgb(scene, self.T_world_cam, K, self.spec.near_m, self.spec.far_m), K
+        return render_rgb(scene, self.T_world_cam_true, K, self.spec.near_m, self.spec.far_m), K
 
     def preview_around(
         self, scene: Scene, centre_world: np.ndarray, size_px: tuple[int, int]
