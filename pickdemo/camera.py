@@ -287,6 +287,7 @@ class RGBDFrame:
     depth_noise_coeff: float = KINECT_NOISE_COEFF  # sigma_z = k z^2 (m^-1)
     depth_quantum_m: float = 0.0  # depth reported in steps of this (adds q^2 / 12 of variance)
     calibration_sigma: tuple[float, float] = (0.0, 0.0)  # (m, rad): how far T_world_cam may be off
+    rgb_noise_sigma: float = 0.0  # 8-bit units, the colour image's noise
 
     def depth_variance(self, z_m: np.ndarray | float) -> np.ndarray:
         """Variance (m^2) of a depth reading at ``z_m``: the sensor's noise and its quantisation."""

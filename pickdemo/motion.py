@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from ruckig import InputParameter, OutputParameter, Result, Ruckig, Synchronization
+from ruckig import InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization
 
 from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose
@@ -150,6 +150,8 @@ class OnlineMotion:
         """
         x4 = np.asarray(x4, dtype=float)
         vel = np.zeros(4) if velocity is None else np.asarray(velocity, dtype=float)
+        if not (np.all(np.isfinite(x4)) and np.all(np.isfinite(vel))):
+            raise MotionError(f"target is not finite: {x4.tolist()}")
         changed = False
         if limits is not None and limits != self.limits:
             self._write_limits(limits)
@@ -178,7 +180,12 @@ class OnlineMotion:
             zero = np.zeros(4)
             q, dq = self._joints(out_pos)
             return MotionSample(q, dq, out_pos, zero, zero, zero, True, False)
-        result = self._otg.update(self._inp, self._out)
+        try:
+            result = self._otg.update(self._inp, self._out)
+        except RuckigError as exc:  # raised (not returned) for some invalid inputs
+            raise MotionError(
+                f"Ruckig rejected target {np.round(self.target, 4).tolist()}: {exc or 'invalid input'}"
+            ) from None
         if result not in (Result.Working, Result.Finished):
             raise MotionError(f"Ruckig returned {result.name} for target {np.round(self.target, 4).tolist()}")
         out = self._out

@@ -71,6 +71,7 @@ class PerceptionParams:
     face_depth_sigmas: float = 3.0
     edge_sigma_px: float = 1.0  # an outline point's location uncertainty (the paper's sigma_u = 1 px)
     fit_points: int = 4000  # depth points in the 6-DoF fit at most (a regular thinning beyond)
+    denoise_rgb_sigma: float = 8.0  # from this RGB noise (8-bit) on, a median filter first
 
     def __post_init__(self) -> None:
         if not 0.0 < self.color_cos_min <= 1.0:
@@ -511,6 +512,10 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
 def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams) -> PoseEstimate:
     x0, y0, x1, y1 = _target_roi(frame, model, params)
     f = crop_frame(frame, x0, y0, x1, y1)
+    if f.rgb_noise_sigma >= params.denoise_rgb_sigma:
+        # A noisy colour image breaks the top face into specks: a 5x5 median restores its flat colour
+        # (noise / ~2.5) and keeps its edges where they are (a median does not blur a step).
+        f = dataclasses.replace(f, rgb=cv2.medianBlur(np.ascontiguousarray(f.rgb), 5))
     K = f.intrinsics
     pts = world_heights(f)
     mask = segment_target(f, model, params, pts)

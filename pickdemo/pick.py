@@ -89,6 +89,8 @@ class MachineParams:
     verify_wait_s: float = 0.3  # let the placed object come to rest before the last look
     roi_margin_m: float = 0.03  # around the target's box, for the region of interest
     face_size_tolerance: float = 0.2  # a top face measured this far off the model's size: a partial view
+    max_estimate_sigma_m: float = 0.005  # an estimate less sure than this is no use to a grasp
+    table_gap_m: float = 0.008  # a target resting on the table has its centre at half its height, give or take
     tracker: TrackerParams = TrackerParams()
 
 
@@ -222,6 +224,10 @@ class PickMachine:
             return
         if self.state is State.LOOK:
             self._look_frames += 1
+        if isinstance(result, PoseEstimate):
+            implausible = self._implausible(result)
+            if implausible:
+                result = PerceptionError(implausible)
         if isinstance(result, PerceptionError):
             self.counters.perception_errors += 1
             self.counters.last_error = str(result)
@@ -403,6 +409,21 @@ class PickMachine:
         x4 = pose_to_x4(pose)
         x4[3] = self.motion.setpoint[3] + wrap_angle(x4[3] - self.motion.setpoint[3])
         return x4
+
+    def _implausible(self, est: PoseEstimate) -> str:
+        """Why an estimate cannot be the target resting on the table ("" if it can): not finite, an
+        uncertainty beyond anything the grasp tolerates, or floating above / sunk into the table."""
+        p = est.pose.position
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(est.position_cov))):
+            return "estimate not finite"
+        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(est.position_cov)), 0.0)))
+        if sigma > self.p.max_estimate_sigma_m:
+            return f"estimate too uncertain ({sigma * 1e3:.1f} mm)"
+        gap = float(p[2]) - self.model.height_m / 2.0
+        if abs(gap) > self.p.table_gap_m:
+            where = "above" if gap > 0 else "into"
+            return f"estimate {'floats' if gap > 0 else 'sinks'} {abs(gap) * 1e3:.0f} mm {where} the table"
+        return ""
 
     def _complete_view(self, estimate: PoseEstimate) -> bool:
         """Whether the estimate saw the whole top face: its measured extents within

@@ -130,6 +130,7 @@ class Camera:
             depth_noise_coeff=self.noise_coeff,
             depth_quantum_m=sp.depth_quantum_m,
             calibration_sigma=self.calibration_sigma,
+            rgb_noise_sigma=sp.rgb_noise_sigma,
         )
 
     def preview(self, scene: Scene, scale: float = 0.5) -> tuple[np.ndarray, Intrinsics]:
