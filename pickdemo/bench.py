@@ -49,10 +49,11 @@ class Job:
     scenario_name: str
     seed: int
     open_loop: bool = False
+    perception: str = "paper"  # the perception method in the loop (pickdemo.estimators)
 
     @property
-    def key(self) -> tuple[str, int, bool]:
-        return (self.scenario_name, self.seed, self.open_loop)
+    def key(self) -> tuple[str, int, bool, str]:
+        return (self.scenario_name, self.seed, self.open_loop, self.perception)
 
 
 # ------------------------------------------------------------------------------------ small pieces
@@ -127,6 +128,10 @@ def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> di
         "tracking_yaw_error_deg": None,
         "disturbances": [],
         "control_tick_wall_ms": {},
+        "diagnosis": "not_committed",
+        "perception_method": job.perception,
+        "estimates_off": 0,
+        "estimates_off_accepted": 0,
     }
 
 
@@ -140,7 +145,10 @@ def run_job(job: Job) -> dict[str, Any]:
         scenario = load_scenario(job.scenario_path, check=False)  # checked once, before the batch started
     except Exception as exc:  # noqa: BLE001 - a job must always come back with a result
         return failed_result(job, Stage.ERROR, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
-    return run_episode(scenario, job.seed, open_loop=job.open_loop).to_dict()
+    from pickdemo.episode import EpisodeOptions
+
+    options = EpisodeOptions(open_loop=job.open_loop, perception_method=job.perception)
+    return run_episode(scenario, job.seed, options=options).to_dict()
 
 
 # --------------------------------------------------------------------------------------- executors
@@ -250,7 +258,7 @@ def load_episodes(path: Path) -> list[dict[str, Any]]:
             continue
         try:
             r = json.loads(line)
-            key = (r["scenario"], int(r["seed"]), bool(r.get("open_loop", False)))
+            key = (r["scenario"], int(r["seed"]), bool(r.get("open_loop", False)), r.get("perception_method", "paper"))
         except (json.JSONDecodeError, KeyError, TypeError, ValueError):
             continue
         good.setdefault(key, r)
@@ -286,6 +294,9 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "success_rate_wilson95": [lo, hi],
             "seeds": sorted(r["seed"] for r in rs),
             "failures_by_stage": {s.value: stages[s.value] for s in Stage if stages.get(s.value)},
+            "failures_by_diagnosis": dict(
+                Counter(r.get("diagnosis") or "not_committed" for r in rs if not r["success"])
+            ),
             "failed_seeds": sorted(r["seed"] for r in rs if not r["success"]),
             "position_error_mm": describe([p["position_error_mm"] for p in perc]),
             "yaw_error_deg": describe([p["yaw_error_deg"] for p in perc if p["yaw_error_deg"] is not None]),
@@ -299,18 +310,30 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "target_moves_detected": sum(r.get("target_moves_detected") or 0 for r in rs),
             "tracking_error_mm": describe([r.get("tracking_error_mm") for r in rs]),
             "control_tick_wall_ms": describe([(r.get("control_tick_wall_ms") or {}).get("median") for r in rs]),
+            "estimates_off": sum(r.get("estimates_off") or 0 for r in rs),
+            "estimates_off_accepted": sum(r.get("estimates_off_accepted") or 0 for r in rs),
         }
     return out
 
 
-def result_key(result: dict[str, Any]) -> tuple[str, int, bool]:
-    """Which job a result belongs to: scenario, seed, open or closed loop."""
-    return (result["scenario"], result["seed"], bool(result.get("open_loop", False)))
+def result_key(result: dict[str, Any]) -> tuple[str, int, bool, str]:
+    """Which job a result belongs to: scenario, seed, open or closed loop, perception method."""
+    return (
+        result["scenario"],
+        result["seed"],
+        bool(result.get("open_loop", False)),
+        result.get("perception_method", "paper"),
+    )
 
 
 def summary_name(result: dict[str, Any]) -> str:
-    """The scenario's name, marked when the episode ran open loop."""
-    return result["scenario"] + (" [open loop]" if result.get("open_loop") else "")
+    """The scenario's name, marked when the episode ran open loop or with another perception."""
+    method = result.get("perception_method", "paper")
+    return (
+        result["scenario"]
+        + (" [open loop]" if result.get("open_loop") else "")
+        + (f" [{method}]" if method != "paper" else "")
+    )
 
 
 def _seed_ranges(seeds: list[int]) -> str:
@@ -335,6 +358,8 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
         if s["failures_by_stage"]:
             by_stage = ", ".join(f"{k} {v}" for k, v in s["failures_by_stage"].items())
             lines.append(f"  failures: {by_stage} (seeds {s['failed_seeds']})")
+            by_diag = ", ".join(f"{k} {v}" for k, v in sorted(s["failures_by_diagnosis"].items()))
+            lines.append(f"  failures by diagnosis (perception > 5 mm off at the grasp?): {by_diag}")
         for key, label, unit in (
             ("position_error_mm", "pose error", "mm"),
             ("yaw_error_deg", "yaw error", "deg"),
@@ -356,6 +381,12 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
                 f"  closed loop: perception {s['perception_rate_hz']['median']:.1f} Hz, "
                 f"{s['estimates_rejected']} estimate(s) rejected, {s['target_moves_detected']} target move(s) "
                 f"detected" + (f", tracking error at the grasp median {trk['median']:.2f} mm" if trk else "")
+            )
+        if s["estimates_off"]:
+            off, acc = s["estimates_off"], s["estimates_off_accepted"]
+            lines.append(
+                f"  estimates > 5 mm off the truth: {off}; rejected by the loop's checks {off - acc} "
+                f"({100 * (off - acc) / off:.0f} %), acted on {acc}"
             )
         wt, rtf = s["wall_time_s"], s["real_time_factor"]
         rtf_text = f"{rtf:.1f}x" if rtf is not None else "n/a"

@@ -29,6 +29,19 @@ EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 MAX_SEED = 2**63 - 1
 MAX_WORKERS = 256
 MAX_GUARD_S = 86400.0
+PERCEPTION_HELP = (
+    "perception in the loop: paper (default), icp, centroid, pixel, or module:function for your own "
+    "estimator (frame, target model) -> PoseEstimate"
+)
+
+
+def _check_method(name: str) -> None:
+    from pickdemo.estimators import EstimatorError, resolve_estimator
+
+    try:
+        resolve_estimator(name)
+    except EstimatorError as exc:
+        raise UsageError(f"--perception: {exc}") from None
 
 
 class UsageError(Exception):
@@ -50,6 +63,7 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--gui", action="store_true", help="open the PyBullet window (needs a display)")
     run.add_argument("--quiet", action="store_true", help="print only the summary line")
     run.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
+    run.add_argument("--perception", default="paper", metavar="METHOD", help=PERCEPTION_HELP)
     run.add_argument(
         "--video", action="store_true", help="with --out: write DIR/episode.mp4 (needs pip install 'pickdemo[video]')"
     )
@@ -74,6 +88,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     bench.add_argument("--no-progress", action="store_true", help="no progress bar")
     bench.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
+    bench.add_argument("--perception", default="paper", metavar="METHOD", help=PERCEPTION_HELP)
     perceive = sub.add_parser(
         "perceive",
         help="perception only: every method on the same frames, errors against the truth",
@@ -101,6 +116,8 @@ def _build_parser() -> argparse.ArgumentParser:
 def _summary(result: EpisodeResult) -> str:
     head = "SUCCESS" if result.success else f"FAILED in {result.failure.stage.value}"  # type: ignore[union-attr]
     parts = [f"{head}: {result.scenario} seed {result.seed}"]
+    if result.perception_method != "paper":
+        parts[0] += f" [{result.perception_method}]"
     if result.perception is not None:
         yaw = result.perception.yaw_error_deg
         parts.append(
@@ -120,6 +137,7 @@ def _summary(result: EpisodeResult) -> str:
     line = " | ".join(parts)
     if result.failure is not None:
         line += f"\n  reason: {result.failure.reason}"
+        line += f"\n  diagnosis (from the truth): {result.diagnosis}"
     return line
 
 
@@ -204,6 +222,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pickdemo.episode import EpisodeOptions, run_episode  # heavy imports only when running
 
     _check_seed(args.seed)
+    _check_method(args.perception)
     scenario = _pick_scenario(args.scenario)
     if args.gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
         raise UsageError("--gui needs a display (DISPLAY is not set); run without --gui for headless")
@@ -230,6 +249,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     options = EpisodeOptions(
         gui=args.gui,
         open_loop=args.open_loop,
+        perception_method=args.perception,
         record_trace=args.out is not None,
         video_path=str(args.out / "episode.mp4") if args.video else None,
     )
@@ -260,6 +280,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         )
     if args.resume and args.out is None:
         raise UsageError("--resume needs --out DIR (where episodes.jsonl is)")
+    _check_method(args.perception)
     if args.out is not None:
         _writable_dir(args.out, "--out")
     if args.junit is not None:
@@ -278,7 +299,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         if scenario.name in seen and seen[scenario.name] != path.resolve():
             raise UsageError(f"two scenarios are named {scenario.name!r}: {seen[scenario.name]} and {path}")
         seen[scenario.name] = path.resolve()
-        jobs += [bench.Job(str(path.resolve()), scenario.name, seed, args.open_loop) for seed in seeds]
+        jobs += [bench.Job(str(path.resolve()), scenario.name, seed, args.open_loop, args.perception) for seed in seeds]
     jobs = list({j.key: j for j in jobs}.values())
 
     if args.executor == "ray":

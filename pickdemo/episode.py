@@ -58,6 +58,7 @@ class EpisodeOptions:
     gui: bool = False
     open_loop: bool = False  # look once and play the plan (no perception while moving)
     perception: PerceptionParams = PerceptionParams()
+    perception_method: str = "paper"  # or "icp", "centroid", "pixel", "module:function" (pickdemo.estimators)
     machine: MachineParams = MachineParams()
     record_trace: bool = False  # keep the per-tick trace (EpisodeResult.trace)
     video_path: str | None = None  # write the episode's video here (needs PyAV: the video extra)
@@ -119,6 +120,8 @@ class _Record:
     start_pose: Pose | None = None
     max_z_m: float | None = None  # highest the target got while carried
     place_error_mm: float | None = None
+    wrong_estimates: int = 0  # estimates more than 5 mm off the truth that reached the controller
+    wrong_estimates_accepted: int = 0  # of those, how many it acted on (fused into its belief)
     trace_rows: list[tuple] = field(default_factory=list)
 
 
@@ -177,6 +180,17 @@ class _Episode:
             layout = sample_layout(sc, self.rngs["layout"])
         except LayoutError as exc:
             raise EpisodeFailure(Stage.ERROR, str(exc)) from None
+        from pickdemo.estimators import EstimatorError, resolve_estimator
+
+        method = self.options.perception_method
+        if method == "paper":
+            perception = self.options.perception
+            self.estimate = lambda frame, model: estimate_pose(frame, model, perception)
+        else:
+            try:
+                self.estimate = resolve_estimator(method)
+            except EstimatorError as exc:
+                raise EpisodeFailure(Stage.PERCEPTION, str(exc)) from None
         self.target_name = sc.target.name
         self.placement: Placement = next(p for p in layout if p.name == self.target_name)
         self.model: TargetModel = target_model(sc, self.placement)
@@ -231,7 +245,8 @@ class _Episode:
         """The control loop: one tick at a time until the machine is done, failed or out of time."""
         assert self.machine is not None and self.scene is not None
         machine, scene = self.machine, self.scene
-        pending: deque[tuple[float, float, PoseEstimate | PerceptionError]] = deque()  # (arrival, taken, result)
+        # (arrival, taken, result, its error against the truth then in mm: for scoring only)
+        pending: deque[tuple[float, float, PoseEstimate | PerceptionError, float | None]] = deque()
         last_frame_tick = -(10**9)
         tick = 0
         while not machine.finished:
@@ -242,10 +257,13 @@ class _Episode:
             now = scene.sim_time_s
             obs = self.robot.observe()
             while pending and pending[0][0] <= now + 1e-9:
-                _, taken, result = pending.popleft()
-                machine.on_estimate(result, taken)
+                _, taken, result, error_mm = pending.popleft()
+                status = machine.on_estimate(result, taken)
                 if isinstance(result, PoseEstimate):
                     self.last_estimate = result
+                if error_mm is not None and error_mm > PERCEPTION_OFF_MM and status != "unused":
+                    self.rec.wrong_estimates += 1
+                    self.rec.wrong_estimates_accepted += status == "accepted"
             t0 = time.perf_counter()
             cmd = machine.update(obs)
             self.rec.tick_ms.append((time.perf_counter() - t0) * 1e3)
@@ -258,7 +276,12 @@ class _Episode:
             request = machine.frame_request(now)
             if request is not None and tick - last_frame_tick >= self.frame_ticks:
                 last_frame_tick = tick
-                pending.append((now + self.scenario.control.perception_latency_s, now, self._look(request, now)))
+                result = self._look(request, now)
+                error_mm = None
+                if isinstance(result, PoseEstimate):  # truth: for scoring only
+                    truth = scene.true_pose(self.target_name).position
+                    error_mm = float(np.linalg.norm(result.pose.position - truth)) * 1e3
+                pending.append((now + self.scenario.control.perception_latency_s, now, result, error_mm))
                 self.rec.tracking_frames += tracking
             if self.options.record_trace:
                 self._trace(now)
@@ -287,7 +310,9 @@ class _Episode:
             frame = self.camera.capture(self.scene, request.roi)
         with self.timer("perceive"):
             try:
-                result: PoseEstimate | PerceptionError = estimate_pose(frame, self.model, self.options.perception)
+                result: PoseEstimate | PerceptionError = self.estimate(frame, self.model)
+                if not isinstance(result, PoseEstimate):
+                    raise TypeError(f"the perception method returned {type(result).__name__}, not a PoseEstimate")
             except PerceptionError as exc:
                 result = exc
         self.rec.frames += 1
@@ -421,6 +446,10 @@ class _Episode:
             retargets=m.counters.retargets if m is not None else 0,
             tracking_error_mm=rec.tracking_error_mm,
             tracking_yaw_error_deg=rec.tracking_yaw_deg,
+            diagnosis=diagnose(failure, rec.tracking_error_mm),
+            estimates_off=rec.wrong_estimates,
+            estimates_off_accepted=rec.wrong_estimates_accepted,
+            perception_method=self.options.perception_method,
             disturbances=tuple(p.push.to_dict() for p in self.pushes),
             control_tick_wall_ms={
                 "median": float(np.median(ticks)),
@@ -429,6 +458,21 @@ class _Episode:
             },
             trace=_freeze_trace(rec.trace_rows) if self.options.record_trace else None,
         )
+
+
+#: Above this, the tracker's belief was off when the robot committed to the grasp (scored on the truth).
+PERCEPTION_OFF_MM = 5.0
+
+
+def diagnose(failure: Failure | None, tracking_error_mm: float | None) -> str | None:
+    """For a failed episode, from the truth (for reading, never for control): was perception off
+    when the robot committed to the grasp? ``perception_off``, ``perception_ok`` (the failure lies
+    elsewhere), or ``not_committed`` (it never closed the gripper)."""
+    if failure is None:
+        return None
+    if tracking_error_mm is None:
+        return "not_committed"
+    return "perception_off" if tracking_error_mm > PERCEPTION_OFF_MM else "perception_ok"
 
 
 def _freeze_trace(rows: list[tuple]) -> EpisodeTrace:

@@ -16,15 +16,15 @@ from typing import Any
 
 import numpy as np
 
-from pickdemo.baselines import METHODS as BASELINES
+from pickdemo.estimators import BUILTIN
 from pickdemo.evaluation import pose_errors
 from pickdemo.metrics import position_nees
-from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel, estimate_pose
+from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.scenario import Scenario
 from pickdemo.stats import describe
 
 MethodFn = Callable[..., PoseEstimate]
-METHODS: dict[str, MethodFn] = {"paper": estimate_pose, **BASELINES}
+METHODS: dict[str, MethodFn] = dict(BUILTIN)
 ORIENTED = {"paper", "centroid", "icp"}  # pixel gives a position only
 
 ERROR_KEYS = (

@@ -212,26 +212,32 @@ class PickMachine:
             return None
         return FrameRequest(self._roi(now_s))
 
-    def on_estimate(self, result: PoseEstimate | PerceptionError, frame_time_s: float) -> None:
-        """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``."""
+    def on_estimate(self, result: PoseEstimate | PerceptionError, frame_time_s: float) -> str:
+        """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``.
+
+        Returns what became of it: ``accepted`` (fused into the belief), ``rejected`` (implausible,
+        or beyond the tracker's gate), ``no estimate``, or ``unused`` (not looking now).
+        """
         if self.state is State.VERIFY:
             self._verify_asked = True
             if isinstance(result, PoseEstimate):
                 self.verify_estimate = result
-            return
+            return "unused"
         looking = self.state is State.LOOK or (self.state in TRACKING_STATES and not self.open_loop)
         if not looking:
-            return
+            return "unused"
         if self.state is State.LOOK:
             self._look_frames += 1
+        status = "no estimate"
         if isinstance(result, PoseEstimate):
             implausible = self._implausible(result)
             if implausible:
                 result = PerceptionError(implausible)
+                status = "rejected"
         if isinstance(result, PerceptionError):
             self.counters.perception_errors += 1
             self.counters.last_error = str(result)
-            return
+            return status
         self.counters.estimates += 1
         up = self.tracker.update(result, frame_time_s, partial=not self._complete_view(result))
         if not up.accepted:
@@ -253,6 +259,7 @@ class PickMachine:
             )
         if up.accepted:
             self._fresh_estimate = True
+        return "accepted" if up.accepted else "rejected"
 
     def update(self, obs: Observation) -> Command:
         """One control tick: the state's entry action (once), its exit test, then the motion's tick."""

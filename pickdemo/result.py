@@ -153,6 +153,10 @@ class EpisodeResult:
     tracking_yaw_error_deg: float | None = None
     disturbances: tuple[dict[str, Any], ...] = ()  # the pushes applied (drawn per seed)
     control_tick_wall_ms: dict[str, float] = field(default_factory=dict)  # wall time of a decision: median, p95
+    diagnosis: str | None = None  # failed: perception_off | perception_ok | not_committed (from the truth)
+    perception_method: str = "paper"
+    estimates_off: int = 0  # estimates > 5 mm off the truth that reached the controller (scored on the truth)
+    estimates_off_accepted: int = 0  # of those, the ones it fused into its belief instead of rejecting
     trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
@@ -182,6 +186,10 @@ class EpisodeResult:
                 "tracking_yaw_error_deg": self.tracking_yaw_error_deg,
                 "disturbances": list(self.disturbances),
                 "control_tick_wall_ms": dict(self.control_tick_wall_ms),
+                "diagnosis": self.diagnosis,
+                "perception_method": self.perception_method,
+                "estimates_off": self.estimates_off,
+                "estimates_off_accepted": self.estimates_off_accepted,
             }
         )
 
