@@ -607,12 +607,13 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     # is reported better than that, however many points agree.
     w, V = np.linalg.eigh(0.5 * (cov6[:3, :3] + cov6[:3, :3].T))
     pos_cov = V @ np.diag(np.maximum(w, 0.0) + MODEL_FLOOR_M**2) @ V.T
-    # The camera's pose is known only to its calibration's accuracy: a translation moves every point
-    # alike, a turn moves it by the range times the angle (both as isotropic, to first order).
+    # The camera's pose is known only to its calibration's accuracy: an error of that size in any
+    # direction moves every point alike (a turn by the range times the angle), a third of its square
+    # on each axis.
     s_t, s_r = f.calibration_sigma
     if s_t > 0.0 or s_r > 0.0:
         rng_m = float(np.linalg.norm(pose.position - f.T_world_cam.position))
-        pos_cov = pos_cov + np.eye(3) * (s_t**2 + (s_r * rng_m) ** 2)
+        pos_cov = pos_cov + np.eye(3) * (s_t**2 + (s_r * rng_m) ** 2) / 3.0
     rpy_cov = cov6[3:, 3:]
     if model.shape == "cylinder":
         rpy_cov = rpy_cov.copy()
