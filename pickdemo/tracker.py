@@ -135,15 +135,18 @@ class TargetTracker:
         restart (a partly hidden face can mislead the fit consistently): the filter predicts through.
         """
         z, R = self._measurement(estimate, floor_factor=self.params.partial_floor_factor if partial else 1.0)
+        with_yaw = self.has_yaw and bool(np.isfinite(R[3, 3]))  # an estimator may measure no orientation
+        if not with_yaw:
+            R[3, 3] = 0.0
         if self._x is None:
-            self._start(z, R, time_s)
+            self._start(z, R, time_s, with_yaw)
             return TrackerUpdate(True, 0.0)
         if time_s < self._t:
             return TrackerUpdate(False, float("nan"), reason="older than the track")
         x, P = self._propagate(time_s - self._t)
-        H = self._H()
+        H = self._H(with_yaw)
         innov = H @ z - H @ x
-        if self.has_yaw:
+        if with_yaw:
             innov[3] = wrap_angle(innov[3], self.symmetry)
         S = H @ P @ H.T + H @ R @ H.T
         d2 = float(innov @ np.linalg.solve(S, innov))
@@ -152,9 +155,9 @@ class TargetTracker:
             if partial:
                 self._rejected.clear()
                 return TrackerUpdate(False, d2, reason=f"beyond the gate ({np.sqrt(d2):.1f} sigma), a partial view")
-            self._rejected.append((time_s, z, R))
+            self._rejected.append((time_s, z, R, with_yaw))
             if self._jump_confirmed():
-                self._start(z, R, time_s)
+                self._start(z, R, time_s, with_yaw)
                 self.jumps += 1
                 return TrackerUpdate(True, d2, jumped=True, reason="the target moved: the track restarts")
             return TrackerUpdate(False, d2, reason=f"Mahalanobis distance {np.sqrt(d2):.1f} beyond the gate")
@@ -169,9 +172,9 @@ class TargetTracker:
         return TrackerUpdate(True, d2)
 
     # --------------------------------------------------------------------------------- internals
-    def _H(self) -> np.ndarray:
+    def _H(self, with_yaw: bool | None = None) -> np.ndarray:
         """Rows of the state that a measurement observes: position, and yaw where there is one."""
-        rows = [0, 1, 2, 3] if self.has_yaw else [0, 1, 2]
+        rows = [0, 1, 2, 3] if (self.has_yaw if with_yaw is None else with_yaw) else [0, 1, 2]
         return np.eye(8)[rows]
 
     def _measurement(self, est: PoseEstimate, *, floor_factor: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -188,13 +191,13 @@ class TargetTracker:
         R[3, 3] = (np.sqrt(max(float(est.rpy_cov[2, 2]), 0.0)) + floor_factor * p.yaw_floor_rad) ** 2
         return z, R
 
-    def _start(self, z: np.ndarray, R: np.ndarray, time_s: float) -> None:
+    def _start(self, z: np.ndarray, R: np.ndarray, time_s: float, with_yaw: bool = True) -> None:
         p = self.params
         self._x = z.copy()
         self._x[4:] = 0.0
         P = np.zeros((8, 8))
         P[:4, :4] = R[:4, :4]
-        if not self.has_yaw:
+        if not (self.has_yaw and with_yaw):
             P[3, 3] = np.pi**2
         P[4:7, 4:7] = (
             np.diag([p.initial_speed_sigma_m_s, p.initial_speed_sigma_m_s, p.initial_vertical_speed_sigma_m_s]) ** 2
@@ -227,10 +230,11 @@ class TargetTracker:
         if len(self._rejected) < n:
             return False
         run = self._rejected[-n:]
-        H = self._H()
-        for (_, za, Ra), (_, zb, Rb) in zip(run[:-1], run[1:], strict=True):
+        with_yaw = all(w for *_, w in run)
+        H = self._H(with_yaw)
+        for (_, za, Ra, _), (_, zb, Rb, _) in zip(run[:-1], run[1:], strict=True):
             d = H @ (zb - za)
-            if self.has_yaw:
+            if with_yaw:
                 d[3] = wrap_angle(d[3], self.symmetry)
             S = H @ (Ra + Rb) @ H.T
             if float(d @ np.linalg.solve(S, d)) > CHI2_999[len(d)]:

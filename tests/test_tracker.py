@@ -88,3 +88,16 @@ def test_lost_after_a_second_without_an_accepted_estimate() -> None:
     assert tr.lost(0.0)
     tr.update(_est(0.5, 0.0), 0.0)
     assert not tr.lost(0.9) and tr.lost(1.1)
+
+
+def test_an_estimate_without_orientation_updates_the_position_only() -> None:
+    """The `pixel` method measures no orientation (its rpy covariance is infinite)."""
+    import dataclasses
+
+    tr = TargetTracker(np.pi / 2)
+    blind = dataclasses.replace(_est(0.5, 0.0, 30.0), rpy_cov=np.full((3, 3), np.inf))
+    assert tr.update(blind, 0.0).accepted
+    assert np.isfinite(tr.predict(0.0).covariance).all() and tr.predict(0.0).covariance[3, 3] > 1.0
+    assert tr.update(dataclasses.replace(blind, pose=Pose.from_xyz_rpy([0.5005, 0.0, 0.025])), 0.1).accepted
+    assert tr.update(_est(0.5, 0.0, 30.0), 0.2).accepted  # a full estimate then sets the yaw
+    assert np.degrees(tr.predict(0.2).yaw_rad) == pytest.approx(30.0, abs=1.0)
