@@ -411,9 +411,9 @@ class PickMachine:
         self._fail(Stage.IK, reason)
         return None
 
-    def _x4(self, pose: Pose) -> np.ndarray:
-        """(x, y, z, yaw) of a plan's pose, its yaw the equivalent nearest the current setpoint's."""
-        x4 = pose_to_x4(pose)
+    def _x4(self, pose: Pose | np.ndarray) -> np.ndarray:
+        """(x, y, z, yaw) of a pose (or of an x4), its yaw the equivalent nearest the current setpoint's."""
+        x4 = pose_to_x4(pose) if isinstance(pose, Pose) else np.array(pose, dtype=float)
         x4[3] = self.motion.setpoint[3] + wrap_angle(x4[3] - self.motion.setpoint[3])
         return x4
 
@@ -465,12 +465,7 @@ class PickMachine:
         self.tracker = TargetTracker(self.symmetry, self.p.tracker)
         self._look_frames = 0
         self._fresh_estimate = False
-        self.motion.set_target(self._x4_home(), limits=self.p.free)
-
-    def _x4_home(self) -> np.ndarray:
-        x4 = self.home_x4.copy()
-        x4[3] = self.motion.setpoint[3] + wrap_angle(x4[3] - self.motion.setpoint[3])
-        return x4
+        self.motion.set_target(self._x4(self.home_x4), limits=self.p.free)
 
     def _tick_look(self, obs: Observation) -> tuple[State, str] | None:
         needed = 1 if self.open_loop else self.p.look_min_estimates
@@ -626,7 +621,7 @@ class PickMachine:
         return (State.HOME, "clear of the object") if self.motion.finished else None
 
     def _enter_home(self, obs: Observation) -> None:
-        self.motion.set_target(self._x4_home(), limits=self.p.free)
+        self.motion.set_target(self._x4(self.home_x4), limits=self.p.free)
 
     def _tick_home(self, obs: Observation) -> tuple[State, str] | None:
         return (State.VERIFY, "arm home") if self.motion.finished else None

@@ -133,16 +133,6 @@ class Camera:
             rgb_noise_sigma=sp.rgb_noise_sigma,
         )
 
-    def preview(self, scene: Scene, scale: float = 0.5) -> tuple[np.ndarray, Intrinsics]:
-        """The camera's view for a video, at ``scale`` of its resolution: RGB and its intrinsics.
-
-        No noise is drawn (the camera's random stream is untouched), so recording a video never
-        changes an episode.
-        """
-        w, h = max(int(self.spec.width * scale), 16), max(int(self.spec.height * scale), 16)
-        K = rendered_intrinsics(w, h, self.spec.fov_deg[0], self.spec.fov_deg[1])
-        return render_rgb(scene, self.T_world_cam_true, K, self.spec.near_m, self.spec.far_m), K
-
     def preview_around(
         self, scene: Scene, centre_world: np.ndarray, size_px: tuple[int, int]
     ) -> tuple[np.ndarray, Intrinsics]:
@@ -154,12 +144,8 @@ class Camera:
         x0 = int(np.clip(round(uv[0] - w / 2), 0, K.width - w)) if np.all(np.isfinite(uv)) else (K.width - w) // 2
         y0 = int(np.clip(round(uv[1] - h / 2), 0, K.height - h)) if np.all(np.isfinite(uv)) else (K.height - h) // 2
         roi = (x0, y0, x0 + w, y0 + h)
-        proj = opengl_projection_matrix(K, self.spec.near_m, self.spec.far_m, roi)
-        _, _, rgba, _, _ = scene.client.getCameraImage(
-            w, h, viewMatrix=self._view, projectionMatrix=proj, shadow=0,
-            lightDirection=list(LIGHT_DIRECTION), renderer=p.ER_TINY_RENDERER,
-        )  # fmt: skip
-        return np.asarray(rgba, dtype=np.uint8).reshape(h, w, 4)[:, :, :3].copy(), crop_intrinsics(K, roi)
+        rgb, _, _ = self._render(scene, roi)
+        return rgb, crop_intrinsics(K, roi)
 
     def capture_labels(self, scene: Scene) -> tuple[RGBDFrame, np.ndarray]:
         """A noise-free frame and its segmentation (body ids): for tests and labels, never for control."""
