@@ -132,6 +132,7 @@ def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> di
         "perception_method": job.perception,
         "estimates_off": 0,
         "estimates_off_accepted": 0,
+        "target_off_table": None,
     }
 
 
@@ -312,6 +313,7 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "control_tick_wall_ms": describe([(r.get("control_tick_wall_ms") or {}).get("median") for r in rs]),
             "estimates_off": sum(r.get("estimates_off") or 0 for r in rs),
             "estimates_off_accepted": sum(r.get("estimates_off_accepted") or 0 for r in rs),
+            "failed_off_table": sum(1 for r in rs if not r["success"] and r.get("target_off_table")),
         }
     return out
 
@@ -388,6 +390,8 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
                 f"  estimates > 5 mm off the truth: {off}; rejected by the loop's checks {off - acc} "
                 f"({100 * (off - acc) / off:.0f} %), acted on {acc}"
             )
+        if s.get("failed_off_table"):
+            lines.append(f"  failed episodes that left the target off the table: {s['failed_off_table']}")
         wt, rtf = s["wall_time_s"], s["real_time_factor"]
         rtf_text = f"{rtf:.1f}x" if rtf is not None else "n/a"
         tick = s["control_tick_wall_ms"]

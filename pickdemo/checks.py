@@ -67,6 +67,7 @@ def _footprint_mm(obj: ObjectSpec) -> np.ndarray:
 def check_scenario(sc: Scenario) -> None:
     """Raise :class:`ScenarioError` (``key: what is impossible``) for a scenario that cannot run."""
     _check_objects(sc)
+    _check_conveyor(sc)
     if sc.task == "pick":
         _check_pick(sc)
     _check_camera(sc)
@@ -107,6 +108,38 @@ def _check_objects(sc: Scenario) -> None:
         raise ScenarioError(f"place.position: ({px:.3f}, {py:.3f}) m is off the table")
 
 
+def _check_conveyor(sc: Scenario) -> None:
+    """The belt lies on the table; an object stands wholly on it or wholly off it; the place is off it."""
+    belt = sc.conveyor
+    if belt is None:
+        return
+    (x0, x1), (y0, y1) = belt.x_range_m, belt.y_range_m
+    for x, y in ((x0, y0), (x1, y1)):
+        if not sc.table.holds(x, y, margin=-1e-9):
+            raise ScenarioError(f"conveyor: its strip x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f} m runs off the table")
+    if np.hypot(max(0.0, x0, -x1), max(0.0, y0, -y1)) < ROBOT_BASE_RADIUS_M:
+        raise ScenarioError("conveyor: its strip runs through the robot's base")
+    for obj in sc.objects:
+        r = footprint_radius_m(obj.shape, _extents(obj))
+        region = _region(obj)
+        on = [belt.holds(x, y, margin=r) for x, y in region]
+        touching = [belt.touches(x, y, r) for x, y in region]
+        if any(touching) and not all(on):
+            raise ScenarioError(
+                f"objects.{obj.name}: where it may stand, its footprint ({r * 1e3:.0f} mm radius) straddles the "
+                "belt's edge; keep it wholly on the belt or wholly off it"
+            )
+    if sc.task == "pick":
+        target = sc.target
+        r = footprint_radius_m(target.shape, _extents(target))
+        px, py = sc.place.position
+        if belt.touches(px, py, r):
+            raise ScenarioError(
+                f"place.position: ({px:.3f}, {py:.3f}) m is on the belt (the target would ride away); place it "
+                f"at least {r * 1e3:.0f} mm off the strip"
+            )
+
+
 def _check_camera(sc: Scenario) -> None:
     cam = sc.camera
     if cam.sampled:
@@ -120,8 +153,8 @@ def _check_camera(sc: Scenario) -> None:
             continue
         h = _height(obj)
         r = footprint_radius_m(obj.shape, _extents(obj))
-        pts = np.array([[x + dx, y + dy, z] for x, y in _region(obj) for dx in (-r, r) for dy in (-r, r)
-                        for z in (0.0, h)])  # fmt: skip
+        pts = np.array([[x + dx, y + dy, sc.surface_z(x, y) + z] for x, y in _region(obj) for dx in (-r, r)
+                        for dy in (-r, r) for z in (0.0, h)])  # fmt: skip
         p_cam = T_cam_world.transform_points(pts)
         if np.any(p_cam[:, 2] <= cam.near_m) or np.any(p_cam[:, 2] >= cam.far_m):
             raise ScenarioError(
@@ -164,10 +197,10 @@ def _check_pick(sc: Scenario) -> None:
         )
     kin = panda_kinematics()
     rng = np.random.default_rng(0)
-    z = max(_height(target) / 2.0, grasp.min_tcp_height_m)
     spots = [(f"{key} at ({x:.2f}, {y:.2f})", x, y) for x, y in _region(target)]
     spots.append(("place.position", *sc.place.position))
     for what, x, y in spots:
+        z = max(_height(target) / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y)
         for dz in (0.0, grasp.pregrasp_height_m):
             res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), rm.HOME_Q, rng, IKParams())
             if not res.success:

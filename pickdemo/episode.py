@@ -122,6 +122,7 @@ class _Record:
     place_error_mm: float | None = None
     wrong_estimates: int = 0  # estimates more than 5 mm off the truth that reached the controller
     wrong_estimates_accepted: int = 0  # of those, how many it acted on (fused into its belief)
+    off_table: bool | None = None  # the target ended off the table (fell, or was knocked off)
     trace_rows: list[tuple] = field(default_factory=list)
 
 
@@ -158,6 +159,8 @@ class _Episode:
             failure = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0])
         finally:
             sim_time = self.scene.sim_time_s if self.scene is not None else 0.0
+            if self.scene is not None and self.rec.start_pose is not None:
+                self.rec.off_table = self._off_table()
             if self.video is not None:
                 with self.timer("video"):
                     self.video.close()
@@ -217,9 +220,12 @@ class _Episode:
             self.video = VideoWriter(self.options.video_path, fps=round(1.0 / (self.video_ticks * self.dt_ctl)))
         with self.timer("settle"):
             self.scene.settle(int(SETTLE_MAX_S / dt))
+        self.scene.start_belt()  # a conveyor runs from the robot's first tick
         self.rec.start_pose = self.scene.true_pose(self.target_name)  # truth: for scoring only
         self.rec.max_z_m = float(self.rec.start_pose.position[2])
         params = self.options.machine
+        if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
+            params = params.on_a_belt()
         m = sc.motion
         scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
         if scales != (1.0, 1.0, 1.0):
@@ -238,6 +244,7 @@ class _Episode:
             max_attempts=sc.control.max_attempts,
             open_loop=self.options.open_loop,
             params=params,
+            surface_z=sc.surface_z,
         )
 
     # ======================================================================================== loop
@@ -397,6 +404,12 @@ class _Episode:
         )  # fmt: skip
 
     # ===================================================================================== scoring
+    def _off_table(self) -> bool:
+        """Whether the target ended off the table: below its top, or beyond its edges (the truth)."""
+        final = self.scene.true_pose(self.target_name)
+        x, y, z = final.position
+        return bool(z < -0.005 or not self.scenario.table.holds(float(x), float(y)))
+
     def score(self) -> None:
         """Success, scored on the truth: lifted high enough, put down where asked, upright and at rest."""
         sc = self.scenario
@@ -449,6 +462,7 @@ class _Episode:
             diagnosis=diagnose(failure, rec.tracking_error_mm),
             estimates_off=rec.wrong_estimates,
             estimates_off_accepted=rec.wrong_estimates_accepted,
+            target_off_table=rec.off_table,
             perception_method=self.options.perception_method,
             disturbances=tuple(p.push.to_dict() for p in self.pushes),
             control_tick_wall_ms={

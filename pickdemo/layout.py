@@ -77,7 +77,8 @@ def _draw(obj: ObjectSpec, rng: np.random.Generator) -> tuple[np.ndarray, float,
 
 
 def sample_layout(scenario: Scenario, rng: np.random.Generator) -> tuple[Placement, ...]:
-    """Start poses and sizes of all objects, resting on the table unless a centre height is given."""
+    """Start poses and sizes of all objects, resting on the table (or the belt) unless a centre height
+    is given."""
     placed: list[tuple[np.ndarray, float]] = []
     out: list[Placement] = []
     for obj in scenario.objects:
@@ -94,8 +95,8 @@ def sample_layout(scenario: Scenario, rng: np.random.Generator) -> tuple[Placeme
         placed.append((xy, r))
         pose = Pose.from_xyz_rpy(np.array([xy[0], xy[1], 0.0]), roll=roll, pitch=pitch, yaw=yaw)
         z = obj.position[2] if obj.position is not None and len(obj.position) == 3 else None
-        if z is None:
-            z = resting_height_m(obj.shape, size, pose.rotation)
+        if z is None:  # resting on the table, or on the belt where there is one
+            z = resting_height_m(obj.shape, size, pose.rotation) + scenario.surface_z(float(xy[0]), float(xy[1]))
         out.append(Placement(obj.name, Pose(np.array([xy[0], xy[1], z]), pose.rotation), size, obj.shape))
     return tuple(out)
 

@@ -15,10 +15,12 @@ last command (:meth:`pickdemo.kinematics.PandaKinematics.track`).
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from ruckig import InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization
+from ruckig import InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization, Trajectory
 
 from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose
@@ -34,7 +36,11 @@ class MotionError(RuntimeError):
 
 @dataclass(frozen=True)
 class CartesianLimits:
-    """Limits of the TCP per axis: m/s, m/s^2, m/s^3 for x, y, z; rad/s, rad/s^2, rad/s^3 for yaw."""
+    """Limits of the TCP per axis: m/s, m/s^2, m/s^3 for x, y, z; rad/s, rad/s^2, rad/s^3 for yaw.
+
+    ``xy_*``, when given, replace the limits of x and y (z keeps its own): following a moving target,
+    the hand must keep up with it across the table while it goes down gently.
+    """
 
     velocity: float = 0.10
     acceleration: float = 0.5
@@ -42,25 +48,21 @@ class CartesianLimits:
     yaw_velocity: float = 0.8
     yaw_acceleration: float = 4.0
     yaw_jerk: float = 40.0
+    xy_velocity: float | None = None
+    xy_acceleration: float | None = None
+    xy_jerk: float | None = None
 
     def __post_init__(self) -> None:
         values = (self.velocity, self.acceleration, self.jerk, self.yaw_velocity, self.yaw_acceleration, self.yaw_jerk)
-        if min(values) <= 0.0 or not all(np.isfinite(values)):
+        xy = tuple(v for v in (self.xy_velocity, self.xy_acceleration, self.xy_jerk) if v is not None)
+        if min(values + xy) <= 0.0 or not all(np.isfinite(values + xy)):
             raise ValueError("Cartesian limits must be positive and finite")
-
-    def scaled(self, factor: float) -> CartesianLimits:
-        """Slower limits (velocity x f, acceleration x f^2, jerk x f^3)."""
-        return CartesianLimits(
-            self.velocity * factor,
-            self.acceleration * factor**2,
-            self.jerk * factor**3,
-            self.yaw_velocity * factor,
-            self.yaw_acceleration * factor**2,
-            self.yaw_jerk * factor**3,
-        )
+        if 0 < len(xy) < 3:
+            raise ValueError("give all of xy_velocity, xy_acceleration, xy_jerk, or none")
 
     def scaled_by(self, velocity: float, acceleration: float, jerk: float) -> CartesianLimits:
         """Each kind of limit scaled by its own factor (a scenario's ``[motion]``)."""
+        xy = self.xy_velocity is not None
         return CartesianLimits(
             self.velocity * velocity,
             self.acceleration * acceleration,
@@ -68,13 +70,32 @@ class CartesianLimits:
             self.yaw_velocity * velocity,
             self.yaw_acceleration * acceleration,
             self.yaw_jerk * jerk,
+            self.xy_velocity * velocity if xy else None,  # type: ignore[operator]
+            self.xy_acceleration * acceleration if xy else None,  # type: ignore[operator]
+            self.xy_jerk * jerk if xy else None,  # type: ignore[operator]
+        )
+
+    def scaled(self, factor: float) -> CartesianLimits:
+        """Slower limits (velocity x f, acceleration x f^2, jerk x f^3)."""
+        return self.scaled_by(factor, factor**2, factor**3)
+
+    def with_xy_of(self, other: CartesianLimits) -> CartesianLimits:
+        """These limits for z and yaw, ``other``'s (its xy, or its x, y, z) for x and y."""
+        return dataclasses.replace(
+            self,
+            xy_velocity=other.xy_velocity or other.velocity,
+            xy_acceleration=other.xy_acceleration or other.acceleration,
+            xy_jerk=other.xy_jerk or other.jerk,
         )
 
     def arrays(self) -> tuple[list[float], list[float], list[float]]:
+        def axes(xyz: float, xy: float | None, yaw: float) -> list[float]:
+            return [xy if xy is not None else xyz] * 2 + [xyz, yaw]
+
         return (
-            [self.velocity] * 3 + [self.yaw_velocity],
-            [self.acceleration] * 3 + [self.yaw_acceleration],
-            [self.jerk] * 3 + [self.yaw_jerk],
+            axes(self.velocity, self.xy_velocity, self.yaw_velocity),
+            axes(self.acceleration, self.xy_acceleration, self.yaw_acceleration),
+            axes(self.jerk, self.xy_jerk, self.yaw_jerk),
         )
 
 
@@ -124,6 +145,8 @@ class OnlineMotion:
         self._write_limits(limits)
         self._finished = True
         self.retargets = 0  # re-targets written while a motion was under way
+        self._calc = Ruckig(4)  # offline: how long a motion would take (an intercept's search)
+        self._trajectory = Trajectory(4)
 
     # ------------------------------------------------------------------------------------ input
     def _write_limits(self, limits: CartesianLimits) -> None:
@@ -141,12 +164,20 @@ class OnlineMotion:
         return np.array(self._inp.target_position)
 
     def set_target(
-        self, x4: np.ndarray, *, velocity: np.ndarray | None = None, limits: CartesianLimits | None = None
+        self,
+        x4: np.ndarray,
+        *,
+        velocity: np.ndarray | None = None,
+        limits: CartesianLimits | None = None,
+        arrive_in_s: float | None = None,
     ) -> bool:
-        """Move towards ``x4 = (x, y, z, yaw)``, arriving with ``velocity`` (default at rest).
+        """Move towards ``x4 = (x, y, z, yaw)``, arriving with ``velocity`` (default at rest), at the
+        earliest or in ``arrive_in_s`` (Ruckig's minimum duration: to meet a moving target there).
 
         Returns whether the input changed. Limits should change only at rest: lowering them
-        mid-motion makes Ruckig brake back inside them, which may overshoot.
+        mid-motion makes Ruckig brake back inside them, which may overshoot. After arriving with a
+        velocity the setpoint carries on at that velocity (as Ruckig's trajectory does after its
+        duration) until the next target.
         """
         x4 = np.asarray(x4, dtype=float)
         vel = np.zeros(4) if velocity is None else np.asarray(velocity, dtype=float)
@@ -163,6 +194,7 @@ class OnlineMotion:
                 self.retargets += 1
             self._inp.target_position = x4.tolist()
             self._inp.target_velocity = vel.tolist()
+            self._inp.minimum_duration = arrive_in_s
             changed = True
         if changed:
             self._finished = False
@@ -172,14 +204,79 @@ class OnlineMotion:
     def finished(self) -> bool:
         return self._finished
 
+    @property
+    def velocity(self) -> np.ndarray:
+        """The commanded TCP's velocity now."""
+        return np.array(self._inp.current_velocity)
+
+    def time_to(self, x4: np.ndarray, velocity: np.ndarray, limits: CartesianLimits | None = None) -> float:
+        """How long the time-optimal motion from the current state to ``x4`` at ``velocity`` takes (s)."""
+        inp = InputParameter(4)
+        inp.current_position = self._inp.current_position
+        inp.current_velocity = self._inp.current_velocity
+        inp.current_acceleration = self._inp.current_acceleration
+        inp.target_position = np.asarray(x4, dtype=float).tolist()
+        inp.target_velocity = np.asarray(velocity, dtype=float).tolist()
+        inp.max_velocity, inp.max_acceleration, inp.max_jerk = (limits or self.limits).arrays()
+        inp.synchronization = Synchronization.Phase
+        try:
+            result = self._calc.calculate(inp, self._trajectory)
+        except RuckigError as exc:
+            raise MotionError(f"Ruckig rejected target {np.round(x4, 4).tolist()}: {exc or 'invalid input'}") from None
+        if result not in (Result.Working, Result.Finished):
+            raise MotionError(f"Ruckig returned {result.name} for target {np.round(x4, 4).tolist()}")
+        return float(self._trajectory.duration)
+
+    def intercept(
+        self,
+        point_at: Callable[[float], np.ndarray],
+        velocity: np.ndarray,
+        *,
+        limits: CartesianLimits | None = None,
+        earliest_s: float = 0.0,
+        latest_s: float = 30.0,
+    ) -> float | None:
+        """The soonest time ``t`` from now (within ``[earliest_s, latest_s]``) at which the hand can be
+        at ``point_at(t)`` moving at ``velocity``: a moving target's meeting point. None: not by then.
+
+        The fixed point of ``t = time_to(point_at(t))``, approached from below (it converges while the
+        target is slower than the hand), then bisected back to the soonest ``t`` that is feasible: a
+        step may jump past it (reaching where a target is *now* can take longer than meeting it later
+        on). Pass the result as ``arrive_in_s`` to arrive exactly then.
+        """
+        lo = t = max(earliest_s, 0.0)
+        for _ in range(40):
+            need = self.time_to(point_at(t), velocity, limits)
+            if need <= t + 1e-3:
+                break
+            lo, t = t, need
+            if t > latest_s:
+                return None
+        else:
+            return None
+        if t == lo:
+            return t
+        hi = t  # the step may have jumped past the soonest meeting: bisect back to it (to ~2 ms)
+        while hi - lo > 2e-3:
+            mid = 0.5 * (lo + hi)
+            if self.time_to(point_at(mid), velocity, limits) <= mid + 1e-3:
+                hi = mid
+            else:
+                lo = mid
+        return hi
+
     # ------------------------------------------------------------------------------------- tick
     def step(self) -> MotionSample:
         """Advance the motion by one tick and solve the joints for the new setpoint."""
         if self._finished:
-            out_pos = np.array(self._inp.current_position)
             zero = np.zeros(4)
+            vel = np.array(self._inp.target_velocity)
+            out_pos = np.array(self._inp.current_position) + vel * self.dt_s  # carries on at the target's velocity
+            if np.any(vel != 0.0):
+                self._inp.current_position = out_pos.tolist()
+                self._inp.target_position = (np.array(self._inp.target_position) + vel * self.dt_s).tolist()
             q, dq = self._joints(out_pos)
-            return MotionSample(q, dq, out_pos, zero, zero, zero, True, False)
+            return MotionSample(q, dq, out_pos, vel, zero, zero, True, False)
         try:
             result = self._otg.update(self._inp, self._out)
         except RuckigError as exc:  # raised (not returned) for some invalid inputs

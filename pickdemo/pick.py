@@ -23,7 +23,9 @@ estimate, and the motion is re-targeted to where the tracker says the target is.
 
 from __future__ import annotations
 
+import dataclasses
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,7 +93,20 @@ class MachineParams:
     face_size_tolerance: float = 0.2  # a top face measured this far off the model's size: a partial view
     max_estimate_sigma_m: float = 0.005  # an estimate less sure than this is no use to a grasp
     table_gap_m: float = 0.008  # a target resting on the table has its centre at half its height, give or take
+    moving_speed_m_s: float = 0.01  # a target tracked faster than this (and than 3 sigma) is met where it will be
+    grasp_time_s: float = 2.0  # from above a moving target to holding it (descent and close): it travels on meanwhile
+    meet_horizon_s: float = 15.0  # a moving target that cannot be met within this is out of reach
+    lift_lead_s: float = 0.3  # lifting a moving target, the hand carries on along its way this long
+    arrive_tolerance_m: float = 0.002  # at a moving target's pose: this close, moving with it within
+    arrive_tolerance_rad: float = float(np.radians(1.0))
+    arrive_speed_tolerance_m_s: float = 0.005
     tracker: TrackerParams = TrackerParams()
+
+    def on_a_belt(self) -> MachineParams:
+        """For a cell with a conveyor: a target may move at any speed the belt runs (up to 0.5 m/s),
+        and its belt may change speed; the first plan waits for one more estimate (a velocity)."""
+        tracker = dataclasses.replace(self.tracker, initial_speed_sigma_m_s=0.3, accel_sigma_m_s2=0.03)
+        return dataclasses.replace(self, look_min_estimates=max(self.look_min_estimates, 3), tracker=tracker)
 
 
 @dataclass(frozen=True)
@@ -146,8 +161,12 @@ class PickMachine:
         max_attempts: int = 3,
         open_loop: bool = False,
         params: MachineParams | None = None,
+        surface_z: Callable[[float, float], float] | None = None,
     ) -> None:
+        """``surface_z(x, y)``: the height of what a target at (x, y) rests on, as the cell's layout
+        says (a belt's top, or the table at 0)."""
         self.p = params or MachineParams()
+        self.surface_z = surface_z or (lambda x, y: 0.0)
         self.kin = kin
         self.model = model
         self.symmetry = symmetry_rad
@@ -188,6 +207,8 @@ class PickMachine:
         self._prev_opening: float | None = None
         self._after_back_off = State.LOOK
         self._descent_plan: GraspPlan | None = None
+        self._planned_at_s = 0.0  # the plan is for the target where it was then
+        self._descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
         self._verify_asked = False
         self._relooks = 0
 
@@ -371,13 +392,20 @@ class PickMachine:
         pair of faces), and the usual angle if that is out of reach.
         """
         pose = self._tracked_pose()
+        self._planned_at_s = self._now_s
         if not first:
             near = None if self.plan is None else self.plan.hand_yaw_rad
             try:
-                return plan_grasp(pose, self.model, self.place_xy, self.p.grasp, hand_yaw_near_rad=near)
+                plan = plan_grasp(pose, self.model, self.place_xy, self.p.grasp, hand_yaw_near_rad=near)
             except GraspPlanningError as exc:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
                 return None
+            if self.state is State.APPROACH and self._target_velocity() is not None:  # still in reach?
+                reason = self._out_of_reach(plan)
+                if reason:
+                    self._fail(Stage.IK, reason)
+                    return None
+            return plan
         candidates: list[float | None] = [None]
         if self._turn_hand and self.plan is not None:
             # The other pair of faces: a quarter turn from the usual angle, towards the middle of
@@ -398,10 +426,16 @@ class PickMachine:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
                 return None
             reason = ""
-            for name, target in (("grasp", plan.grasp), ("place", plan.place)):
+            reach = self._reach_targets(plan)
+            if isinstance(reach, str):
+                self._fail(Stage.IK, reach)
+                return None
+            for name, target in (*reach, ("place", plan.place)):
                 res = self.kin.solve(target, self.motion.q, self.rng, IKParams())
                 if not res.success:
                     reason = f"{name} pose out of reach: {res.reason}"
+                    if name not in ("grasp", "place"):  # a moving target's
+                        reason = f"the target leaves the arm's reach before the arm can meet it: {name} is out of reach"
                     break
                 if near is not None and abs(res.q[6]) > WRIST_TURN_LIMIT_RAD:  # a turned hand: keep wrist room
                     reason = f"{name} pose turns joint 7 to {res.q[6]:.2f} rad"
@@ -411,6 +445,82 @@ class PickMachine:
         self._fail(Stage.IK, reason)
         return None
 
+    # ------------------------------------------------------------------------- moving targets
+    def _target_velocity(self) -> np.ndarray | None:
+        """The target's horizontal velocity (m/s) while the tracker sees it move; None when it is at
+        rest (or not surely moving), and always in open loop (it plans to where the target was)."""
+        if self.open_loop or not self.tracker.initialised:
+            return None
+        tp = self.tracker.predict(self._now_s)
+        v = tp.velocity[:2]
+        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(tp.covariance[4:6, 4:6])), 0.0)))
+        if float(np.linalg.norm(v)) <= max(self.p.moving_speed_m_s, 3.0 * sigma):
+            return None
+        return v.copy()
+
+    def _meet(self, x4: np.ndarray, v: np.ndarray, limits: CartesianLimits | None) -> float | None:
+        """Seconds from now until the hand can be at ``x4`` carried along at ``v`` (a plan's pose for
+        the target where it is now) moving with it; None: not within the horizon."""
+        vel4 = np.array([v[0], v[1], 0.0, 0.0])
+        return self.motion.intercept(lambda t: x4 + vel4 * t, vel4, limits=limits, latest_s=self.p.meet_horizon_s)
+
+    def _go_to(self, pose: Pose | np.ndarray, limits: CartesianLimits | None = None) -> None:
+        """Send the hand to a pose of the plan (or an x4). For a moving target: to where they meet, arriving
+        then with its velocity (Ruckig's target velocity and minimum duration), and following it."""
+        x4 = self._x4(pose)
+        v = self._target_velocity()
+        if v is None:
+            self.motion.set_target(x4, limits=limits)
+            return
+        t = self._meet(x4, v, limits or self.motion.limits)
+        if t is None:
+            self._fail(Stage.IK, f"the target moves too fast to be met within {self.p.meet_horizon_s:.0f} s")
+            return
+        vel4 = np.array([v[0], v[1], 0.0, 0.0])
+        self.motion.set_target(x4 + vel4 * t, velocity=vel4, limits=limits, arrive_in_s=t)
+
+    def _with_target(self, pose: Pose) -> bool:
+        """Whether the hand is at ``pose`` of the plan (for the target where it is now) and moving with
+        the target: a moving target's arrival, which re-targets on every estimate never let finish."""
+        v = self._target_velocity()
+        if v is None:
+            return False
+        vel4 = np.array([v[0], v[1], 0.0, 0.0])
+        want = self._x4(pose) + vel4 * (self._now_s - self._planned_at_s)
+        off = np.abs(self.motion.setpoint - want)
+        p = self.p
+        return bool(
+            np.linalg.norm(off[:3]) < p.arrive_tolerance_m
+            and off[3] < p.arrive_tolerance_rad
+            and np.linalg.norm(self.motion.velocity - vel4) < p.arrive_speed_tolerance_m_s
+        )
+
+    def _reach_targets(self, plan: GraspPlan) -> list[tuple[str, Pose]] | str:
+        """The poses of the pick that must be in reach: the grasp; for a moving target, where the hand
+        will meet it and where it will hold it (``grasp_time_s`` later). A string: it cannot be met."""
+        v = self._target_velocity()
+        if v is None:
+            return [("grasp", plan.grasp)]
+        t = self._meet(self._x4(plan.pregrasp), v, self.p.free)
+        if t is None:
+            return f"the target moves too fast to be met within {self.p.meet_horizon_s:.0f} s"
+        out = []
+        for name, dt in (("the meeting point", t), ("where it would be held", t + self.p.grasp_time_s)):
+            d = np.array([v[0], v[1], 0.0]) * dt
+            p = plan.grasp.position + d
+            out.append((f"{name} ({p[0]:.2f}, {p[1]:.2f}) m in {dt:.1f} s", Pose(p, plan.grasp.rotation)))
+        return out
+
+    def _out_of_reach(self, plan: GraspPlan) -> str:
+        """Why the moving target cannot be picked where it will be ("" if it can)."""
+        reach = self._reach_targets(plan)
+        if isinstance(reach, str):
+            return reach
+        for name, target in reach:
+            if not self.kin.solve(target, self.motion.q, self.rng, IKParams()).success:
+                return f"the target leaves the arm's reach before the arm can meet it: {name} is out of reach"
+        return ""
+
     def _x4(self, pose: Pose | np.ndarray) -> np.ndarray:
         """(x, y, z, yaw) of a pose (or of an x4), its yaw the equivalent nearest the current setpoint's."""
         x4 = pose_to_x4(pose) if isinstance(pose, Pose) else np.array(pose, dtype=float)
@@ -418,18 +528,21 @@ class PickMachine:
         return x4
 
     def _implausible(self, est: PoseEstimate) -> str:
-        """Why an estimate cannot be the target resting on the table ("" if it can): not finite, an
-        uncertainty beyond anything the grasp tolerates, or floating above / sunk into the table."""
+        """Why an estimate cannot be the target resting on the table or the belt ("" if it can): not
+        finite, an uncertainty beyond anything the grasp tolerates, or floating above / sunk into what
+        it rests on."""
         p = est.pose.position
         if not (np.all(np.isfinite(p)) and np.all(np.isfinite(est.position_cov))):
             return "estimate not finite"
         sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(est.position_cov)), 0.0)))
         if sigma > self.p.max_estimate_sigma_m:
             return f"estimate too uncertain ({sigma * 1e3:.1f} mm)"
-        gap = float(p[2]) - self.model.height_m / 2.0
+        surface = self.surface_z(float(p[0]), float(p[1]))
+        gap = float(p[2]) - surface - self.model.height_m / 2.0
         if abs(gap) > self.p.table_gap_m:
             where = "above" if gap > 0 else "into"
-            return f"estimate {'floats' if gap > 0 else 'sinks'} {abs(gap) * 1e3:.0f} mm {where} the table"
+            what = "the table" if surface == 0.0 else "the belt"
+            return f"estimate {'floats' if gap > 0 else 'sinks'} {abs(gap) * 1e3:.0f} mm {where} {what}"
         return ""
 
     def _complete_view(self, estimate: PoseEstimate) -> bool:
@@ -491,7 +604,7 @@ class PickMachine:
     # ---- APPROACH: to above the target, re-targeted as estimates arrive.
     def _enter_approach(self, obs: Observation) -> None:
         assert self.plan is not None
-        self.motion.set_target(self._x4(self.plan.pregrasp), limits=self.p.free)
+        self._go_to(self.plan.pregrasp, limits=self.p.free)
 
     def _track_plan(self) -> GraspPlan | None:
         """A fresh plan when a new estimate has come in (closed loop), else None."""
@@ -512,22 +625,31 @@ class PickMachine:
         plan = self._track_plan()
         if plan is not None:
             self.plan = plan
-            self.motion.set_target(self._x4(plan.pregrasp))
-        if self.motion.finished:
-            return State.DESCEND, "above the target"
+            self._go_to(plan.pregrasp)
+        if (self.motion.finished or self._with_target(self.plan.pregrasp)) and not self.finished:
+            return State.DESCEND, "above the target" + (
+                ", moving with it" if self._target_velocity() is not None else ""
+            )
         return None
 
     # ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
+    def _near_limits(self) -> CartesianLimits:
+        """Near the object: gentle, but keeping up across the table with a target that moves."""
+        return self.p.near if self._target_velocity() is None else self.p.near.with_xy_of(self.p.free)
+
     def _enter_descend(self, obs: Observation) -> None:
         assert self.plan is not None
         self._descent_plan = self.plan
-        self.motion.set_target(self._x4(self.plan.grasp), limits=self.p.near)
+        v = self._target_velocity()
+        self._descent_ref = (self.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, obs.time_s)
+        self._go_to(self.plan.grasp, limits=self._near_limits())
 
     def _tick_descend(self, obs: Observation) -> tuple[State, str] | None:
         plan = self._track_plan()
         if plan is not None:
-            assert self._descent_plan is not None
-            moved = float(np.linalg.norm(plan.grasp.position[:2] - self._descent_plan.grasp.position[:2]))
+            assert self._descent_plan is not None and self._descent_ref is not None
+            xy, v, t = self._descent_ref  # where the descent expected the target now
+            moved = float(np.linalg.norm(plan.grasp.position[:2] - (xy + v * (obs.time_s - t))))
             turned = abs(plan.hand_yaw_rad - self._descent_plan.hand_yaw_rad)
             self.plan = plan
             if moved > self.p.moved_tolerance_m or turned > self.p.moved_tolerance_rad:
@@ -536,8 +658,8 @@ class PickMachine:
                     f"the target moved {moved * 1e3:.0f} mm, {np.degrees(turned):.0f} deg during the descent: "
                     "backing off to approach again"
                 )
-            self.motion.set_target(self._x4(plan.grasp))
-        if self.motion.finished:
+            self._go_to(plan.grasp)
+        if (self.motion.finished or self._with_target(self.plan.grasp)) and not self.finished:
             return State.CLOSE, "at the grasp pose"
         return None
 
@@ -549,6 +671,11 @@ class PickMachine:
 
     def _tick_close(self, obs: Observation) -> tuple[State, str] | None:
         assert self.plan is not None
+        if self._target_velocity() is not None and min(obs.finger_contacts) == 0:
+            plan = self._track_plan()  # moving with it until the fingers hold it
+            if plan is not None:
+                self.plan = plan
+                self._go_to(plan.grasp)
         stalled = self._fingers_stalled(obs)
         if not stalled and obs.time_s - self._since_s < self.p.close_timeout_s:
             return None
@@ -567,7 +694,11 @@ class PickMachine:
     def _enter_lift(self, obs: Observation) -> None:
         assert self.plan is not None
         self._no_hold = 0
-        self.motion.set_target(self._x4(self.plan.lift), limits=self.p.near.scaled(self.lift_scale))
+        lift = self._x4(self.plan.lift)
+        v = self.motion.velocity[:2]
+        if np.any(v != 0.0):  # held on the move: carry on along its way a little while rising
+            lift[:2] = self.motion.setpoint[:2] + v * self.p.lift_lead_s
+        self.motion.set_target(lift, limits=self._near_limits().scaled(self.lift_scale))
 
     def _tick_lift(self, obs: Observation) -> tuple[State, str] | None:
         if self._dropped(obs):
@@ -653,7 +784,11 @@ class PickMachine:
         x4 = self.motion.setpoint.copy()
         x4[2] = max(x4[2], safe_z)
         # Limits change only at rest: lowered mid-motion, Ruckig may overshoot while braking.
-        self.motion.set_target(x4, limits=self.p.near if self.motion.finished else None)
+        limits = self._near_limits() if self.motion.finished else None
+        if self._after_back_off is State.APPROACH and self._target_velocity() is not None:
+            self._go_to(x4, limits=limits)  # up, and along with it
+            return
+        self.motion.set_target(x4, limits=limits)
 
     def _tick_back_off(self, obs: Observation) -> tuple[State, str] | None:
         if self._after_back_off is State.APPROACH:

@@ -37,7 +37,7 @@ Vec3 = tuple[Coord, Coord, Coord]
 #: Names: printable, no spaces or control characters (they end up in terminals, files and JUnit XML).
 Name = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}$")]
 #: Bodies of the scene that an object may not be named after.
-RESERVED_NAMES = frozenset({"robot", "table", "world", "camera"})
+RESERVED_NAMES = frozenset({"robot", "table", "world", "camera", "conveyor"})
 MAX_FILE_BYTES = 1 << 20
 MAX_NESTING = 16
 
@@ -279,6 +279,54 @@ class DisturbanceSpec(_Model):
         return self
 
 
+Speed = Annotated[float, Field(ge=0.0, le=0.5)]  # m/s, a belt's speed
+
+
+class ConveyorSpec(_Model):
+    """A belt across the table that carries what rests on it (by friction, as a real belt does).
+
+    The robot knows where the belt is (the cell's layout), never how fast it runs: that it measures.
+    Its clock starts with the robot's (the first control tick): ``speed_changes`` are timed from then.
+    """
+
+    velocity_m_s: tuple[Annotated[float, Field(ge=-0.5, le=0.5)], Annotated[float, Field(ge=-0.5, le=0.5)]]  # x, y
+    x_range_m: tuple[Coord, Coord]  # the belt's strip on the table
+    y_range_m: tuple[Coord, Coord]
+    speed_changes: tuple[tuple[Annotated[float, Field(ge=0.0, le=600.0)], Speed], ...] = ()  # (time s, speed m/s)
+    height_m: Annotated[float, Field(ge=0.002, le=0.1)] = 0.01  # its top surface above the table
+    color: tuple[UnitFloat, UnitFloat, UnitFloat] = (0.16, 0.17, 0.19)
+    friction: Friction = 0.9
+
+    @model_validator(mode="after")
+    def _check(self) -> ConveyorSpec:
+        for key in ("x_range_m", "y_range_m"):
+            lo, hi = getattr(self, key)
+            if hi - lo < 0.05:
+                raise ValueError(f"{key} must be [min, max] and at least 0.05 m wide")
+        if sum(v * v for v in self.velocity_m_s) ** 0.5 > 0.5:
+            raise ValueError("velocity_m_s: at most 0.5 m/s")
+        times = [t for t, _ in self.speed_changes]
+        if times != sorted(times) or len(set(times)) != len(times):
+            raise ValueError("speed_changes must be in increasing time order")
+        if self.speed_changes and self.speed == 0.0:
+            raise ValueError("speed_changes need a non-zero velocity_m_s (it gives the belt's direction)")
+        return self
+
+    @property
+    def speed(self) -> float:
+        return float(sum(v * v for v in self.velocity_m_s) ** 0.5)
+
+    def holds(self, x: float, y: float, margin: float = 0.0) -> bool:
+        """Whether (x, y) lies on the belt, ``margin`` inside its edges."""
+        (x0, x1), (y0, y1) = self.x_range_m, self.y_range_m
+        return x0 + margin <= x <= x1 - margin and y0 + margin <= y <= y1 - margin
+
+    def touches(self, x: float, y: float, radius: float) -> bool:
+        """Whether a footprint of ``radius`` about (x, y) reaches onto the belt."""
+        (x0, x1), (y0, y1) = self.x_range_m, self.y_range_m
+        return x0 - radius < x < x1 + radius and y0 - radius < y < y1 + radius
+
+
 class SimSpec(_Model):
     # 1/1000 s at the finest: a finer step multiplies the work and changes nothing a user would see.
     time_step_s: Annotated[float, Field(ge=1.0 / 1000.0, le=1.0 / 240.0)] = 1.0 / 240.0
@@ -302,6 +350,7 @@ class Scenario(_Model):
     sim: SimSpec = SimSpec()
     control: ControlSpec = ControlSpec()
     disturbances: tuple[DisturbanceSpec, ...] = ()
+    conveyor: ConveyorSpec | None = None
 
     @model_validator(mode="after")
     def _check(self) -> Scenario:
@@ -326,6 +375,11 @@ class Scenario(_Model):
                     f"objects.{targets[0].name}: the target of a pick cannot be static (it could never be lifted)"
                 )
         return self
+
+    def surface_z(self, x: float, y: float) -> float:
+        """Height of what an object standing at (x, y) rests on: the belt's top, or the table (0)."""
+        c = self.conveyor
+        return c.height_m if c is not None and c.holds(x, y) else 0.0
 
     @property
     def target(self) -> ObjectSpec:

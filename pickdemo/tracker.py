@@ -9,9 +9,11 @@ Pure: estimates in, a Gaussian belief out. A constant-velocity Kalman filter on 
   time of the newest estimate it has taken in; :meth:`TargetTracker.predict` carries it to any later
   time (the controller asks for *now*), so the delay is compensated with the estimated rates.
 - **Outliers** are rejected with a Mahalanobis gate on the innovation. A run of rejected estimates
-  that agree with each other is not an outlier but a world that changed (the target was pushed):
-  after :attr:`TrackerParams.jump_confirm` of them the filter restarts on the newest, and counts a
-  jump, which the controller reads.
+  that agree with each other is not an outlier but a world that changed (the target was pushed, or
+  its belt changed speed): when :attr:`TrackerParams.jump_confirm` of them in a row fit one
+  constant-velocity motion (a weighted line fit with the track's prior on the rates, tested by its
+  chi-square), the filter restarts from that fit, position and rates, and counts a jump, which the
+  controller reads.
 - **Yaw** is known modulo the target's symmetry (a quarter turn for a square box, a half turn for
   any box); innovations are wrapped to that period. A cylinder has no yaw: its yaw is not updated.
 - **Lost**: no estimate accepted for :attr:`TrackerParams.lost_after_s`; the controller decides what
@@ -28,7 +30,7 @@ from pickdemo.geometry import wrap_angle
 from pickdemo.perception import PoseEstimate
 
 #: 99.9 % quantiles of the chi-square distribution, by degrees of freedom (the gate's threshold).
-CHI2_999 = {3: 16.266, 4: 18.467}
+CHI2_999 = {3: 16.266, 4: 18.467, 6: 22.458, 8: 26.124, 9: 27.877, 12: 32.909}
 
 
 @dataclass(frozen=True)
@@ -156,8 +158,9 @@ class TargetTracker:
                 self._rejected.clear()
                 return TrackerUpdate(False, d2, reason=f"beyond the gate ({np.sqrt(d2):.1f} sigma), a partial view")
             self._rejected.append((time_s, z, R, with_yaw))
-            if self._jump_confirmed():
-                self._start(z, R, time_s, with_yaw)
+            fit = self._jump_fit()
+            if fit is not None:
+                self._restart(*fit, time_s)
                 self.jumps += 1
                 return TrackerUpdate(True, d2, jumped=True, reason="the target moved: the track restarts")
             return TrackerUpdate(False, d2, reason=f"Mahalanobis distance {np.sqrt(d2):.1f} beyond the gate")
@@ -192,17 +195,12 @@ class TargetTracker:
         return z, R
 
     def _start(self, z: np.ndarray, R: np.ndarray, time_s: float, with_yaw: bool = True) -> None:
-        p = self.params
         self._x = z.copy()
         self._x[4:] = 0.0
-        P = np.zeros((8, 8))
+        P = self._velocity_prior()
         P[:4, :4] = R[:4, :4]
         if not (self.has_yaw and with_yaw):
             P[3, 3] = np.pi**2
-        P[4:7, 4:7] = (
-            np.diag([p.initial_speed_sigma_m_s, p.initial_speed_sigma_m_s, p.initial_vertical_speed_sigma_m_s]) ** 2
-        )
-        P[7, 7] = p.initial_yaw_rate_sigma_rad_s**2
         self._P = P
         self._t = time_s
         self._last_accept_s = time_s
@@ -224,19 +222,65 @@ class TargetTracker:
         Q[4:, 4:] = np.diag(q * dt)
         return F @ self._x, F @ self._P @ F.T + Q
 
-    def _jump_confirmed(self) -> bool:
-        """The last ``jump_confirm`` rejected estimates, in a row, agree with each other."""
+    def _velocity_prior(self) -> np.ndarray:
+        """The prior covariance of the rates when a track starts (8x8, zero but for the rates)."""
+        p = self.params
+        P = np.zeros((8, 8))
+        P[4:7, 4:7] = (
+            np.diag([p.initial_speed_sigma_m_s, p.initial_speed_sigma_m_s, p.initial_vertical_speed_sigma_m_s]) ** 2
+        )
+        P[7, 7] = p.initial_yaw_rate_sigma_rad_s**2
+        return P
+
+    def _jump_fit(self) -> tuple[np.ndarray, np.ndarray, bool] | None:
+        """The last ``jump_confirm`` rejected estimates in a row, if they fit one constant-velocity
+        motion: its state (pose and rates at the newest) and covariance, and whether it has a yaw.
+
+        Weighted least squares of ``z_i = p + v (t_i - t_n)`` with the rates' prior as a pseudo
+        measurement; accepted when the residuals' chi-square is within its 99.9 % quantile.
+        """
         n = self.params.jump_confirm
         if len(self._rejected) < n:
-            return False
+            return None
         run = self._rejected[-n:]
         with_yaw = all(w for *_, w in run)
-        H = self._H(with_yaw)
-        for (_, za, Ra, _), (_, zb, Rb, _) in zip(run[:-1], run[1:], strict=True):
-            d = H @ (zb - za)
-            if with_yaw:
-                d[3] = wrap_angle(d[3], self.symmetry)
-            S = H @ (Ra + Rb) @ H.T
-            if float(d @ np.linalg.solve(S, d)) > CHI2_999[len(d)]:
-                return False
-        return True
+        rows = [0, 1, 2, 3] if with_yaw else [0, 1, 2]
+        m = len(rows)
+        idx = rows + [r + 4 for r in rows]
+        t_n = run[-1][0]
+        prior = self._velocity_prior()
+        prior_info = np.linalg.inv(prior[np.ix_(idx[m:], idx[m:])])
+        info = np.zeros((2 * m, 2 * m))
+        info[m:, m:] = prior_info
+        vec = np.zeros(2 * m)
+        blocks = []
+        for t, z, R, _ in run:
+            A = np.hstack([np.eye(m), (t - t_n) * np.eye(m)])
+            zi = z[rows].copy()
+            if with_yaw:  # the equivalent yaw nearest the newest's
+                zi[3] = run[-1][1][3] + wrap_angle(zi[3] - run[-1][1][3], self.symmetry)
+            W = np.linalg.inv(R[np.ix_(rows, rows)])
+            info += A.T @ W @ A
+            vec += A.T @ W @ zi
+            blocks.append((A, zi, W))
+        cov = np.linalg.inv(info)
+        sol = cov @ vec
+        chi2 = sum(float((zi - A @ sol) @ W @ (zi - A @ sol)) for A, zi, W in blocks)
+        chi2 += float(sol[m:] @ prior_info @ sol[m:])  # the rates against their prior
+        if chi2 > CHI2_999[(n - 1) * m]:
+            return None
+        x = np.zeros(8)
+        x[idx] = sol
+        if not with_yaw:
+            x[3] = run[-1][1][3]
+        P = self._velocity_prior()
+        P[np.ix_(idx, idx)] = cov
+        if not (self.has_yaw and with_yaw):
+            P[3, 3] = np.pi**2
+        return x, P, with_yaw
+
+    def _restart(self, x: np.ndarray, P: np.ndarray, with_yaw: bool, time_s: float) -> None:
+        self._x, self._P, self._t = x, 0.5 * (P + P.T), time_s
+        self._last_accept_s = time_s
+        self._rejected.clear()
+        self.accepted += 1

@@ -86,6 +86,12 @@ class Scene:
         self.steps = 0
         self.bodies: dict[str, int] = {}
         self._build_table()
+        self.belt = None
+        if scenario.conveyor is not None:
+            from pickdemo.sim.conveyor import Belt
+
+            self.belt = Belt(self.client, scenario.conveyor, self.bodies["table"])
+            self.bodies["conveyor"] = self.belt.body
         self._build_robot()
         specs = {o.name: o for o in scenario.objects}
         for placement in layout:
@@ -163,10 +169,22 @@ class Scene:
 
     def step(self, n: int = 1) -> None:
         for _ in range(n):
+            if self.belt is not None:
+                self.belt.before_step(self.sim_time_s)
             self.client.stepSimulation()
+            self.steps += 1
             if self.gui:  # pace the window for a human; never affects the simulation's outcome
                 time.sleep(self.time_step_s)
-        self.steps += n
+
+    def start_belt(self) -> None:
+        """Start the conveyor (if there is one): what rests on it rides along from now. World set-up."""
+        if self.belt is None:
+            return
+        riders = [
+            b for n, b in self.bodies.items()
+            if n not in ("robot", "table", "conveyor") and self.scenario.conveyor.holds(*self.true_pose(n).position[:2])
+        ]  # fmt: skip
+        self.belt.start(self.sim_time_s, riders)
 
     # --------------------------------------------------------------------- what the robot senses
     def joint_state(self) -> JointState:
@@ -199,7 +217,7 @@ class Scene:
 
     def objects_at_rest(self, speed_m_s: float = 2e-3) -> bool:
         """Whether every movable object is (nearly) still: for setting the world up, never for control."""
-        robotless = (b for n, b in self.bodies.items() if n not in ("robot", "table"))
+        robotless = (b for n, b in self.bodies.items() if n not in ("robot", "table", "conveyor"))
         return all(np.linalg.norm(self.client.getBaseVelocity(b)[0]) < speed_m_s for b in robotless)
 
     def settle(self, max_steps: int) -> int:

@@ -1,0 +1,105 @@
+"""The conveyor belt: a slab that slides along the belt's direction and carries what rests on it by
+friction, as a real belt does.
+
+The slab is the one link of a fixed-base multibody, on a prismatic joint along the belt's
+direction, driven by a velocity motor (force high enough that nothing on it slows it down). A real
+belt is endless; the slab is longer than the strip by :data:`REWIND_M` and slid back by that much
+whenever it has travelled it (``resetJointState``: a surface of uniform colour looks the same before
+and after). Measured: a rewind under a riding cube moves it 0.2 mm once and leaves its speed as it
+was. The slab does not collide with the table it lies on.
+
+The belt's clock starts with :meth:`Belt.start` (the robot's first control tick); at that moment
+everything resting on it is given the belt's velocity, as if it had been riding for a while. Speed
+changes ramp at :data:`BELT_ACCELERATION_M_S2`. Stepped by the scene before each physics step; all
+of it is a function of the simulated step count, so an episode is the same in any process.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet as p
+from pybullet_utils.bullet_client import BulletClient
+
+from pickdemo.scenario import ConveyorSpec
+
+#: How far the slab travels before it is slid back (m).
+REWIND_M = 0.2
+#: How fast the belt changes speed (m/s^2): a speed change of 0.05 m/s takes 0.1 s.
+BELT_ACCELERATION_M_S2 = 0.5
+#: The motor's force (N): far more than friction from anything the belt carries.
+MOTOR_FORCE_N = 2000.0
+
+
+def belt_speed(spec: ConveyorSpec, t_s: float) -> float:
+    """The belt's commanded speed ``t_s`` after it started: its speed, then each change, ramped."""
+    speed = spec.speed
+    for at, new in spec.speed_changes:
+        if t_s <= at:
+            break
+        ramp = (t_s - at) * BELT_ACCELERATION_M_S2
+        speed = new if abs(new - speed) <= ramp else speed + np.sign(new - speed) * ramp
+    return float(speed)
+
+
+class Belt:
+    """The belt's body in one PyBullet world."""
+
+    def __init__(self, client: BulletClient, spec: ConveyorSpec, table_body: int) -> None:
+        self.client = client
+        self.spec = spec
+        (x0, x1), (y0, y1) = spec.x_range_m, spec.y_range_m
+        speed = spec.speed
+        self.direction = np.array(spec.velocity_m_s) / speed if speed > 0 else np.array([0.0, 1.0])
+        h = spec.height_m
+        half = [
+            (x1 - x0) / 2.0 + abs(self.direction[0]) * REWIND_M / 2.0,
+            (y1 - y0) / 2.0 + abs(self.direction[1]) * REWIND_M / 2.0,
+            h / 2.0,
+        ]
+        col = client.createCollisionShape(p.GEOM_BOX, halfExtents=half)
+        vis = client.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[*spec.color, 1.0])
+        self.body = client.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=-1,
+            baseVisualShapeIndex=-1,
+            basePosition=[(x0 + x1) / 2.0, (y0 + y1) / 2.0, h / 2.0],
+            linkMasses=[5.0],
+            linkCollisionShapeIndices=[col],
+            linkVisualShapeIndices=[vis],
+            linkPositions=[[0.0, 0.0, 0.0]],
+            linkOrientations=[[0.0, 0.0, 0.0, 1.0]],
+            linkInertialFramePositions=[[0.0, 0.0, 0.0]],
+            linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]],
+            linkParentIndices=[0],
+            linkJointTypes=[p.JOINT_PRISMATIC],
+            linkJointAxis=[[float(self.direction[0]), float(self.direction[1]), 0.0]],
+        )
+        client.setCollisionFilterPair(self.body, table_body, 0, -1, 0)
+        client.changeDynamics(self.body, 0, lateralFriction=spec.friction, linearDamping=0.0, angularDamping=0.0)
+        client.resetJointState(self.body, 0, -REWIND_M / 2.0, 0.0)
+        self._hold(0.0)
+        self.start_s: float | None = None
+        self.rewinds = 0
+
+    def _hold(self, speed: float) -> None:
+        self.client.setJointMotorControl2(self.body, 0, p.VELOCITY_CONTROL, targetVelocity=speed, force=MOTOR_FORCE_N)
+
+    def start(self, now_s: float, riders: list[int]) -> None:
+        """Run from now; the bodies in ``riders`` (resting on it) move with it from the start."""
+        self.start_s = now_s
+        v = self.spec.speed * self.direction
+        pos = self.client.getJointState(self.body, 0)[0]
+        self.client.resetJointState(self.body, 0, pos, self.spec.speed)
+        for body in riders:
+            self.client.resetBaseVelocity(body, [float(v[0]), float(v[1]), 0.0], [0.0, 0.0, 0.0])
+        self._hold(self.spec.speed)
+
+    def before_step(self, now_s: float) -> None:
+        """Drive the belt for the next physics step (and slide the slab back when it has run out)."""
+        if self.start_s is None:
+            return
+        pos, vel = self.client.getJointState(self.body, 0)[:2]
+        if pos > REWIND_M / 2.0:
+            self.client.resetJointState(self.body, 0, pos - REWIND_M, vel)
+            self.rewinds += 1
+        self._hold(belt_speed(self.spec, now_s - self.start_s))
