@@ -641,7 +641,7 @@ class PickMachine:
         assert self.plan is not None
         self._descent_plan = self.plan
         v = self._target_velocity()
-        self._descent_ref = (self.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, obs.time_s)
+        self._descent_ref = (self.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, self._planned_at_s)
         self._go_to(self.plan.grasp, limits=self._near_limits())
 
     def _tick_descend(self, obs: Observation) -> tuple[State, str] | None:

@@ -85,13 +85,15 @@ class Scene:
         self.time_step_s = scenario.sim.time_step_s
         self.steps = 0
         self.bodies: dict[str, int] = {}
-        self._build_table()
         self.belt = None
-        if scenario.conveyor is not None:
+        if scenario.conveyor is not None:  # before the table: TinyRenderer then shades only the belt where both are
             from pickdemo.sim.conveyor import Belt
 
-            self.belt = Belt(self.client, scenario.conveyor, self.bodies["table"])
+            self.belt = Belt(self.client, scenario.conveyor)
             self.bodies["conveyor"] = self.belt.body
+        self._build_table()
+        if self.belt is not None:
+            self.belt.ignore(self.bodies["table"])
         self._build_robot()
         specs = {o.name: o for o in scenario.objects}
         for placement in layout:
