@@ -462,6 +462,9 @@ class PickMachine:
         """Seconds from now until the hand can be at ``x4`` carried along at ``v`` (a plan's pose for
         the target where it is now) moving with it; None: not within the horizon."""
         vel4 = np.array([v[0], v[1], 0.0, 0.0])
+        reach = np.array((limits or self.motion.limits).arrays()[0][:2])
+        if np.any(np.abs(v) > 0.9 * reach):  # it would run away from the hand
+            return None
         return self.motion.intercept(lambda t: x4 + vel4 * t, vel4, limits=limits, latest_s=self.p.meet_horizon_s)
 
     def _go_to(self, pose: Pose | np.ndarray, limits: CartesianLimits | None = None) -> None:
@@ -474,10 +477,16 @@ class PickMachine:
             return
         t = self._meet(x4, v, limits or self.motion.limits)
         if t is None:
-            self._fail(Stage.IK, f"the target moves too fast to be met within {self.p.meet_horizon_s:.0f} s")
+            self._fail(Stage.IK, self._too_fast(v))
             return
         vel4 = np.array([v[0], v[1], 0.0, 0.0])
         self.motion.set_target(x4 + vel4 * t, velocity=vel4, limits=limits, arrive_in_s=t)
+
+    def _too_fast(self, v: np.ndarray) -> str:
+        return (
+            f"the target moves at {np.linalg.norm(v):.2f} m/s: too fast for the hand "
+            f"({self.p.free.velocity:.2f} m/s an axis) to meet it within {self.p.meet_horizon_s:.0f} s"
+        )
 
     def _with_target(self, pose: Pose) -> bool:
         """Whether the hand is at ``pose`` of the plan (for the target where it is now) and moving with
@@ -503,7 +512,7 @@ class PickMachine:
             return [("grasp", plan.grasp)]
         t = self._meet(self._x4(plan.pregrasp), v, self.p.free)
         if t is None:
-            return f"the target moves too fast to be met within {self.p.meet_horizon_s:.0f} s"
+            return self._too_fast(v)
         out = []
         for name, dt in (("the meeting point", t), ("where it would be held", t + self.p.grasp_time_s)):
             d = np.array([v[0], v[1], 0.0]) * dt

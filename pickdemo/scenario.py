@@ -280,6 +280,8 @@ class DisturbanceSpec(_Model):
 
 
 Speed = Annotated[float, Field(ge=0.0, le=0.5)]  # m/s, a belt's speed
+#: How fast a belt changes speed (m/s^2): a change of 0.05 m/s takes 0.1 s.
+BELT_ACCELERATION_M_S2 = 0.5
 
 
 class ConveyorSpec(_Model):
@@ -315,6 +317,17 @@ class ConveyorSpec(_Model):
     @property
     def speed(self) -> float:
         return float(sum(v * v for v in self.velocity_m_s) ** 0.5)
+
+    def speed_at(self, t_s: float) -> float:
+        """The belt's speed ``t_s`` after it started: its speed, then each change, ramped at
+        :data:`BELT_ACCELERATION_M_S2`."""
+        speed = self.speed
+        for at, new in self.speed_changes:
+            if t_s <= at:
+                break
+            ramp = (t_s - at) * BELT_ACCELERATION_M_S2
+            speed = new if abs(new - speed) <= ramp else speed + (ramp if new > speed else -ramp)
+        return float(speed)
 
     def holds(self, x: float, y: float, margin: float = 0.0) -> bool:
         """Whether (x, y) lies on the belt, ``margin`` inside its edges."""

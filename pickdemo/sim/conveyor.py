@@ -10,7 +10,7 @@ was. The slab does not collide with the table it lies on.
 
 The belt's clock starts with :meth:`Belt.start` (the robot's first control tick); at that moment
 everything resting on it is given the belt's velocity, as if it had been riding for a while. Speed
-changes ramp at :data:`BELT_ACCELERATION_M_S2`. Stepped by the scene before each physics step; all
+changes ramp (:meth:`~pickdemo.scenario.ConveyorSpec.speed_at`). Stepped by the scene before each physics step; all
 of it is a function of the simulated step count, so an episode is the same in any process.
 """
 
@@ -24,21 +24,8 @@ from pickdemo.scenario import ConveyorSpec
 
 #: How far the slab travels before it is slid back (m).
 REWIND_M = 0.2
-#: How fast the belt changes speed (m/s^2): a speed change of 0.05 m/s takes 0.1 s.
-BELT_ACCELERATION_M_S2 = 0.5
 #: The motor's force (N): far more than friction from anything the belt carries.
 MOTOR_FORCE_N = 2000.0
-
-
-def belt_speed(spec: ConveyorSpec, t_s: float) -> float:
-    """The belt's commanded speed ``t_s`` after it started: its speed, then each change, ramped."""
-    speed = spec.speed
-    for at, new in spec.speed_changes:
-        if t_s <= at:
-            break
-        ramp = (t_s - at) * BELT_ACCELERATION_M_S2
-        speed = new if abs(new - speed) <= ramp else speed + np.sign(new - speed) * ramp
-    return float(speed)
 
 
 class Belt:
@@ -114,6 +101,6 @@ class Belt:
         if pos > REWIND_M / 2.0:
             self.client.resetJointState(self.body, 0, pos - REWIND_M, vel)
             self.rewinds += 1
-        speed = belt_speed(self.spec, now_s - self.start_s)
+        speed = self.spec.speed_at(now_s - self.start_s)
         if speed != self._speed:
             self._hold(speed)

@@ -1,0 +1,234 @@
+"""Moving targets: the belt, the intercept, the tracker's velocity, and picks off a running conveyor.
+
+The pure parts (the belt's speed schedule, the scenario's rules, Ruckig's intercept, the tracker on
+a moving target) run without a simulator; the rest (marked ``sim``) run the belt and whole episodes.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pickdemo import Stage, run_episode
+from pickdemo import robot_model as rm
+from pickdemo.geometry import Pose
+from pickdemo.kinematics import panda_kinematics
+from pickdemo.motion import OnlineMotion
+from pickdemo.perception import PoseEstimate
+from pickdemo.pick import MachineParams
+from pickdemo.result import WALL_CLOCK_KEYS
+from pickdemo.scenario import ScenarioError, load_scenario, parse_scenario
+from pickdemo.tracker import TargetTracker
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+
+
+def _conveyor_toml(**edits: str) -> str:
+    text = (SCENARIOS / "pick_conveyor.toml").read_text()
+    for old, new in edits.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    return text
+
+
+def _load(tmp_path: Path, text: str):
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    return load_scenario(path)
+
+
+# ------------------------------------------------------------------------------------- scenario
+def test_belt_speed_changes_ramp_at_half_a_g_twentieth() -> None:
+    import tomllib
+
+    data = tomllib.loads(_conveyor_toml())
+    data["conveyor"]["speed_changes"] = [[1.0, 0.10], [3.0, 0.0]]
+    belt = parse_scenario(data).conveyor
+    assert belt.speed_at(0.5) == pytest.approx(0.05)
+    assert belt.speed_at(1.05) == pytest.approx(0.075)  # 0.5 m/s^2
+    assert belt.speed_at(1.2) == pytest.approx(0.10)
+    assert belt.speed_at(3.1) == pytest.approx(0.05)
+    assert belt.speed_at(10.0) == 0.0
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        ({"position = [0.25, 0.3]": "position = [0.5, 0.3]"}, "place.position: (0.500, 0.300) m is on the belt"),
+        ({"[[0.45, 0.55], [-0.35, -0.25]]": "[[0.30, 0.55], [-0.35, -0.25]]"}, "straddles the belt's edge"),
+        ({"x_range_m = [0.35, 0.65]": "x_range_m = [0.65, 0.35]"}, "conveyor: x_range_m must be [min, max]"),
+        ({"y_range_m = [-0.6, 0.6]": "y_range_m = [-0.6, 0.9]"}, "conveyor: its strip"),
+        ({"y_range_m = [-0.6, 0.6]": "y_range_m = [-0.6, 0.6]\nspeed_changes = [[4.0, 0.1], [2.0, 0.2]]"},
+         "increasing time order"),
+        ({"y_range_m = [-0.6, 0.6]": "y_range_m = [-0.6, 0.6]\nspeed_changes = [[4.0, 0.9]]"},
+         "conveyor.speed_changes"),
+        ({"velocity_m_s = [0.0, 0.05]": "velocity_m_s = [0.0, 0.0]\nspeed_changes = [[1.0, 0.1]]"},
+         "need a non-zero velocity_m_s"),
+        ({"velocity_m_s = [0.0, 0.05]": "velocity_m_s = [0.0, 0.05]\nspeed = 0.1"}, "conveyor.speed: unknown key"),
+    ],
+)  # fmt: skip
+def test_bad_conveyor_is_one_line_naming_the_key(tmp_path: Path, edit: dict, message: str) -> None:
+    with pytest.raises(ScenarioError) as info:
+        _load(tmp_path, _conveyor_toml(**edit))
+    text = str(info.value)
+    assert message in text and "\n" not in text
+
+
+def test_objects_on_the_belt_rest_on_its_top(tmp_path: Path) -> None:
+    from pickdemo.layout import sample_layout
+    from pickdemo.streams import spawn_rngs
+
+    sc = load_scenario("pick_conveyor")
+    (cube,) = sample_layout(sc, spawn_rngs(0)["layout"])
+    assert cube.pose.position[2] == pytest.approx(sc.conveyor.height_m + 0.025)
+    assert sc.surface_z(*sc.place.position) == 0.0
+
+
+# ----------------------------------------------------------------------------- intercept (Ruckig)
+@pytest.fixture(scope="module")
+def motion() -> OnlineMotion:
+    return OnlineMotion(panda_kinematics(), rm.HOME_Q, 1.0 / 120.0, MachineParams().free)
+
+
+@pytest.mark.parametrize("speed", [0.05, 0.1, 0.2])
+def test_intercept_is_the_soonest_meeting(motion: OnlineMotion, speed: float) -> None:
+    x4 = np.array([0.52, -0.33, 0.135, 0.35])
+    vel4 = np.array([0.0, speed, 0.0, 0.0])
+    t = motion.intercept(lambda s: x4 + vel4 * s, vel4)
+    assert t is not None and 1.0 < t < 2.5
+    assert motion.time_to(x4 + vel4 * t, vel4) <= t + 1e-3  # the hand can be there by then
+    earlier = t - 0.01
+    assert motion.time_to(x4 + vel4 * earlier, vel4) > earlier  # and not 10 ms sooner
+
+
+def test_intercept_gives_up_on_a_target_faster_than_the_hand(motion: OnlineMotion) -> None:
+    x4 = np.array([0.52, -0.33, 0.135, 0.35])
+    vel4 = np.array([0.0, -0.29, 0.0, 0.0])  # running away, nearly as fast as the hand (0.3 m/s an axis)
+    assert motion.intercept(lambda s: x4 + vel4 * s, vel4, latest_s=3.0) is None
+
+
+def test_hand_arrives_with_the_target_and_moves_with_it() -> None:
+    m = OnlineMotion(panda_kinematics(), rm.HOME_Q, 1.0 / 120.0, MachineParams().free)
+    x4 = np.array([0.52, -0.33, 0.135, 0.35])
+    vel4 = np.array([0.0, 0.1, 0.0, 0.0])
+    t = m.intercept(lambda s: x4 + vel4 * s, vel4)
+    m.set_target(x4 + vel4 * t, velocity=vel4, arrive_in_s=t)
+    n = int(round(t * 120))
+    for _ in range(n):
+        m.step()
+    assert m.finished
+    assert np.allclose(m.setpoint, x4 + vel4 * n / 120.0, atol=2e-3)
+    for _ in range(60):  # and carries on with it: half a second later, 5 cm on
+        sample = m.step()
+    assert np.allclose(sample.velocity, vel4, atol=1e-9)
+    assert np.allclose(m.setpoint, x4 + vel4 * (n + 60) / 120.0, atol=2e-3)
+
+
+# ----------------------------------------------------------------------------------- tracker
+def _estimate(xyz: np.ndarray, yaw: float, sigma: float = 5e-4) -> PoseEstimate:
+    return PoseEstimate(
+        pose=Pose.from_xyz_rpy(np.asarray(xyz, dtype=float), yaw=yaw),
+        position_cov=np.eye(3) * sigma**2,
+        rpy_cov=np.eye(3) * np.radians(0.3) ** 2,
+        yaw_symmetry_rad=np.pi / 2.0,
+        top_face_size_m=(0.05, 0.05),
+        n_features=20,
+        n_face_pixels=400,
+    )
+
+
+def test_tracker_learns_a_belts_speed_and_follows_a_speed_change() -> None:
+    tracker = TargetTracker(np.pi / 2.0, MachineParams().on_a_belt().tracker)
+    rng = np.random.default_rng(0)
+    y, t, speed = -0.3, 0.0, 0.05
+    for k in range(40):
+        if k == 15:
+            speed = 0.10  # the belt speeds up
+        y += speed * 0.1
+        t += 0.1
+        noisy = np.array([0.5, y, 0.035]) + rng.normal(0.0, 5e-4, 3)
+        tracker.update(_estimate(noisy, 0.3), t)
+        if k == 14:
+            assert tracker.predict(t).velocity[1] == pytest.approx(0.05, abs=0.004)
+    tp = tracker.predict(t)
+    assert tp.velocity[1] == pytest.approx(0.10, abs=0.004)
+    assert tp.position[1] == pytest.approx(y, abs=0.002)
+
+
+# ---------------------------------------------------------------------------- the belt (simulator)
+@pytest.mark.sim
+@pytest.mark.parametrize("speed", [0.05, 0.2])
+def test_belt_carries_a_cube_at_its_speed_by_friction(tmp_path: Path, speed: float) -> None:
+    from pickdemo.layout import sample_layout
+    from pickdemo.sim.scene import Scene
+    from pickdemo.streams import spawn_rngs
+
+    sc = _load(tmp_path, _conveyor_toml(**{"velocity_m_s = [0.0, 0.05]": f"velocity_m_s = [0.0, {speed}]"}))
+    with Scene(sc, sample_layout(sc, spawn_rngs(0)["layout"])) as scene:
+        scene.settle(480)
+        scene.start_belt()
+        start = scene.true_pose("cube").position
+        scene.step(480)  # 2 s
+        end = scene.true_pose("cube").position
+        assert end[1] - start[1] == pytest.approx(2.0 * speed, abs=1e-3)
+        assert abs(end[0] - start[0]) < 2e-4 and abs(end[2] - start[2]) < 2e-4  # rides flat on it
+        assert scene.belt.rewinds == (1 if speed > 0.1 else 0)  # the slab slid back unseen (every 0.2 m)
+
+
+# ------------------------------------------------------------------------------------ episodes
+
+
+@pytest.mark.sim
+@pytest.mark.parametrize(("name", "seed"), [("pick_conveyor", 4), ("pick_conveyor_rush", 7)])
+def test_cube_is_picked_off_a_running_belt(name: str, seed: int) -> None:
+    sc = load_scenario(name)
+    r = run_episode(sc, seed)
+    assert r.success, r.failure
+    assert [a.outcome for a in r.attempts] == ["placed"]
+    assert any("moving with it" in p.message for p in r.phases)  # met where it was going, at its speed
+    assert r.tracking_error_mm is not None and r.tracking_error_mm < 2.0  # the tracker's belief at the grasp
+    assert r.place_error_mm < 5.0
+    assert r.perception_rate_hz == pytest.approx(10.0, rel=0.05)
+    assert r.target_off_table is False
+
+
+@pytest.mark.sim
+def test_belt_speeding_up_mid_approach_is_followed() -> None:
+    r = run_episode(load_scenario("pick_conveyor_speed_change"), 2)
+    assert r.success, r.failure
+    assert r.tracking_error_mm < 2.0
+
+
+@pytest.mark.sim
+def test_open_loop_closes_where_the_cube_was() -> None:
+    r = run_episode(load_scenario("pick_conveyor"), 1, open_loop=True)
+    assert r.attempts[0].outcome == "missed"
+
+
+@pytest.mark.sim
+def test_target_too_fast_to_meet_in_reach_fails_by_name(tmp_path: Path) -> None:
+    sc = _load(tmp_path, _conveyor_toml(**{"velocity_m_s = [0.0, 0.05]": "velocity_m_s = [0.0, 0.45]"}))
+    r = run_episode(sc, 0)
+    assert not r.success and r.failure.stage is Stage.IK
+    assert "leaves the arm's reach" in r.failure.reason or "too fast" in r.failure.reason
+    assert r.diagnosis == "not_committed"
+
+
+@pytest.mark.sim
+def test_conveyor_episodes_are_the_same_with_one_or_two_workers() -> None:
+    from pickdemo.bench import Job, LocalExecutor, run_bench
+    from pickdemo.scenario import resolve_scenario_path
+
+    path = str(resolve_scenario_path("pick_conveyor_fast"))
+    jobs = [Job(path, "pick_conveyor_fast", s) for s in (3, 8)]
+
+    def stripped(results: list[dict]) -> list[str]:
+        return sorted(json.dumps({k: v for k, v in r.items() if k not in WALL_CLOCK_KEYS}, sort_keys=True)
+                      for r in results)  # fmt: skip
+
+    one = run_bench(jobs, LocalExecutor(1), progress=False).results
+    two = run_bench(jobs, LocalExecutor(2), progress=False).results
+    assert stripped(one) == stripped(two)
