@@ -19,6 +19,14 @@ States, in the order of a pick::
 While it approaches, descends and closes it keeps looking (closed loop): the tracker fuses every
 estimate, and the motion is re-targeted to where the tracker says the target is. With
 ``open_loop`` it looks only in ``LOOK`` and plays the plan from that one look, for comparison.
+
+A target the tracker sees moving (a belt) is met where it will be: each re-target solves for the
+soonest time the hand can be at the plan's pose carried along at the target's velocity
+(:meth:`~pickdemo.motion.OnlineMotion.intercept`), and sends Ruckig there with the target's
+velocity as its target velocity and that time as its minimum duration; the hand then moves with
+it, goes down with it, closes on it and lifts it off the belt. A target that will have left the
+arm's reach by the time it is held, or that runs faster than the hand, fails the episode in ``ik``
+by name.
 """
 
 from __future__ import annotations
@@ -407,6 +415,13 @@ class PickMachine:
                     return None
             return plan
         candidates: list[float | None] = [None]
+        v = self._target_velocity()
+        if v is not None:
+            # A moving target: the least turn of the hand first (turning the wrist a quarter while
+            # chasing it across the table drifts the arm's redundancy towards a singularity,
+            # measured), then joint 7 mid-range where it will be held rather than where it is.
+            held = pose.position[:2] + v * self.p.grasp_time_s
+            candidates = [float(self.motion.setpoint[3]), joint7_centre_yaw(tuple(held), tuple(self.place_xy)), None]
         if self._turn_hand and self.plan is not None:
             # The other pair of faces: a quarter turn from the usual angle, towards the middle of
             # joint 7's range (q7 ~ centre - psi), so the wrist keeps room.
