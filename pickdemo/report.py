@@ -167,7 +167,8 @@ def write_bench_plots(summary: dict, results: list[dict], path: Path, title: str
         ax.boxplot(data, showfliers=True)
         ax.set_xticks(y + 1, names, fontsize=7, rotation=20, ha="right")
         ax.set_ylabel(label)
-        if key != "wall_time_s":
+        positive = any(np.isfinite(v) and v > 0 for vs in data for v in vs)
+        if key != "wall_time_s" and positive:  # log only where there is something to scale (all failed: none)
             ax.set_yscale("log")
     for a in axes.flat:
         a.grid(alpha=0.3)

@@ -136,3 +136,16 @@ def test_debug_lines_change_nothing() -> None:
     plain = run_episode(sc, 3).to_dict()
     drawn = run_episode(sc, 3, options=EpisodeOptions(debug_draw=True)).to_dict()
     assert _strip(plain) == _strip(drawn)
+
+
+def test_bench_plot_of_a_batch_where_every_episode_failed(tmp_path: Path) -> None:
+    """No place errors at all (every episode failed): the plot is still drawn (it once raised on a
+    log scale with nothing to scale)."""
+    pytest.importorskip("matplotlib")
+    from pickdemo.bench import Job, failed_result, summarise
+    from pickdemo.report import write_bench_plots
+    from pickdemo.result import Stage
+
+    results = [failed_result(Job("x.toml", "ghost", s), Stage.GRASP, "missed", 1.0) for s in range(3)]
+    path = write_bench_plots(summarise(results), results, tmp_path / "bench.png")
+    _not_blank(path, min_colours=20)
