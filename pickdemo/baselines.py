@@ -25,11 +25,11 @@ from pickdemo.perception import (
     PerceptionParams,
     PoseEstimate,
     TargetModel,
-    _target_roi,
     closest_on_model,
     crop_frame,
     point_covariance,
     segment_target,
+    target_roi,
     world_points,
 )
 
@@ -43,7 +43,7 @@ def _symmetry(model: TargetModel) -> float:
 
 
 def _segment(frame: RGBDFrame, model: TargetModel, params: PerceptionParams):
-    x0, y0, x1, y1 = _target_roi(frame, model, params)
+    x0, y0, x1, y1 = target_roi(frame, model, params)
     f = crop_frame(frame, x0, y0, x1, y1)
     pts = world_points(f)
     mask = segment_target(f, model, params, pts[..., 2])

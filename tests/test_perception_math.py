@@ -11,13 +11,13 @@ from hypothesis.extra.numpy import arrays
 from pickdemo.perception import (
     MIXTURE_KERNEL,
     TargetModel,
-    _fit_outline,
-    _refine_circle,
     condition_on_plane,
+    fit_outline,
     fit_plane_weighted,
     mixture_at,
     mixture_moments,
     point_covariance,
+    refine_circle,
 )
 
 
@@ -118,7 +118,7 @@ def _rectangle_outline(cx: float, cy: float, yaw: float, sx: float, sy: float, n
 def test_rectangle_fit_recovers_centre_and_yaw() -> None:
     rng = np.random.default_rng(1)
     xy = _rectangle_outline(0.01, -0.02, 0.4, 0.05, 0.03) + 2e-4 * rng.standard_normal((240, 2))
-    centre, yaw, size, cov = _fit_outline(xy, TargetModel("box", (0.05, 0.03, 0.02), (1.0, 0.0, 0.0)))
+    centre, yaw, size, cov = fit_outline(xy, TargetModel("box", (0.05, 0.03, 0.02), (1.0, 0.0, 0.0)))
     np.testing.assert_allclose(centre, [0.01, -0.02], atol=5e-5)
     assert np.cos(2 * (yaw - 0.4)) == pytest.approx(1.0, abs=1e-5)  # yaw modulo the half turn
     assert size == pytest.approx((0.05, 0.03), abs=2e-3)  # minAreaRect hull: inflated by the noise
@@ -127,7 +127,7 @@ def test_rectangle_fit_recovers_centre_and_yaw() -> None:
 def test_circle_fit_recovers_centre_from_an_arc() -> None:
     a = np.linspace(0.2, 3.0, 80)  # under half the circle: the far arc that a camera sees
     xy = np.column_stack([0.03 + 0.02 * np.cos(a), -0.01 + 0.02 * np.sin(a)])
-    centre, cov = _refine_circle(xy, np.array([0.025, -0.005]), 0.02)
+    centre, cov = refine_circle(xy, np.array([0.025, -0.005]), 0.02)
     np.testing.assert_allclose(centre, [0.03, -0.01], atol=1e-9)
     assert cov.shape == (2, 2) and np.all(np.linalg.eigvalsh(cov) > 0)
 
@@ -140,7 +140,7 @@ def test_rectangle_fit_covariance_matches_scatter() -> None:
     errs, covs = [], []
     for _ in range(200):
         xy = _rectangle_outline(0.0, 0.0, 0.3, 0.05, 0.03, n=30) + sigma * rng.standard_normal((120, 2))
-        c, yaw, _, cov = _fit_outline(xy, model, np.full(120, 1.0 / sigma**2))
+        c, yaw, _, cov = fit_outline(xy, model, np.full(120, 1.0 / sigma**2))
         errs.append([c[0], c[1], yaw - 0.3])
         covs.append(cov)
     nees = [e @ np.linalg.solve(C, e) for e, C in zip(np.array(errs), covs, strict=True)]

@@ -1,0 +1,181 @@
+"""The 6-DoF covariance-weighted fit of the known box or cylinder to every target pixel and the
+outline, and its covariance.
+
+Pure: arrays in, dataclasses out; no simulator.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from pickdemo.camera import RGBDFrame, pixel_rays_cam
+from pickdemo.geometry import Pose, wrap_angle
+from pickdemo.perception.equations import SIGMA_UV_PX
+from pickdemo.perception.model import TargetModel
+
+#: Smallest position uncertainty reported in any direction (see :func:`~pickdemo.perception.pipeline.estimate_pose`), m.
+MODEL_FLOOR_M = 10e-6
+
+
+def closest_on_model(points: np.ndarray, model: TargetModel) -> tuple[np.ndarray, np.ndarray]:
+    """Closest points on the model's surface (model frame, centred) and the outward normals there."""
+    if model.shape == "box":
+        h = np.array(model.size) / 2.0
+        inside = np.all(np.abs(points) <= h, axis=1)
+        q = np.clip(points, -h, h)
+        # Points inside the box go to their nearest face.
+        gap = h - np.abs(points)
+        axis_in = np.argmin(gap, axis=1)
+        idx = np.nonzero(inside)[0]
+        q[idx, axis_in[idx]] = np.sign(points[idx, axis_in[idx]] + 1e-15) * h[axis_in[idx]]
+        # The normal of the face the closest point lies on (the axis where it sits on the boundary,
+        # preferring the one the point is furthest out along).
+        out = np.abs(points) - h
+        out[inside] = -gap[inside]
+        axis = np.argmax(out, axis=1)
+        n = np.zeros_like(points)
+        n[np.arange(len(points)), axis] = np.sign(points[np.arange(len(points)), axis] + 1e-15)
+        return q, n
+    r, hh = model.size[0] / 2.0, model.size[1] / 2.0
+    rho = np.hypot(points[:, 0], points[:, 1])
+    radial = np.column_stack([points[:, 0], points[:, 1]]) / np.maximum(rho, 1e-12)[:, None]
+    d_side = np.where(np.abs(points[:, 2]) <= hh, np.abs(rho - r), np.inf)
+    d_cap = np.where(rho <= r, np.abs(np.abs(points[:, 2]) - hh), np.inf)
+    on_side = d_side <= d_cap
+    q = points.copy()
+    n = np.zeros_like(points)
+    q[on_side, :2] = radial[on_side] * r
+    q[on_side, 2] = np.clip(points[on_side, 2], -hh, hh)
+    n[on_side, :2] = radial[on_side]
+    caps = ~on_side
+    clip_rho = np.minimum(rho[caps], r)
+    q[caps, :2] = radial[caps] * clip_rho[:, None]
+    q[caps, 2] = np.sign(points[caps, 2] + 1e-15) * hh
+    n[caps, 2] = np.sign(points[caps, 2] + 1e-15)
+    return q, n
+
+
+def _rpy_jacobian(R: np.ndarray) -> np.ndarray:
+    """d(roll, pitch, yaw) / d(rotation vector in the body frame) at R (numeric)."""
+    base = pin.rpy.matrixToRpy(R)
+    J = np.zeros((3, 3))
+    for k in range(3):
+        w = np.zeros(3)
+        w[k] = 1e-7
+        J[:, k] = wrap_angle(pin.rpy.matrixToRpy(R @ pin.exp3(w)) - base) / 1e-7
+    return J
+
+
+def refine_pose_6dof(
+    frame: RGBDFrame,
+    pixels: np.ndarray,
+    mu_z: np.ndarray,
+    var_z: np.ndarray,
+    model: TargetModel,
+    start: Pose,
+    outline_uv: np.ndarray,
+    outline_var: np.ndarray,
+    *,
+    iterations: int = 4,
+    max_points: int = 2000,
+) -> tuple[Pose, np.ndarray, int]:
+    """The object's pose by a covariance-weighted fit of its known shape (our design; the paper
+    leaves the pose step open).
+
+    Residuals, each divided by its own standard deviation:
+
+    * every target pixel's mixture point (eqs. 5-10) against the model's surface, point to plane;
+      its variance is eq. (14)'s covariance projected on the surface normal, so a pixel on an edge,
+      whose 3x3 mixture spans two depths (eq. 10), weighs little;
+    * every outline ray of the top face (and each Shi-Tomasi feature on it): where it meets the
+      model's top plane, its distance to the top face's edge; variance ``outline_var``.
+
+    Gauss-Newton on a twist at the object's centre, ``T = T0 exp(xi)``. Returns the pose, the 6x6
+    covariance of (translation in the world frame, roll / pitch / yaw) and the points used.
+    """
+    K = frame.intrinsics
+    Tc = frame.T_world_cam
+    vs, us = np.nonzero(pixels)
+    if len(vs) > max_points:  # a regular, deterministic thinning: the fit's cost grows with the points
+        keep = np.arange(0, len(vs), int(np.ceil(len(vs) / max_points)))
+        vs, us = vs[keep], us[keep]
+    z = mu_z[vs, us]
+    vz = var_z[vs, us]
+    ok = np.isfinite(z) & np.isfinite(vz)
+    vs, us, z, vz = vs[ok], us[ok], z[ok], vz[ok]
+    du, dv = us - K.cx, vs - K.cy
+    ray = np.column_stack([du / K.fx, dv / K.fy, np.ones(len(z))])  # a = (x/z, y/z, 1)
+    pts = Tc.transform_points(ray * z[:, None])
+    # Eq. (14) is var_z a a^T + sigma_uv^2 z^2 diag(1/fx^2, 1/fy^2, 0); projected on a unit normal
+    # n (camera frame) that is var_z (n.a)^2 + sigma_uv^2 z^2 (n_x^2/fx^2 + n_y^2/fy^2), per point.
+    s2z2 = SIGMA_UV_PX**2 * z * z
+    Rc = Tc.rotation
+    rays = pixel_rays_cam(outline_uv, K) @ Rc.T
+    half_h = model.height_m / 2.0
+
+    def edge_residuals(T: pin.SE3) -> np.ndarray:
+        """Outline rays against the model's top plane and its top face's edges (m)."""
+        R, t = T.rotation, T.translation
+        normal = R[:, 2]
+        top = t + normal * half_h
+        tr = ((top - Tc.position) @ normal) / (rays @ normal)
+        lp = (Tc.position + tr[:, None] * rays - t) @ R
+        if model.shape == "box":
+            hx, hy = model.size[0] / 2.0, model.size[1] / 2.0
+            on_x = np.abs(np.abs(lp[:, 0]) - hx) < np.abs(np.abs(lp[:, 1]) - hy)
+            return np.where(on_x, np.abs(lp[:, 0]) - hx, np.abs(lp[:, 1]) - hy)
+        return np.hypot(lp[:, 0], lp[:, 1]) - model.size[0] / 2.0
+
+    T = start.to_se3()
+    edge_sd = np.sqrt(outline_var)
+    keep_pts = np.ones(len(pts), dtype=bool)
+    keep_edge = np.ones(len(rays), dtype=bool)
+    used = len(pts)
+    for it in range(iterations):
+        R, t = T.rotation, T.translation
+        # Point to plane, the closest model points held fixed in this step (as in ICP):
+        # r = n_w . (p - T q); for T exp(xi): dr/dv = -n, dr/dw = n x q (model frame).
+        local = (pts - t) @ R
+        q, n = closest_on_model(local, model)
+        nw = n @ R.T
+        r_d = np.einsum("ij,ij->i", nw, pts - (q @ R.T + t))
+        nc = nw @ Rc  # normals in the camera frame
+        var_n = vz * np.einsum("ij,ij->i", nc, ray) ** 2 + s2z2 * (nc[:, 0] ** 2 / K.fx**2 + nc[:, 1] ** 2 / K.fy**2)
+        sd = np.sqrt(np.maximum(var_n, 1e-14))
+        J_d = np.hstack([-n, np.cross(n, q)]) / sd[:, None]
+        r_d = r_d / sd
+        r_e = edge_residuals(T) / edge_sd
+        if it == 0:  # numeric, once: near the solution the edges' Jacobian barely changes
+            J_e = np.empty((len(r_e), 6))
+            for k in range(6):
+                d = np.zeros(6)
+                d[k] = 1e-6
+                J_e[:, k] = (edge_residuals(T * pin.exp6(pin.Motion(d[:3], d[3:]))) / edge_sd - r_e) / 1e-6
+        if it == 1:  # drop gross outliers (mis-segmented pixels) once the fit has settled
+            keep_pts = np.abs(r_d) < 4.0
+            keep_edge = np.abs(r_e) < 4.0
+        J = np.vstack([J_d[keep_pts], J_e[keep_edge]])
+        r = np.concatenate([r_d[keep_pts], r_e[keep_edge]])
+        # Minimum-norm least squares on the 6x6 normal equations: a direction that nothing observes
+        # (a cylinder's turn about its axis) is left alone (singular values of J below 1e-9 of
+        # the largest, i.e. of J^T J below 1e-18, are cut).
+        step = np.linalg.lstsq(J.T @ J, -(J.T @ r), rcond=1e-18)[0]
+        T = T * pin.exp6(pin.Motion(step[:3], step[3:]))
+        used = int(keep_pts.sum())
+        if np.linalg.norm(step) < 1e-6:  # 1 um and 1 urad: converged
+            break
+    # Covariance: each group's modelled deviations rescaled by what its residuals show (one step of
+    # variance-component estimation): eq. (10)'s variance counts the noisy spread of the window on
+    # top of the noise itself, and one pixel is generous for a crisp edge.
+    s_d = float(np.sqrt(np.mean(r_d[keep_pts] ** 2))) if keep_pts.any() else 1.0
+    s_e = float(np.sqrt(np.mean(r_e[keep_edge] ** 2))) if keep_edge.any() else 1.0
+    J = np.vstack([J_d[keep_pts] / max(s_d, 1e-3), J_e[keep_edge] / max(s_e, 1e-3)])
+    info = J.T @ J
+    cov_local = np.linalg.pinv(info, rcond=1e-15, hermitian=True)  # pinv: a cylinder has no yaw
+    R = T.rotation
+    # Local translation -> world; local rotation -> roll, pitch, yaw.
+    A = np.zeros((6, 6))
+    A[:3, :3] = R
+    A[3:, 3:] = _rpy_jacobian(R)
+    return Pose.from_se3(T), A @ cov_local @ A.T, used

@@ -1,0 +1,90 @@
+"""What crosses perception's boundary: the target as the task describes it, the tuning, the estimate
+with its uncertainty, and the error.
+
+Pure: arrays in, dataclasses out; no simulator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pickdemo.geometry import Pose
+
+
+class PerceptionError(RuntimeError):
+    """The target could not be found or measured in the frame."""
+
+
+@dataclass(frozen=True)
+class PerceptionParams:
+    """Tuning of the perception stage, validated when built."""
+
+    min_height_m: float = 0.006  # a pixel belongs to an object when this far above the table
+    color_cos_min: float = 0.985  # cosine between a pixel's colour and the target's
+    min_target_px: int = 30
+    max_features: int = 40
+    feature_quality: float = 0.05
+    feature_min_distance_px: int = 3
+    face_color_tol: float = 12.0  # 8-bit units: how far a top-face pixel's colour may stray
+    face_depth_sigmas: float = 3.0
+    edge_sigma_px: float = 1.0  # an outline point's location uncertainty (the paper's sigma_u = 1 px)
+    fit_points: int = 4000  # depth points in the 6-DoF fit at most (a regular thinning beyond)
+    denoise_rgb_sigma: float = 8.0  # from this RGB noise (8-bit) on, a median filter first
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.color_cos_min <= 1.0:
+            raise ValueError("color_cos_min must be in (0, 1]")
+        if self.min_height_m <= 0.0 or self.min_target_px < 3 or self.max_features < 1:
+            raise ValueError("min_height_m, min_target_px and max_features must be positive")
+
+
+@dataclass(frozen=True)
+class TargetModel:
+    """What the task says about the target: shape, size (m) and nominal colour (0-1)."""
+
+    shape: str  # "box" | "cylinder"
+    size: tuple[float, ...]  # box: x, y, z; cylinder: diameter, height
+    color: tuple[float, float, float]
+
+    @property
+    def height_m(self) -> float:
+        return self.size[2] if self.shape == "box" else self.size[1]
+
+
+@dataclass(frozen=True)
+class FeaturePoint:
+    """One Shi-Tomasi feature after the Gaussian mixture: p = [x, y, z, r, g, b] with covariance (eq. 13)."""
+
+    uv: np.ndarray  # (2,) px
+    mean_cam: np.ndarray  # (3,) m, camera frame (eqs. 5-7)
+    cov_cam: np.ndarray  # (3, 3) m^2 (eq. 14)
+    mean_world: np.ndarray  # (3,) m
+    cov_world: np.ndarray  # (3, 3) m^2
+    rgb: np.ndarray  # (3,) mixture colour (eq. 11)
+    rgb_var: np.ndarray  # (3,) its variances (eq. 12)
+
+
+@dataclass(frozen=True)
+class PoseEstimate:
+    """The target's pose with its uncertainty."""
+
+    pose: Pose  # world pose of the object's centre
+    position_cov: np.ndarray  # (3, 3) m^2
+    rpy_cov: np.ndarray  # (3, 3) rad^2 of (roll, pitch, yaw)
+    yaw_symmetry_rad: float  # the model looks the same after this rotation about its axis (0: any)
+    top_face_size_m: tuple[float, float]  # measured extents of the top face (box) or diameter twice
+    n_features: int
+    n_face_pixels: int
+    n_features_fused: int = 0  # features that lay on the face's outline and joined its fit
+    features: tuple[FeaturePoint, ...] = field(repr=False, default=())
+
+    def to_dict(self) -> dict[str, object]:
+        d = self.pose.to_dict()
+        d["position_std_mm"] = [float(v) for v in 1e3 * np.sqrt(np.diag(self.position_cov))]
+        d["yaw_std_deg"] = float(np.degrees(np.sqrt(self.rpy_cov[2, 2])))
+        d["n_features"] = self.n_features
+        d["n_features_fused"] = self.n_features_fused
+        d["n_face_pixels"] = self.n_face_pixels
+        return d
