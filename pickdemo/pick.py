@@ -695,11 +695,6 @@ class PickMachine:
 
     def _tick_close(self, obs: Observation) -> tuple[State, str] | None:
         assert self.plan is not None
-        if self._target_velocity() is not None and min(obs.finger_contacts) == 0:
-            plan = self._track_plan()  # moving with it until the fingers hold it
-            if plan is not None:
-                self.plan = plan
-                self._go_to(plan.grasp)
         stalled = self._fingers_stalled(obs)
         if not stalled and obs.time_s - self._since_s < self.p.close_timeout_s:
             return None
