@@ -280,8 +280,9 @@ class _Episode:
             self.robot.apply(cmd)
             tracking = machine.state in TRACKING_STATES
             self.rec.tracking_ticks += tracking
-            request = machine.frame_request(now)
-            if request is not None and tick - last_frame_tick >= self.frame_ticks:
+            due = tick - last_frame_tick >= self.frame_ticks  # asked only then: a region costs a prediction
+            request = machine.frame_request(now) if due else None
+            if request is not None:
                 last_frame_tick = tick
                 result = self._look(request, now)
                 error_mm = None
