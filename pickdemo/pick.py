@@ -260,6 +260,10 @@ class PickMachine:
         status = "no estimate"
         if isinstance(result, PoseEstimate):
             implausible = self._implausible(result)
+            if not implausible and self.state in (State.DESCEND, State.CLOSE) and not self._complete_view(result):
+                # The hand is over the target: a face it partly hides can mislead the fit consistently,
+                # so such a view is not acted on; the tracker predicts through.
+                implausible = "a partial view: its top face measures off the model's size"
             if implausible:
                 result = PerceptionError(implausible)
                 status = "rejected"
