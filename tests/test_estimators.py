@@ -60,7 +60,7 @@ def test_a_wrong_estimate_is_diagnosed_as_perception(cube_scenario) -> None:
     sc = cube_scenario.model_copy(update={"control": cube_scenario.control.model_copy(update={"max_attempts": 1})})
     r = run_episode(sc, 3, options=EpisodeOptions(perception_method="test_estimators:biased_estimator"))
     assert not r.success
-    assert r.diagnosis == "perception_off" and r.tracking_error_mm > 25.0
+    assert r.diagnosis == "perception_off" and r.tracking_error_mm > 10.0  # the bias is 30 mm
 
 
 def test_cli_refuses_an_unknown_method(capsys) -> None:
