@@ -288,6 +288,7 @@ class RGBDFrame:
     depth_quantum_m: float = 0.0  # depth reported in steps of this (adds q^2 / 12 of variance)
     calibration_sigma: tuple[float, float] = (0.0, 0.0)  # (m, rad): how far T_world_cam may be off
     rgb_noise_sigma: float = 0.0  # 8-bit units, the colour image's noise
+    depth_edge_dropout: float = 0.0  # fraction of pixels at depth edges that read no depth
 
     def depth_variance(self, z_m: np.ndarray | float) -> np.ndarray:
         """Variance (m^2) of a depth reading at ``z_m``: the sensor's noise and its quantisation."""

@@ -131,6 +131,7 @@ class Camera:
             depth_quantum_m=sp.depth_quantum_m,
             calibration_sigma=self.calibration_sigma,
             rgb_noise_sigma=sp.rgb_noise_sigma,
+            depth_edge_dropout=sp.depth_edge_dropout,
         )
 
     def preview_around(
