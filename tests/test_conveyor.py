@@ -1,7 +1,8 @@
-"""Moving targets: the belt, the intercept, the tracker's velocity, and picks off a running conveyor.
+"""Moving targets: the belt, the intercept, and picks off a running conveyor (the tracker on a belt
+is in ``test_tracker``).
 
-The pure parts (the belt's speed schedule, the scenario's rules, Ruckig's intercept, the tracker on
-a moving target) run without a simulator; the rest (marked ``sim``) run the belt and whole episodes.
+The pure parts (the belt's speed schedule, the scenario's rules, Ruckig's intercept) run without a
+simulator; the rest (marked ``sim``) run the belt and whole episodes.
 """
 
 from __future__ import annotations
@@ -14,14 +15,11 @@ import pytest
 
 from pickdemo import Stage, run_episode
 from pickdemo import robot_model as rm
-from pickdemo.geometry import Pose
 from pickdemo.kinematics import panda_kinematics
 from pickdemo.motion import OnlineMotion
-from pickdemo.perception import PoseEstimate
 from pickdemo.pick import MachineParams
 from pickdemo.result import WALL_CLOCK_KEYS
 from pickdemo.scenario import ScenarioError, load_scenario, parse_scenario
-from pickdemo.tracker import TargetTracker
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -125,37 +123,6 @@ def test_hand_arrives_with_the_target_and_moves_with_it() -> None:
         sample = m.step()
     assert np.allclose(sample.velocity, vel4, atol=1e-9)
     assert np.allclose(m.setpoint, x4 + vel4 * (n + 60) / 120.0, atol=2e-3)
-
-
-# ----------------------------------------------------------------------------------- tracker
-def _estimate(xyz: np.ndarray, yaw: float, sigma: float = 5e-4) -> PoseEstimate:
-    return PoseEstimate(
-        pose=Pose.from_xyz_rpy(np.asarray(xyz, dtype=float), yaw=yaw),
-        position_cov=np.eye(3) * sigma**2,
-        rpy_cov=np.eye(3) * np.radians(0.3) ** 2,
-        yaw_symmetry_rad=np.pi / 2.0,
-        top_face_size_m=(0.05, 0.05),
-        n_features=20,
-        n_face_pixels=400,
-    )
-
-
-def test_tracker_learns_a_belts_speed_and_follows_a_speed_change() -> None:
-    tracker = TargetTracker(np.pi / 2.0, MachineParams().on_a_belt().tracker)
-    rng = np.random.default_rng(0)
-    y, t, speed = -0.3, 0.0, 0.05
-    for k in range(40):
-        if k == 15:
-            speed = 0.10  # the belt speeds up
-        y += speed * 0.1
-        t += 0.1
-        noisy = np.array([0.5, y, 0.035]) + rng.normal(0.0, 5e-4, 3)
-        tracker.update(_estimate(noisy, 0.3), t)
-        if k == 14:
-            assert tracker.predict(t).velocity[1] == pytest.approx(0.05, abs=0.004)
-    tp = tracker.predict(t)
-    assert tp.velocity[1] == pytest.approx(0.10, abs=0.004)
-    assert tp.position[1] == pytest.approx(y, abs=0.002)
 
 
 # ---------------------------------------------------------------------------- the belt (simulator)

@@ -101,3 +101,23 @@ def test_an_estimate_without_orientation_updates_the_position_only() -> None:
     assert tr.update(dataclasses.replace(blind, pose=Pose.from_xyz_rpy([0.5005, 0.0, 0.025])), 0.1).accepted
     assert tr.update(_est(0.5, 0.0, 30.0), 0.2).accepted  # a full estimate then sets the yaw
     assert np.degrees(tr.predict(0.2).yaw_rad) == pytest.approx(30.0, abs=1.0)
+
+
+def test_tracker_learns_a_belts_speed_and_follows_a_speed_change() -> None:
+    from pickdemo.pick import MachineParams
+
+    tracker = TargetTracker(np.pi / 2.0, MachineParams().on_a_belt().tracker)
+    rng = np.random.default_rng(0)
+    y, t, speed = -0.3, 0.0, 0.05
+    for k in range(40):
+        if k == 15:
+            speed = 0.10  # the belt speeds up
+        y += speed * 0.1
+        t += 0.1
+        x_n, y_n, z_n = np.array([0.5, y, 0.035]) + rng.normal(0.0, 5e-4, 3)
+        tracker.update(_est(x_n, y_n, 17.0, sd_m=5e-4, z=z_n), t)
+        if k == 14:
+            assert tracker.predict(t).velocity[1] == pytest.approx(0.05, abs=0.004)
+    tp = tracker.predict(t)
+    assert tp.velocity[1] == pytest.approx(0.10, abs=0.004)
+    assert tp.position[1] == pytest.approx(y, abs=0.002)
