@@ -61,6 +61,7 @@ class PandaKinematics:
             raise RuntimeError(f"expected 7 arm joints after locking the fingers, got {self.model.nq}")
         self.lower = self.model.lowerPositionLimit.copy()
         self.upper = self.model.upperPositionLimit.copy()
+        self._solver_constants: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def forward(self, q: np.ndarray) -> Pose:
         """World pose of the TCP at configuration q (the robot's base is the world frame)."""
@@ -72,8 +73,14 @@ class PandaKinematics:
 
     def _solve_from(self, target: pin.SE3, q0: np.ndarray, params: IKParams) -> tuple[np.ndarray, float, float, int]:
         model, data = self.model, self.data
-        lo = self.lower + params.limit_margin_rad
-        hi = self.upper - params.limit_margin_rad
+        key = (params.limit_margin_rad, params.damping)
+        if key not in self._solver_constants:  # once per setting: this runs every control tick
+            self._solver_constants[key] = (
+                self.lower + params.limit_margin_rad,
+                self.upper - params.limit_margin_rad,
+                params.damping * np.eye(6),
+            )
+        lo, hi, reg = self._solver_constants[key]
         q = np.clip(q0, lo, hi)
         err = np.zeros(6)
         for it in range(1, params.max_iterations + 1):
@@ -84,7 +91,7 @@ class PandaKinematics:
                 return q, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])), it
             J = pin.computeFrameJacobian(model, data, q, self.tcp_id, pin.LOCAL)
             J = -pin.Jlog6(iMd.inverse()) @ J
-            v = -J.T @ np.linalg.solve(J @ J.T + params.damping * np.eye(6), err)
+            v = -J.T @ np.linalg.solve(J @ J.T + reg, err)
             q = np.clip(pin.integrate(model, q, params.step * v), lo, hi)
         return q, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])), params.max_iterations
 

@@ -216,6 +216,7 @@ class PickMachine:
         self._after_back_off = State.LOOK
         self._descent_plan: GraspPlan | None = None
         self._planned_at_s = 0.0  # the plan is for the target where it was then
+        self._velocity_cache: tuple[tuple, np.ndarray | None] | None = None
         self._descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
         self._verify_asked = False
         self._relooks = 0
@@ -470,6 +471,15 @@ class PickMachine:
         rest (or not surely moving), and always in open loop (it plans to where the target was)."""
         if self.open_loop or not self.tracker.initialised:
             return None
+        key = (self._now_s, id(self.tracker), self.tracker.accepted)  # the belief changes only on an accept
+        if self._velocity_cache is not None and self._velocity_cache[0] == key:
+            v = self._velocity_cache[1]
+            return None if v is None else v.copy()
+        v = self._moving_velocity()
+        self._velocity_cache = (key, v)
+        return None if v is None else v.copy()
+
+    def _moving_velocity(self) -> np.ndarray | None:
         tp = self.tracker.predict(self._now_s)
         v = tp.velocity[:2]
         sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(tp.covariance[4:6, 4:6])), 0.0)))
