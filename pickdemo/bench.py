@@ -132,6 +132,7 @@ def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> di
         "perception_method": job.perception,
         "estimates_off": 0,
         "estimates_off_accepted": 0,
+        "estimates_off_fit_rejected": 0,
         "target_off_table": None,
     }
 
@@ -313,6 +314,7 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "control_tick_wall_ms": describe([(r.get("control_tick_wall_ms") or {}).get("median") for r in rs]),
             "estimates_off": sum(r.get("estimates_off") or 0 for r in rs),
             "estimates_off_accepted": sum(r.get("estimates_off_accepted") or 0 for r in rs),
+            "estimates_off_fit_rejected": sum(r.get("estimates_off_fit_rejected") or 0 for r in rs),
             "failed_off_table": sum(1 for r in rs if not r["success"] and r.get("target_off_table")),
         }
     return out
@@ -385,10 +387,10 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
                 f"detected" + (f", tracking error at the grasp median {trk['median']:.2f} mm" if trk else "")
             )
         if s["estimates_off"]:
-            off, acc = s["estimates_off"], s["estimates_off_accepted"]
+            off, acc, fit = s["estimates_off"], s["estimates_off_accepted"], s.get("estimates_off_fit_rejected", 0)
             lines.append(
-                f"  estimates > 5 mm off the truth: {off}; rejected by the loop's checks {off - acc} "
-                f"({100 * (off - acc) / off:.0f} %), acted on {acc}"
+                f"  estimates > 5 mm off the truth: {off}; rejected {off - acc} ({100 * (off - acc) / off:.0f} %: "
+                f"{fit} by perception's fit check, {off - acc - fit} by the loop's checks), acted on {acc}"
             )
         if s.get("failed_off_table"):
             lines.append(f"  failed episodes that left the target off the table: {s['failed_off_table']}")

@@ -122,6 +122,7 @@ class _Record:
     place_error_mm: float | None = None
     wrong_estimates: int = 0  # estimates more than 5 mm off the truth that reached the controller
     wrong_estimates_accepted: int = 0  # of those, how many it acted on (fused into its belief)
+    wrong_estimates_self_rejected: int = 0  # of those, how many perception's own fit check rejected
     off_table: bool | None = None  # the target ended off the table (fell, or was knocked off)
     trace_rows: list[tuple] = field(default_factory=list)
 
@@ -271,6 +272,7 @@ class _Episode:
                 if error_mm is not None and error_mm > PERCEPTION_OFF_MM and status != "unused":
                     self.rec.wrong_estimates += 1
                     self.rec.wrong_estimates_accepted += status == "accepted"
+                    self.rec.wrong_estimates_self_rejected += isinstance(result, PerceptionError)
             t0 = time.perf_counter()
             cmd = machine.update(obs)
             self.rec.tick_ms.append((time.perf_counter() - t0) * 1e3)
@@ -286,9 +288,11 @@ class _Episode:
                 last_frame_tick = tick
                 result = self._look(request, now)
                 error_mm = None
-                if isinstance(result, PoseEstimate):  # truth: for scoring only
+                # Truth: for scoring only (an estimate that perception's own checks rejected included).
+                scored = result.estimate if isinstance(result, PerceptionError) else result
+                if scored is not None:
                     truth = scene.true_pose(self.target_name).position
-                    error_mm = float(np.linalg.norm(result.pose.position - truth)) * 1e3
+                    error_mm = float(np.linalg.norm(scored.pose.position - truth)) * 1e3
                 pending.append((now + self.scenario.control.perception_latency_s, now, result, error_mm))
                 self.rec.tracking_frames += tracking
             if self.options.record_trace:
@@ -463,6 +467,7 @@ class _Episode:
             diagnosis=diagnose(failure, rec.tracking_error_mm),
             estimates_off=rec.wrong_estimates,
             estimates_off_accepted=rec.wrong_estimates_accepted,
+            estimates_off_fit_rejected=rec.wrong_estimates_self_rejected,
             target_off_table=rec.off_table,
             perception_method=self.options.perception_method,
             disturbances=tuple(p.push.to_dict() for p in self.pushes),

@@ -157,6 +157,7 @@ class EpisodeResult:
     perception_method: str = "paper"
     estimates_off: int = 0  # estimates > 5 mm off the truth that reached the controller (scored on the truth)
     estimates_off_accepted: int = 0  # of those, the ones it fused into its belief instead of rejecting
+    estimates_off_fit_rejected: int = 0  # of those, the ones perception's own fit check rejected
     target_off_table: bool | None = None  # at the end the target had fallen off the table (scored on the truth)
     trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
@@ -191,6 +192,7 @@ class EpisodeResult:
                 "perception_method": self.perception_method,
                 "estimates_off": self.estimates_off,
                 "estimates_off_accepted": self.estimates_off_accepted,
+                "estimates_off_fit_rejected": self.estimates_off_fit_rejected,
                 "target_off_table": self.target_off_table,
             }
         )

@@ -6,6 +6,8 @@ camera conventions as the simulator's; then eq. (8) noise from a seeded generato
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -13,7 +15,7 @@ from pickdemo.baselines import closest_on_model, estimate_centroid, estimate_icp
 from pickdemo.camera import Intrinsics, RGBDFrame, add_kinect_noise, look_at_pose
 from pickdemo.evaluation import pose_errors
 from pickdemo.geometry import Pose
-from pickdemo.perception import TargetModel, estimate_pose
+from pickdemo.perception import FitQuality, PerceptionError, PerceptionParams, TargetModel, estimate_pose
 
 LIGHT = np.array([0.4, -0.3, 1.0]) / np.linalg.norm([0.4, -0.3, 1.0])
 
@@ -112,3 +114,43 @@ def test_baselines_run_on_the_same_frame() -> None:
     for fn, tol_mm in ((estimate_centroid, 10.0), (estimate_icp, 2.0)):
         est = fn(frame, MODEL)
         assert np.linalg.norm(est.pose.position - true.position) * 1e3 < tol_mm, fn.__name__
+
+
+def test_fit_reports_how_well_the_model_fitted() -> None:
+    """On a frame that matches the model, the normalised residuals are about the noise model's
+    (RMS near 1 or below) and no point is a gross outlier."""
+    true = Pose.from_xyz_rpy([0.5, 0.02, 0.025], yaw=np.radians(20.0))
+    frame = render_box(true, MODEL.size, MODEL.color, (1.1, 0.0, 0.75), (0.5, 0.0, 0.0))
+    fit = estimate_pose(frame, MODEL).fit
+    assert fit is not None and fit.points > 1000
+    assert fit.depth_rms < 1.5 and fit.edge_rms < 1.5
+    assert fit.depth_outliers < 0.01 and fit.edge_outliers < 0.01
+
+
+def test_a_model_that_does_not_fit_is_rejected_with_the_reason() -> None:
+    """Told the target is a 5 cm cylinder while the camera sees a 6 x 4 cm box of its colour: most of
+    the outline lies far beyond the noise model, so perception says so instead of returning a pose
+    (the rejected estimate travels with the error, for scoring only)."""
+    true = Pose.from_xyz_rpy([0.5, 0.02, 0.025], yaw=np.radians(20.0))
+    frame = render_box(true, MODEL.size, MODEL.color, (1.1, 0.0, 0.75), (0.5, 0.0, 0.0))
+    wrong = TargetModel("cylinder", (0.05, 0.05), MODEL.color)
+    with pytest.raises(PerceptionError, match="the model does not fit what was seen: .* outline") as info:
+        estimate_pose(frame, wrong)
+    assert info.value.estimate is not None and info.value.estimate.fit is not None
+    assert info.value.estimate.fit.edge_outliers > 0.5
+
+
+@pytest.mark.parametrize(
+    ("fit", "reason"),
+    [
+        (FitQuality(0.6, 0.9, 0.0, 0.0, 1500), ""),
+        (FitQuality(0.6, 0.9, 0.0, 0.0, 12), "only 12 depth points"),
+        (FitQuality(0.6, 0.9, 0.45, 0.0, 1500), "45% of the depth points"),
+        (FitQuality(0.6, 0.9, 0.0, 0.7, 1500), "70% of the outline"),
+        (FitQuality(2.4e4, 0.9, 0.0, 0.0, 1500), "depth residuals are 2.4e\\+04 times"),
+        (FitQuality(0.6, float("nan"), 0.0, 0.0, 1500), "outline residuals are nan times"),
+    ],
+)
+def test_fit_quality_names_what_is_wrong(fit: FitQuality, reason: str) -> None:
+    problem = fit.problem(PerceptionParams())
+    assert (problem == "") if reason == "" else re.search(reason, problem), problem

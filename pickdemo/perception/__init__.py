@@ -56,7 +56,14 @@ from pickdemo.perception.fit2d import (
     refine_rectangle,
 )
 from pickdemo.perception.fit6d import MODEL_FLOOR_M, closest_on_model, refine_pose_6dof
-from pickdemo.perception.model import FeaturePoint, PerceptionError, PerceptionParams, PoseEstimate, TargetModel
+from pickdemo.perception.model import (
+    FeaturePoint,
+    FitQuality,
+    PerceptionError,
+    PerceptionParams,
+    PoseEstimate,
+    TargetModel,
+)
 from pickdemo.perception.pipeline import estimate_pose
 from pickdemo.perception.segmentation import (
     color_match,
@@ -71,7 +78,7 @@ from pickdemo.perception.segmentation import (
 )
 
 __all__ = [
-    "MIXTURE_KERNEL", "MODEL_FLOOR_M", "SIGMA_COLOR", "SIGMA_UV_PX", "FeaturePoint", "PerceptionError",
+    "MIXTURE_KERNEL", "MODEL_FLOOR_M", "SIGMA_COLOR", "SIGMA_UV_PX", "FeaturePoint", "FitQuality", "PerceptionError",
     "PerceptionParams", "PoseEstimate", "TargetModel", "circle_residuals", "closest_on_model", "color_match",
     "condition_on_plane", "crop_frame", "estimate_pose", "fit_face_plane", "fit_outline", "fit_plane_weighted",
     "intersect_rays_plane", "measure_features", "mixture_at", "mixture_moments", "outline_pixels", "plane_basis",

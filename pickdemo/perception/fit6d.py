@@ -12,7 +12,7 @@ import pinocchio as pin
 from pickdemo.camera import RGBDFrame, pixel_rays_cam
 from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.perception.equations import SIGMA_UV_PX
-from pickdemo.perception.model import TargetModel
+from pickdemo.perception.model import FitQuality, TargetModel
 
 #: Smallest position uncertainty reported in any direction (see :func:`~pickdemo.perception.pipeline.estimate_pose`), m.
 MODEL_FLOOR_M = 10e-6
@@ -79,7 +79,7 @@ def refine_pose_6dof(
     *,
     iterations: int = 4,
     max_points: int = 2000,
-) -> tuple[Pose, np.ndarray, int]:
+) -> tuple[Pose, np.ndarray, FitQuality]:
     """The object's pose by a covariance-weighted fit of its known shape (our design; the paper
     leaves the pose step open).
 
@@ -92,7 +92,8 @@ def refine_pose_6dof(
       model's top plane, its distance to the top face's edge; variance ``outline_var``.
 
     Gauss-Newton on a twist at the object's centre, ``T = T0 exp(xi)``. Returns the pose, the 6x6
-    covariance of (translation in the world frame, roll / pitch / yaw) and the points used.
+    covariance of (translation in the world frame, roll / pitch / yaw) and how well the model fitted
+    (:class:`FitQuality`).
     """
     K = frame.intrinsics
     Tc = frame.T_world_cam
@@ -178,4 +179,11 @@ def refine_pose_6dof(
     A = np.zeros((6, 6))
     A[:3, :3] = R
     A[3:, 3:] = _rpy_jacobian(R)
-    return Pose.from_se3(T), A @ cov_local @ A.T, used
+    quality = FitQuality(
+        depth_rms=s_d,
+        edge_rms=s_e,
+        depth_outliers=float(1.0 - keep_pts.mean()) if len(keep_pts) else 1.0,
+        edge_outliers=float(1.0 - keep_edge.mean()) if len(keep_edge) else 1.0,
+        points=used,
+    )
+    return Pose.from_se3(T), A @ cov_local @ A.T, quality

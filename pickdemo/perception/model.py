@@ -14,7 +14,12 @@ from pickdemo.geometry import Pose
 
 
 class PerceptionError(RuntimeError):
-    """The target could not be found or measured in the frame."""
+    """The target could not be found or measured in the frame, or perception's own checks rejected
+    what it measured (then ``estimate`` holds that estimate, for scoring and reading only)."""
+
+    def __init__(self, reason: str, estimate: PoseEstimate | None = None) -> None:
+        super().__init__(reason)
+        self.estimate = estimate
 
 
 @dataclass(frozen=True)
@@ -31,6 +36,13 @@ class PerceptionParams:
     face_depth_sigmas: float = 3.0
     edge_sigma_px: float = 1.0  # an outline point's location uncertainty (the paper's sigma_u = 1 px)
     fit_points: int = 4000  # depth points in the 6-DoF fit at most (a regular thinning beyond)
+    # The fit checks itself: an estimate is rejected when its normalised residuals' RMS exceeds this
+    # (the noise model says 1), when more than these fractions of the depth points or of the outline
+    # lie beyond 4 sigma, or when fewer depth points than this fit at all.
+    max_residual_rms: float = 5.0
+    max_depth_outliers: float = 0.3
+    max_edge_outliers: float = 0.5
+    min_fit_points: int = 30
     denoise_rgb_sigma: float = 8.0  # from this RGB noise (8-bit) on, a median filter first
 
     def __post_init__(self) -> None:
@@ -38,6 +50,9 @@ class PerceptionParams:
             raise ValueError("color_cos_min must be in (0, 1]")
         if self.min_height_m <= 0.0 or self.min_target_px < 3 or self.max_features < 1:
             raise ValueError("min_height_m, min_target_px and max_features must be positive")
+        outliers_ok = 0.0 < self.max_depth_outliers <= 1.0 and 0.0 < self.max_edge_outliers <= 1.0
+        if self.max_residual_rms <= 1.0 or not outliers_ok:
+            raise ValueError("max_residual_rms must exceed 1 and the outlier fractions lie in (0, 1]")
 
 
 @dataclass(frozen=True)
@@ -67,6 +82,32 @@ class FeaturePoint:
 
 
 @dataclass(frozen=True)
+class FitQuality:
+    """How well the model fitted what was seen, in units of perception's own noise model: the RMS of
+    the normalised residuals (1 when the noise model holds) of the depth points and of the outline,
+    over the points kept, and the fractions dropped as gross outliers (beyond 4 sigma)."""
+
+    depth_rms: float
+    edge_rms: float
+    depth_outliers: float
+    edge_outliers: float
+    points: int = 0  # depth points kept in the fit
+
+    def problem(self, params: PerceptionParams) -> str:
+        """Why the fit is not to be believed ("" when it is): residuals far beyond the noise model."""
+        if self.points < params.min_fit_points:
+            return f"only {self.points} depth points fit the model"
+        if self.depth_outliers > params.max_depth_outliers:
+            return f"{self.depth_outliers:.0%} of the depth points lie beyond 4 sigma of the model"
+        if self.edge_outliers > params.max_edge_outliers:
+            return f"{self.edge_outliers:.0%} of the outline lies beyond 4 sigma of the model"
+        for which, rms in (("depth", self.depth_rms), ("outline", self.edge_rms)):
+            if not rms <= params.max_residual_rms:  # (NaN included)
+                return f"the {which} residuals are {rms:.3g} times the noise model"
+        return ""
+
+
+@dataclass(frozen=True)
 class PoseEstimate:
     """The target's pose with its uncertainty."""
 
@@ -78,6 +119,7 @@ class PoseEstimate:
     n_features: int
     n_face_pixels: int
     n_features_fused: int = 0  # features that lay on the face's outline and joined its fit
+    fit: FitQuality | None = None  # how well the model fitted (None: an estimator that does not say)
     features: tuple[FeaturePoint, ...] = field(repr=False, default=())
 
     def to_dict(self) -> dict[str, object]:

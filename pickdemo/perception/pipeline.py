@@ -145,7 +145,7 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     # Dense points: each pixel's own depth, with the mixture's variance (eq. 10) as its uncertainty,
     # which grows where the 3x3 window spans a depth step. (The mixture's mean, eq. 9, would smear a
     # surface across such a step; measured: 0.09 mm median error with it, 0.04 mm without.)
-    pose, cov6, _ = refine_pose_6dof(
+    pose, cov6, quality = refine_pose_6dof(
         f, mask, depth, var_z, model, Pose(center, R), edge_uv, edge_var, max_points=params.fit_points
     )
     # A floor for what the fit cannot see: the scene itself is modelled to some 10-20 um (a cylinder's
@@ -173,7 +173,7 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     if model.shape == "cylinder":
         rpy_cov = rpy_cov.copy()
         rpy_cov[2, :] = rpy_cov[:, 2] = 0.0  # no yaw to speak of
-    return PoseEstimate(
+    estimate = PoseEstimate(
         pose=pose,
         position_cov=pos_cov,
         rpy_cov=rpy_cov,
@@ -182,5 +182,10 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
         n_features=len(features),
         n_features_fused=n_used,
         n_face_pixels=int(face.sum()),
+        fit=quality,
         features=features,
     )
+    problem = quality.problem(params)
+    if problem:
+        raise PerceptionError(f"the model does not fit what was seen: {problem}", estimate)
+    return estimate
