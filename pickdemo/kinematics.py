@@ -8,6 +8,7 @@ from the seed does not converge, it restarts from random configurations drawn wi
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,21 +82,25 @@ class PandaKinematics:
                 params.damping * np.eye(6),
             )
         lo, hi, reg = self._solver_constants[key]
-        q = np.clip(q0, lo, hi)
-        err = np.zeros(6)
+        tcp, tol_m, tol_rad, step = self.tcp_id, params.tolerance_m, params.tolerance_rad, params.step
+        # This runs every control tick: only the TCP's frame is placed (not all of the model's), and
+        # each norm is taken once. np.minimum(np.maximum()) is np.clip without its dispatch cost.
+        q = np.minimum(np.maximum(q0, lo), hi)
+        e_pos = e_rot = 0.0
         for it in range(1, params.max_iterations + 1):
-            pin.framesForwardKinematics(model, data, q)
-            iMd = data.oMf[self.tcp_id].actInv(target)
-            err = pin.log(iMd).vector  # in the TCP frame
-            if np.linalg.norm(err[:3]) < params.tolerance_m and np.linalg.norm(err[3:]) < params.tolerance_rad:
-                return q, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])), it
-            J = pin.computeFrameJacobian(model, data, q, self.tcp_id, pin.LOCAL)
+            pin.forwardKinematics(model, data, q)
+            iMd = pin.updateFramePlacement(model, data, tcp).actInv(target)
+            err = pin.log6(iMd).vector  # in the TCP frame
+            e_pos, e_rot = math.sqrt(err[:3] @ err[:3]), math.sqrt(err[3:] @ err[3:])
+            if e_pos < tol_m and e_rot < tol_rad:
+                return q, e_pos, e_rot, it
+            J = pin.computeFrameJacobian(model, data, q, tcp, pin.LOCAL)
             J = -pin.Jlog6(iMd.inverse()) @ J
             v = -J.T @ np.linalg.solve(J @ J.T + reg, err)
-            q = np.clip(pin.integrate(model, q, params.step * v), lo, hi)
-        return q, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:])), params.max_iterations
+            q = np.minimum(np.maximum(pin.integrate(model, q, step * v), lo), hi)
+        return q, e_pos, e_rot, params.max_iterations
 
-    def track(self, target: Pose, q_prev: np.ndarray, *, max_iterations: int = 4) -> IKResult:
+    def track(self, target: Pose | pin.SE3, q_prev: np.ndarray, *, max_iterations: int = 4) -> IKResult:
         """One warm-started solve per control tick: a few damped least-squares steps from the last
         command, no restarts (the target moved a millimetre or so since the last tick)."""
         params = (
@@ -103,7 +108,8 @@ class PandaKinematics:
             if max_iterations == _TRACK_PARAMS.max_iterations
             else IKParams(restarts=0, max_iterations=max_iterations)
         )
-        q, e_pos, e_rot, its = self._solve_from(target.to_se3(), np.asarray(q_prev, dtype=float), params)
+        goal = target if isinstance(target, pin.SE3) else target.to_se3()
+        q, e_pos, e_rot, its = self._solve_from(goal, np.asarray(q_prev, dtype=float), params)
         ok = e_pos < params.tolerance_m and e_rot < params.tolerance_rad
         reason = "" if ok else f"not converged in {its} steps ({e_pos * 1e3:.2f} mm, {np.degrees(e_rot):.3f} deg)"
         return IKResult(ok, q, e_pos, e_rot, its, 0, reason)

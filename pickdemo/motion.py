@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 from ruckig import InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization, Trajectory
 
 from pickdemo import robot_model as rm
@@ -116,6 +117,11 @@ class MotionSample:
 def top_down_pose(x4: np.ndarray) -> Pose:
     """The TCP pose pointing straight down at ``(x, y, z)`` with the hand turned by ``yaw`` about z."""
     return Pose.from_xyz_rpy(np.asarray(x4[:3], dtype=float), roll=np.pi, yaw=float(x4[3]))
+
+
+def top_down_se3(x4: np.ndarray) -> pin.SE3:
+    """:func:`top_down_pose` as a ``pin.SE3``, the same numbers without a :class:`Pose` (every tick)."""
+    return pin.SE3(pin.rpy.rpyToMatrix(np.pi, 0.0, float(x4[3])), np.array(x4[:3], dtype=float))
 
 
 def pose_to_x4(pose: Pose) -> np.ndarray:
@@ -303,7 +309,7 @@ class OnlineMotion:
         )
 
     def _joints(self, x4: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        res = self.kin.track(top_down_pose(x4), self.q)
+        res = self.kin.track(top_down_se3(x4), self.q)
         if not res.success and (res.position_error_m > 1e-3 or res.rotation_error_rad > np.radians(0.5)):
             raise MotionError(f"IK lost the Cartesian setpoint {np.round(x4, 4).tolist()}: {res.reason}")
         dq = (res.q - self.q) / self.dt_s

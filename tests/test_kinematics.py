@@ -45,3 +45,21 @@ def test_unreachable_target_fails_with_reason() -> None:
     assert not res.success
     assert "no solution" in res.reason
     assert res.position_error_m > 0.5
+
+
+def test_tracking_a_setpoint_as_se3_is_the_same_solve_as_from_a_pose() -> None:
+    """The control tick's fast path (an SE3 built straight from (x, y, z, yaw)) changes no number."""
+    from pickdemo.motion import top_down_pose, top_down_se3
+
+    kin = panda_kinematics()
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        x4 = np.array([rng.uniform(0.3, 0.6), rng.uniform(-0.3, 0.3), rng.uniform(0.05, 0.4), rng.uniform(-3, 3)])
+        slow, fast = top_down_pose(x4).to_se3(), top_down_se3(x4)
+        assert np.array_equal(slow.rotation, fast.rotation) and np.array_equal(slow.translation, fast.translation)
+        q0 = rm.HOME_Q + rng.normal(0.0, 0.05, 7)
+        a, b = kin.track(top_down_pose(x4), q0), kin.track(fast, q0)
+        assert np.array_equal(a.q, b.q) and (a.position_error_m, a.rotation_error_rad) == (
+            b.position_error_m,
+            b.rotation_error_rad,
+        )

@@ -19,6 +19,10 @@ ARM_EFFORT_NM = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
 FINGER_SPEED_M_S = 0.1
 POSITION_GAIN = 0.3
 VELOCITY_GAIN = 1.0
+# The motor call's constant arguments, built once (it runs every control tick).
+_ARM_FORCES = [float(v) for v in ARM_EFFORT_NM]
+_POSITION_GAINS = [POSITION_GAIN] * 7
+_VELOCITY_GAINS = [VELOCITY_GAIN] * 7
 
 
 class RobotInterface:
@@ -44,13 +48,13 @@ class RobotInterface:
             s.bodies["robot"],
             s.arm_joints,
             p.POSITION_CONTROL,
-            targetPositions=[float(v) for v in cmd.arm_q],
-            targetVelocities=[float(v) for v in cmd.arm_dq],
-            forces=[float(v) for v in ARM_EFFORT_NM],
-            positionGains=[POSITION_GAIN] * 7,
-            velocityGains=[VELOCITY_GAIN] * 7,
+            targetPositions=np.asarray(cmd.arm_q, dtype=float).tolist(),
+            targetVelocities=np.asarray(cmd.arm_dq, dtype=float).tolist(),
+            forces=_ARM_FORCES,
+            positionGains=_POSITION_GAINS,
+            velocityGains=_VELOCITY_GAINS,
         )
-        fingers = (float(np.clip(cmd.finger_opening_m, 0.0, rm.FINGER_MAX_M)), float(cmd.finger_force_n))
+        fingers = (min(max(float(cmd.finger_opening_m), 0.0), rm.FINGER_MAX_M), float(cmd.finger_force_n))
         if fingers != self._fingers:  # motors keep their last command: send only changes
             for j in s.finger_joints:
                 s.client.setJointMotorControl2(

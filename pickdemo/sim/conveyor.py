@@ -33,6 +33,7 @@ class Belt:
 
     def __init__(self, client: BulletClient, spec: ConveyorSpec) -> None:
         self.client = client
+        self._joint_state = client.getJointState  # bound once: read every physics step
         self.spec = spec
         (x0, x1), (y0, y1) = spec.x_range_m, spec.y_range_m
         speed = spec.speed
@@ -97,7 +98,7 @@ class Belt:
         """Drive the belt for the next physics step (and slide the slab back when it has run out)."""
         if self.start_s is None:
             return
-        pos, vel = self.client.getJointState(self.body, 0)[:2]
+        pos, vel = self._joint_state(self.body, 0)[:2]
         if pos > REWIND_M / 2.0:
             self.client.resetJointState(self.body, 0, pos - REWIND_M, vel)
             self.rewinds += 1

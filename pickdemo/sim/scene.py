@@ -82,6 +82,10 @@ class Scene:
         c.setGravity(0.0, 0.0, -9.81)
         c.setTimeStep(scenario.sim.time_step_s)
         c.setPhysicsEngineParameter(numSolverIterations=150, deterministicOverlappingPairs=1)
+        # The calls made every tick, bound once (the client builds a new partial on each lookup).
+        self._step_simulation = c.stepSimulation
+        self._joint_states = c.getJointStates
+        self._contact_points = c.getContactPoints
         self.time_step_s = scenario.sim.time_step_s
         self.steps = 0
         self.bodies: dict[str, int] = {}
@@ -173,7 +177,7 @@ class Scene:
         for _ in range(n):
             if self.belt is not None:
                 self.belt.before_step(self.sim_time_s)
-            self.client.stepSimulation()
+            self._step_simulation()
             self.steps += 1
             if self.gui:  # pace the window for a human; never affects the simulation's outcome
                 time.sleep(self.time_step_s)
@@ -190,9 +194,9 @@ class Scene:
 
     # --------------------------------------------------------------------- what the robot senses
     def joint_state(self) -> JointState:
-        c, robot = self.client, self.bodies["robot"]
-        arm = c.getJointStates(robot, self.arm_joints)
-        fingers = c.getJointStates(robot, self.finger_joints)
+        robot = self.bodies["robot"]
+        arm = self._joint_states(robot, self.arm_joints)
+        fingers = self._joint_states(robot, self.finger_joints)
         return JointState(
             arm_q=np.array([s[0] for s in arm]),
             arm_dq=np.array([s[1] for s in arm]),
@@ -201,10 +205,10 @@ class Scene:
 
     def finger_contacts(self) -> tuple[int, int]:
         """Number of contact points on each finger with anything but the robot (a tactile sense)."""
-        c, robot = self.client, self.bodies["robot"]
+        robot = self.bodies["robot"]
         counts = []
         for link in self.finger_links:
-            pts = c.getContactPoints(bodyA=robot, linkIndexA=link)
+            pts = self._contact_points(bodyA=robot, linkIndexA=link)
             counts.append(sum(1 for pt in pts if pt[2] != robot))
         return counts[0], counts[1]
 
