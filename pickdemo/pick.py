@@ -410,6 +410,12 @@ class PickMachine:
             near = None if self.plan is None else self.plan.hand_yaw_rad
             try:
                 plan = plan_grasp(pose, self.model, self.place_xy, self.p.grasp, hand_yaw_near_rad=near)
+                centre = joint7_centre_yaw(tuple(pose.position[:2]), tuple(self.place_xy))
+                if abs(plan.hand_yaw_rad - centre) > WRIST_TURN_LIMIT_RAD:
+                    # Keeping the hand's angle, re-plan after re-plan, can walk the wrist into its
+                    # limit when the estimated yaw drifts (a noisy estimator's, measured: IK lost the
+                    # setpoint at joint 7's stop); take the equivalent angle nearest mid-range.
+                    plan = plan_grasp(pose, self.model, self.place_xy, self.p.grasp)
             except GraspPlanningError as exc:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
                 return None
