@@ -411,7 +411,10 @@ class PickMachine:
             try:
                 plan = plan_grasp(pose, self.model, self.place_xy, self.p.grasp, hand_yaw_near_rad=near)
                 centre = joint7_centre_yaw(tuple(pose.position[:2]), tuple(self.place_xy))
-                if abs(plan.hand_yaw_rad - centre) > WRIST_TURN_LIMIT_RAD:
+                # Joint 7 where the plan would take it (it turns against the hand's yaw) and, as a
+                # second opinion, the estimate from the arm's bearing alone.
+                q7_then = float(self.motion.q[6]) - (float(self._x4(plan.pregrasp)[3]) - float(self.motion.setpoint[3]))
+                if max(abs(plan.hand_yaw_rad - centre), abs(q7_then)) > WRIST_TURN_LIMIT_RAD:
                     # Keeping the hand's angle, re-plan after re-plan, can walk the wrist into its
                     # limit when the estimated yaw drifts (a noisy estimator's, measured: IK lost the
                     # setpoint at joint 7's stop); take the equivalent angle nearest mid-range.
@@ -566,9 +569,17 @@ class PickMachine:
         return ""
 
     def _x4(self, pose: Pose | np.ndarray) -> np.ndarray:
-        """(x, y, z, yaw) of a pose (or of an x4), its yaw the equivalent nearest the current setpoint's."""
+        """(x, y, z, yaw) of a pose (or of an x4), its yaw the turn of the hand that keeps joint 7 in
+        range: the equivalent nearest the current setpoint's, unless that one would take joint 7
+        beyond half a turn from mid-range, where the other way round does not (a turn near half a
+        revolution: the nearest way can run into joint 7's stop)."""
         x4 = pose_to_x4(pose) if isinstance(pose, Pose) else np.array(pose, dtype=float)
-        x4[3] = self.motion.setpoint[3] + wrap_angle(x4[3] - self.motion.setpoint[3])
+        sp = self.motion.setpoint
+        x4[3] = sp[3] + wrap_angle(x4[3] - sp[3])
+        # Joint 7 turns against the hand's yaw and with the arm's bearing (q7 ~ pi/4 + q1 - yaw).
+        q7 = float(self.motion.q[6]) + float(np.arctan2(x4[1], x4[0]) - np.arctan2(sp[1], sp[0])) - (x4[3] - sp[3])
+        if abs(q7) > np.pi:
+            x4[3] += 2.0 * np.pi * np.sign(q7)
         return x4
 
     def _implausible(self, est: PoseEstimate) -> str:
