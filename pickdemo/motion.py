@@ -116,11 +116,11 @@ class MotionSample:
 
 def top_down_pose(x4: np.ndarray) -> Pose:
     """The TCP pose pointing straight down at ``(x, y, z)`` with the hand turned by ``yaw`` about z."""
-    return Pose.from_xyz_rpy(np.asarray(x4[:3], dtype=float), roll=np.pi, yaw=float(x4[3]))
+    return Pose.from_se3(top_down_se3(x4))
 
 
 def top_down_se3(x4: np.ndarray) -> pin.SE3:
-    """:func:`top_down_pose` as a ``pin.SE3``, the same numbers without a :class:`Pose` (every tick)."""
+    """:func:`top_down_pose` as a ``pin.SE3``, without a :class:`Pose` (the IK's target every tick)."""
     return pin.SE3(pin.rpy.rpyToMatrix(np.pi, 0.0, float(x4[3])), np.array(x4[:3], dtype=float))
 
 
