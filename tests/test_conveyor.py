@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from episodes import at_least, episodes
 
 from pickdemo import Stage, run_episode
 from pickdemo import robot_model as rm
@@ -149,30 +150,31 @@ def test_belt_carries_a_cube_at_its_speed_by_friction(tmp_path: Path, speed: flo
 
 
 @pytest.mark.sim
-@pytest.mark.parametrize(("name", "seed"), [("pick_conveyor", 4), ("pick_conveyor_rush", 7)])
-def test_cube_is_picked_off_a_running_belt(name: str, seed: int) -> None:
-    sc = load_scenario(name)
-    r = run_episode(sc, seed)
-    assert r.success, r.failure
-    assert [a.outcome for a in r.attempts] == ["placed"]
-    assert any("moving with it" in p.message for p in r.phases)  # met where it was going, at its speed
-    assert r.tracking_error_mm is not None and r.tracking_error_mm < 2.0  # the tracker's belief at the grasp
-    assert r.place_error_mm < 5.0
-    assert r.perception_rate_hz == pytest.approx(10.0, rel=0.05)
-    assert r.target_off_table is False
+@pytest.mark.parametrize("name", ["pick_conveyor", "pick_conveyor_rush"])
+def test_cube_is_picked_off_a_running_belt(name: str) -> None:
+    rs = episodes(name, (0, 1, 2))
+    for r in at_least(rs, 2, lambda r: [a.outcome for a in r.attempts] == ["placed"], "place it at the first attempt"):
+        assert r.success, r.failure
+        assert any("moving with it" in p.message for p in r.phases)  # met where it was going, at its speed
+        assert r.tracking_error_mm is not None and r.tracking_error_mm < 2.0  # the tracker's belief at the grasp
+        assert r.place_error_mm < 5.0
+        assert r.perception_rate_hz == pytest.approx(10.0, rel=0.05)
+    assert not any(r.target_off_table for r in rs)
 
 
 @pytest.mark.sim
 def test_belt_speeding_up_mid_approach_is_followed() -> None:
-    r = run_episode(load_scenario("pick_conveyor_speed_change"), 2)
-    assert r.success, r.failure
-    assert r.tracking_error_mm < 2.0
+    rs = episodes("pick_conveyor_speed_change", (0, 1, 2))
+    for r in at_least(rs, 2):
+        assert r.tracking_error_mm < 2.0
 
 
 @pytest.mark.sim
 def test_open_loop_closes_where_the_cube_was() -> None:
-    r = run_episode(load_scenario("pick_conveyor"), 1, open_loop=True)
-    assert r.attempts[0].outcome == "missed"
+    # One look: it closes where the cube was seen, and the belt has carried it on (0/100 placed, measured).
+    rs = episodes("pick_conveyor", (0, 1, 2), open_loop=True)
+    assert not any(r.attempts and r.attempts[0].outcome == "placed" for r in rs)
+    at_least(rs, 1, lambda r: bool(r.attempts) and r.attempts[0].outcome == "missed", "miss the first attempt")
 
 
 @pytest.mark.sim
