@@ -2,16 +2,29 @@
 
 One episode from Python::
 
-    from pickdemo import load_scenario, run_episode
+    from pickdemo import EpisodeOptions, load_scenario, run_episode
 
     result = run_episode(load_scenario("pick_cube"), seed=0)
     assert result.success, result.failure
+    looked_once = run_episode(load_scenario("pick_cube"), seed=0, options=EpisodeOptions(open_loop=True))
+
+Importing the package stays light: the simulator and the kinematics load on the first episode (and
+``EpisodeOptions``, which lives beside them in :mod:`pickdemo.episode`, on first use).
 """
 
 from pickdemo.result import EpisodeResult, Failure, Stage
 from pickdemo.scenario import Scenario, ScenarioError, load_scenario
 
-__all__ = ["EpisodeResult", "Failure", "Scenario", "ScenarioError", "Stage", "load_scenario", "run_episode"]
+__all__ = [
+    "EpisodeOptions",
+    "EpisodeResult",
+    "Failure",
+    "Scenario",
+    "ScenarioError",
+    "Stage",
+    "load_scenario",
+    "run_episode",
+]
 __version__ = "0.1.0"
 
 
@@ -20,3 +33,12 @@ def run_episode(scenario: Scenario, seed: int, **kwargs):  # type: ignore[no-unt
     from pickdemo.episode import run_episode as _run
 
     return _run(scenario, seed, **kwargs)
+
+
+def __getattr__(name: str):  # type: ignore[no-untyped-def]
+    """``pickdemo.EpisodeOptions`` on first use (PEP 562), so that ``import pickdemo`` stays light."""
+    if name == "EpisodeOptions":
+        from pickdemo.episode import EpisodeOptions
+
+        return EpisodeOptions
+    raise AttributeError(f"module 'pickdemo' has no attribute {name!r}")

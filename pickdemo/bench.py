@@ -134,6 +134,7 @@ def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> di
         "estimates_off_accepted": 0,
         "estimates_off_fit_rejected": 0,
         "target_off_table": None,
+        "limit_exceedances": [],
     }
 
 

@@ -14,7 +14,7 @@ from pickdemo import robot_model as rm
 from pickdemo.camera import look_at_pose, project, rendered_intrinsics
 from pickdemo.grasp import GraspParams, top_down
 from pickdemo.layout import LayoutError, footprint_radius_m, sample_layout
-from pickdemo.scenario import ObjectSpec, Scenario, ScenarioError
+from pickdemo.scenario import ConveyorSpec, ObjectSpec, Scenario, ScenarioError
 from pickdemo.streams import spawn_rngs
 
 #: The robot's base on the table: nothing may stand within this radius of the origin (m).
@@ -108,8 +108,43 @@ def _check_objects(sc: Scenario) -> None:
         raise ScenarioError(f"place.position: ({px:.3f}, {py:.3f}) m is off the table")
 
 
+def belt_sweep_mm(belt: ConveyorSpec) -> np.ndarray:
+    """The footprint (mm, float32 convex polygon) the belt's slab sweeps on the table: its strip, plus
+    the overhang and the overhang's travel along the belt's direction (:meth:`ConveyorSpec.slab`,
+    the geometry the simulator builds the slab from)."""
+    pts = np.array(belt.slab().swept_corners(), dtype=np.float64) * 1e3
+    return cv2.convexHull(pts.astype(np.float32))
+
+
+def _sweep_distance_mm(sweep: np.ndarray, x: float, y: float) -> float:
+    """How far (mm) the point (x, y) m lies outside the swept footprint (negative: inside it)."""
+    return -float(cv2.pointPolygonTest(sweep, (float(x) * 1e3, float(y) * 1e3), True))
+
+
+def _sweep_text(sweep: np.ndarray) -> str:
+    lo, hi = sweep.reshape(-1, 2).min(axis=0) / 1e3, sweep.reshape(-1, 2).max(axis=0) / 1e3
+    return f"x {lo[0]:.2f}..{hi[0]:.2f}, y {lo[1]:.2f}..{hi[1]:.2f} m"
+
+
+def _region_mm(obj: ObjectSpec, pad_mm: float = 0.5) -> np.ndarray:
+    """Where the object's centre may be (mm, float32 rectangle), padded so that a fixed position or a
+    range of zero width still has an area."""
+    xs, ys = zip(*_region(obj), strict=True)
+    x0, x1, y0, y1 = min(xs) * 1e3 - pad_mm, max(xs) * 1e3 + pad_mm, min(ys) * 1e3 - pad_mm, max(ys) * 1e3 + pad_mm
+    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float32)
+
+
+def _grown_mm(poly: np.ndarray, radius_mm: float) -> np.ndarray:
+    """A convex polygon grown by ``radius_mm`` (its Minkowski sum with a 32-gon around that circle)."""
+    a = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
+    disc = radius_mm / np.cos(np.pi / 32) * np.column_stack([np.cos(a), np.sin(a)])  # the circle fits inside
+    pts = (poly.reshape(-1, 1, 2).astype(np.float64) + disc[None, :, :]).reshape(-1, 2)
+    return cv2.convexHull(pts.astype(np.float32))
+
+
 def _check_conveyor(sc: Scenario) -> None:
-    """The belt lies on the table; an object stands wholly on it or wholly off it; the place is off it."""
+    """The belt lies on the table; an object stands wholly on it or wholly off where its slab goes; the
+    place is off where its slab goes (the strip and the overhang that slides past it)."""
     belt = sc.conveyor
     if belt is None:
         return
@@ -119,6 +154,16 @@ def _check_conveyor(sc: Scenario) -> None:
             raise ScenarioError(f"conveyor: its strip x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f} m runs off the table")
     if np.hypot(max(0.0, x0, -x1), max(0.0, y0, -y1)) < ROBOT_BASE_RADIUS_M:
         raise ScenarioError("conveyor: its strip runs through the robot's base")
+    sweep = belt_sweep_mm(belt)
+    slab = belt.slab()
+    moves = slab.travel_m[1] > slab.travel_m[0]
+    overhang = (
+        f"its body is {slab.rewind_m:.2f} m longer than the strip "
+        + ("and slides along it, over " if moves else "(it stands still), over ")
+        + _sweep_text(sweep)
+    )
+    if _sweep_distance_mm(sweep, 0.0, 0.0) < ROBOT_BASE_RADIUS_M * 1e3:
+        raise ScenarioError(f"conveyor: the belt runs through the robot's base ({overhang})")
     for obj in sc.objects:
         r = footprint_radius_m(obj.shape, _extents(obj))
         region = _region(obj)
@@ -129,6 +174,13 @@ def _check_conveyor(sc: Scenario) -> None:
                 f"objects.{obj.name}: where it may stand, its footprint ({r * 1e3:.0f} mm radius) straddles the "
                 "belt's edge; keep it wholly on the belt or wholly off it"
             )
+        if not any(on):
+            area, _ = cv2.intersectConvexConvex(_grown_mm(sweep, r * 1e3), _region_mm(obj))
+            if area > 0.0:
+                raise ScenarioError(
+                    f"objects.{obj.name}: where it may stand, its footprint ({r * 1e3:.0f} mm radius) reaches onto "
+                    f"the belt's overhang ({overhang}); keep it wholly on the strip or off that"
+                )
     if sc.task == "pick":
         target = sc.target
         r = footprint_radius_m(target.shape, _extents(target))
@@ -137,6 +189,12 @@ def _check_conveyor(sc: Scenario) -> None:
             raise ScenarioError(
                 f"place.position: ({px:.3f}, {py:.3f}) m is on the belt (the target would ride away); place it "
                 f"at least {r * 1e3:.0f} mm off the strip"
+            )
+        if _sweep_distance_mm(sweep, px, py) < r * 1e3:
+            raise ScenarioError(
+                f"place.position: ({px:.3f}, {py:.3f}) m is on the belt's overhang ({overhang}): the target would "
+                + ("ride away" if moves else "rest on it, not on the table")
+                + f"; place it at least {r * 1e3:.0f} mm off that"
             )
 
 

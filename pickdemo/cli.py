@@ -203,7 +203,7 @@ def _bench_pictures(outcome, out: Path, title: str, open_loop: bool) -> list[Pat
     """bench.png and report.html beside summary.json (the plots extra); never fails the bench."""
     from pickdemo import bench, report
 
-    sections = [("Summary", report.pre(bench.format_summary(outcome.summary)))]
+    sections = [("Scenarios", report.bench_table(outcome.summary, outcome.results))]
     written: list[Path] = []
     try:
         plot = report.write_bench_plots(outcome.summary, outcome.results, out / "bench.png", title)
@@ -213,6 +213,7 @@ def _bench_pictures(outcome, out: Path, title: str, open_loop: bool) -> list[Pat
         print(f"pickdemo: note: no plots ({exc})", file=sys.stderr)
     except Exception as exc:  # noqa: BLE001 - a plot must never lose what the bench measured
         print(f"pickdemo: note: bench.png not drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
+    sections.append(("Summary, as printed", report.pre(bench.format_summary(outcome.summary))))
     loop = " (open loop)" if open_loop else ""
     written.append(report.write_page(out, f"pickdemo bench{loop}: {title}", sections))
     return written

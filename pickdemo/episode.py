@@ -38,6 +38,7 @@ from pickdemo.result import (
     PerceptionScore,
     PhaseRecord,
     Stage,
+    limit_exceedances,
 )
 from pickdemo.scenario import Scenario
 from pickdemo.streams import spawn_rngs
@@ -47,8 +48,9 @@ PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each no
 
 SETTLE_MAX_S = 2.0  # the objects come to rest before the first look, within this
 CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
-#: The video's third-person view: from the front left, above the table.
-THIRD_PERSON_POSE = look_at_pose(np.array([1.15, -0.75, 0.65]), np.array([0.3, 0.08, 0.18]))
+#: The video's third-person view: from the front left, above the table, far enough back that the whole
+#: arm stays in view (fitted to the link frames of several episodes, with 8 cm for the links' bulk).
+THIRD_PERSON_POSE = look_at_pose(np.array([1.22, -0.92, 0.82]), np.array([0.2, 0.08, 0.26]))
 THIRD_PERSON_K = rendered_intrinsics(256, 192, 60.0, 46.8)  # shown at 320x240: most of the cost is its rendering
 VIDEO_CROP_PX = (160, 120)  # the camera's view in the video: this much around the target, shown twice the size
 
@@ -125,6 +127,7 @@ class _Record:
     wrong_estimates_self_rejected: int = 0  # of those, how many perception's own fit check rejected
     off_table: bool | None = None  # the target ended off the table (fell, or was knocked off)
     trace_rows: list[tuple] = field(default_factory=list)
+    commanded: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (t, joint command) per tick
 
 
 class _Episode:
@@ -145,6 +148,7 @@ class _Episode:
         self.video = None
         self.debug = None
         self.last_estimate: PoseEstimate | None = None
+        self.last_estimate_s = -np.inf  # when the frame of the newest estimate was taken (the video's)
 
     # ========================================================================================= run
     def run(self) -> EpisodeResult:
@@ -268,7 +272,7 @@ class _Episode:
                 _, taken, result, error_mm = pending.popleft()
                 status = machine.on_estimate(result, taken)
                 if isinstance(result, PoseEstimate):
-                    self.last_estimate = result
+                    self.last_estimate, self.last_estimate_s = result, taken
                 if error_mm is not None and error_mm > PERCEPTION_OFF_MM and status != "unused":
                     self.rec.wrong_estimates += 1
                     self.rec.wrong_estimates_accepted += status == "accepted"
@@ -280,6 +284,7 @@ class _Episode:
             if machine.finished:
                 break
             self.robot.apply(cmd)
+            self.rec.commanded.append((now, cmd.arm_q))  # always: result.json's limit_exceedances
             tracking = machine.state in TRACKING_STATES
             self.rec.tracking_ticks += tracking
             due = tick - last_frame_tick >= self.frame_ticks  # asked only then: a region costs a prediction
@@ -311,6 +316,9 @@ class _Episode:
                 self.rec.max_z_m = max(self.rec.max_z_m, float(scene.true_pose(self.target_name).position[2]))
             tick += 1
         self._log_events(scene.sim_time_s)
+        if self.video is not None:  # the last frame: how it ended (and what the verifying look saw)
+            with self.timer("video"):
+                self._video_frame(scene.sim_time_s)
         if machine.failure is not None:
             raise EpisodeFailure(machine.failure.stage, machine.failure.reason)
 
@@ -352,13 +360,17 @@ class _Episode:
         self._events_logged = len(self.machine.events)
 
     def _overlay(self, now: float):
-        """What the video and the GUI draw now: the newest estimate, the truth (a label), the
-        tracker's belief and path, the chosen grasp, and a caption."""
-        from pickdemo.video import Overlay
+        """What the video and the GUI draw now: the estimate of the newest frame (none once
+        perception no longer looks), the truth (a label), the tracker's belief and path while it
+        tracks, the chosen grasp until the gripper closes, and a caption."""
+        from pickdemo.video import GRASP_STATES, TRACKER_STATES, Overlay
 
         m = self.machine
         tracked = path = None
-        if m.tracker.initialised:
+        # An estimate is current until a frame after it is due (the frame period, plus its latency).
+        max_age = self.scenario.control.perception_latency_s + 1.5 * self.frame_ticks * self.dt_ctl
+        fresh = now - self.last_estimate_s <= max_age
+        if m.tracker.initialised and m.state.value in TRACKER_STATES:
             tp = m.tracker.predict(now)
             tracked = tp.position
             path = tp.position + np.linspace(0.0, 1.0, 11)[:, None] * tp.velocity
@@ -366,11 +378,11 @@ class _Episode:
         overlay = Overlay(
             caption=f"{m.state.value}  |  t = {now:5.2f} s  |  attempt {m.attempt}"
             + ("  |  open loop" if self.options.open_loop else ""),
-            estimate=self.last_estimate,
+            estimate=self.last_estimate if fresh else None,
             truth=self.scene.true_pose(self.target_name),  # a label for the viewer
             tracked=tracked,
             tracked_path=path,
-            grasp=None if plan is None else plan.grasp,
+            grasp=None if plan is None or m.state.value not in GRASP_STATES else plan.grasp,
             grasp_width_m=0.0 if plan is None else plan.object_width_m,
         )
         return overlay
@@ -378,11 +390,16 @@ class _Episode:
     def _video_frame(self, now: float) -> None:
         """One frame of the video: a third-person view beside the camera's, perception drawn on it."""
         from pickdemo.sim.render import render_rgb
-        from pickdemo.video import compose, draw_overlay, magnify
+        from pickdemo.video import compose, draw_overlay, magnify, panel_centre
 
         overlay = self._overlay(now)
-        tracked = overlay.tracked
-        centre = tracked if tracked is not None else np.array([*self.scenario.place.position, 0.0])
+        m = self.machine
+        tracked = m.tracker.predict(now).position if m.tracker.initialised else None
+        hand = None if m.last_sample is None else np.asarray(m.last_sample.setpoint[:3], dtype=float)
+        place = np.array([*self.scenario.place.position, self.model.height_m / 2.0])
+        centre = panel_centre(m.state.value, tracked=tracked, hand=hand, place=place)
+        if centre is None:  # nothing to follow yet: the middle of the camera's image
+            centre = np.full(3, np.nan)
         view, K = self.camera.preview_around(self.scene, centre, VIDEO_CROP_PX)
         view, K = magnify(view, K, 2)
         right = draw_overlay(view, K, self.camera.T_world_cam, overlay)
@@ -476,6 +493,7 @@ class _Episode:
                 "p95": float(np.percentile(ticks, 95)),
                 "ticks": len(rec.tick_ms),
             },
+            limit_exceedances=tuple(e.to_dict() for e in _exceedances(rec.commanded)),
             trace=_freeze_trace(rec.trace_rows) if self.options.record_trace else None,
         )
 
@@ -493,6 +511,14 @@ def diagnose(failure: Failure | None, tracking_error_mm: float | None) -> str | 
     if tracking_error_mm is None:
         return "not_committed"
     return "perception_off" if tracking_error_mm > PERCEPTION_OFF_MM else "perception_ok"
+
+
+def _exceedances(commanded: list[tuple[float, np.ndarray]]):
+    """The joint command's excursions beyond the datasheet limits (as the motion plot marks them)."""
+    if len(commanded) < 4:
+        return []
+    t, q = zip(*commanded, strict=True)
+    return limit_exceedances(np.array(t, dtype=float), np.array(q, dtype=float).reshape(-1, 7))
 
 
 def _freeze_trace(rows: list[tuple]) -> EpisodeTrace:

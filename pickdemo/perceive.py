@@ -147,6 +147,9 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"{_fmt(s['pitch_error_deg']):<20} {_fmt(s['roll_error_deg']):<20} {nees:>6} "
             f"{s['time_ms']['median']:>6.2f} {s['failures']}"
         )
+    lines.append(
+        "yaw: modulo each target's symmetry (90 deg for a square box, 180 deg for another box); a cylinder has no yaw."
+    )
     lines.append("NEES: mean normalised squared position error; 3 when the reported covariance matches the errors.")
     return "\n".join(lines)
 

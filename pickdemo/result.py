@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from pickdemo import robot_model as rm
+
 
 class Stage(str, enum.Enum):
     """Where an episode can end in failure (ordered as the pipeline runs)."""
@@ -159,6 +161,7 @@ class EpisodeResult:
     estimates_off_accepted: int = 0  # of those, the ones it fused into its belief instead of rejecting
     estimates_off_fit_rejected: int = 0  # of those, the ones perception's own fit check rejected
     target_off_table: bool | None = None  # at the end the target had fallen off the table (scored on the truth)
+    limit_exceedances: tuple[dict[str, Any], ...] = ()  # commanded joint motion beyond the datasheet (see below)
     trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
@@ -194,11 +197,104 @@ class EpisodeResult:
                 "estimates_off_accepted": self.estimates_off_accepted,
                 "estimates_off_fit_rejected": self.estimates_off_fit_rejected,
                 "target_off_table": self.target_off_table,
+                "limit_exceedances": [dict(e) for e in self.limit_exceedances],
             }
         )
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2, allow_nan=False)
+
+
+#: The Franka datasheet limits the commanded joint motion is checked against, with their units.
+JOINT_LIMITS: dict[str, tuple[np.ndarray, str]] = {
+    "velocity": (rm.MAX_VELOCITY_RAD_S, "rad/s"),
+    "acceleration": (rm.MAX_ACCELERATION_RAD_S2, "rad/s^2"),
+    "jerk": (rm.MAX_JERK_RAD_S3, "rad/s^3"),
+}
+
+
+def joint_derivatives(time_s: np.ndarray, q: np.ndarray) -> dict[str, np.ndarray]:
+    """The commanded joints' position, velocity, acceleration and jerk per tick: finite differences
+    (``np.gradient``, second order inside, one-sided at the ends) of the joint command ``q`` (N, 7)."""
+    t = np.asarray(time_s, dtype=float)
+    q = np.asarray(q, dtype=float)
+    if len(t) < 4:
+        raise ValueError("the trace is too short to differentiate")
+    vel = np.gradient(q, t, axis=0)
+    acc = np.gradient(vel, t, axis=0)
+    jerk = np.gradient(acc, t, axis=0)
+    return {"time_s": t, "position": q, "velocity": vel, "acceleration": acc, "jerk": jerk}
+
+
+@dataclass(frozen=True)
+class LimitExceedance:
+    """One joint's commanded velocity, acceleration or jerk beyond its datasheet limit: the peak
+    (absolute), the limit, how many ticks were over it and when. ``times_s``/``values`` are the samples
+    over the limit (signed), for a plot; ``to_dict`` (``result.json``) leaves them out."""
+
+    joint: int  # 1 .. 7
+    quantity: str  # velocity | acceleration | jerk
+    unit: str
+    peak: float  # the largest |value| (its sign is in ``values``)
+    limit: float
+    samples: int  # ticks over the limit
+    first_time_s: float
+    peak_time_s: float
+    times_s: np.ndarray = field(repr=False, compare=False, default_factory=lambda: np.zeros(0))
+    values: np.ndarray = field(repr=False, compare=False, default_factory=lambda: np.zeros(0))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "joint": self.joint,
+            "quantity": self.quantity,
+            "unit": self.unit,
+            "peak": self.peak,
+            "limit": self.limit,
+            "samples": self.samples,
+            "first_time_s": self.first_time_s,
+            "peak_time_s": self.peak_time_s,
+        }
+
+    def note(self) -> str:
+        """One line, e.g. ``joint 2: 7.59 rad/s^2 > 7.5 at 1.45 s (3 ticks)``."""
+        ticks = f"{self.samples} tick{'s' if self.samples != 1 else ''}"
+        value = f"{self.peak:.3g} {self.unit} > {self.limit:.3g}"
+        return f"joint {self.joint}: {value} at {self.peak_time_s:.2f} s ({ticks})"
+
+
+def limit_exceedances(
+    time_s: np.ndarray, q: np.ndarray, limits: dict[str, tuple[np.ndarray, str]] | None = None
+) -> list[LimitExceedance]:
+    """Every joint and quantity whose commanded motion went beyond its datasheet limit (strictly),
+    from the joint command per tick (the finite differences of :func:`joint_derivatives`); ordered by
+    quantity, then joint. Empty when nothing exceeded, or the command is too short to differentiate.
+    Pure (numpy only): the same for the plot and for ``result.json``."""
+    if len(time_s) < 4:
+        return []
+    motion = joint_derivatives(time_s, q)
+    t = motion["time_s"]
+    out: list[LimitExceedance] = []
+    for key, (lim, unit) in (limits or JOINT_LIMITS).items():
+        values = motion[key]
+        over = np.abs(values) > np.asarray(lim, dtype=float)[None, :]
+        for j in np.flatnonzero(over.any(axis=0)):
+            idx = np.flatnonzero(over[:, j])
+            k = idx[int(np.argmax(np.abs(values[idx, j])))]
+            out.append(
+                LimitExceedance(
+                    joint=int(j) + 1,
+                    quantity=key,
+                    unit=unit,
+                    peak=float(abs(values[k, j])),
+                    limit=float(lim[j]),
+                    samples=len(idx),
+                    first_time_s=float(t[idx[0]]),
+                    peak_time_s=float(t[k]),
+                    times_s=t[idx].copy(),
+                    values=values[idx, j].copy(),
+                )
+            )
+    return out
 
 
 def _clean(obj: Any) -> Any:

@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import codecs
 import difflib
+import re
 import sys
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal
@@ -35,7 +37,8 @@ Friction = Annotated[float, Field(ge=0.0, le=5.0)]
 Vec2 = tuple[Coord, Coord]
 Vec3 = tuple[Coord, Coord, Coord]
 #: Names: printable, no spaces or control characters (they end up in terminals, files and JUnit XML).
-Name = Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}$")]
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}$"
+Name = Annotated[str, Field(pattern=NAME_PATTERN)]
 #: Bodies of the scene that an object may not be named after.
 RESERVED_NAMES = frozenset({"robot", "table", "world", "camera", "conveyor"})
 MAX_FILE_BYTES = 1 << 20
@@ -282,6 +285,37 @@ class DisturbanceSpec(_Model):
 Speed = Annotated[float, Field(ge=0.0, le=0.5)]  # m/s, a belt's speed
 #: How fast a belt changes speed (m/s^2): a change of 0.05 m/s takes 0.1 s.
 BELT_ACCELERATION_M_S2 = 0.5
+#: How far the belt's slab travels before it is slid back (m); the slab is this much longer than
+#: its strip along the belt's direction (see :mod:`pickdemo.sim.conveyor`).
+BELT_REWIND_M = 0.2
+#: The longest physics step a scenario may have (s): the slab overruns its travel by at most one.
+MAX_TIME_STEP_S = 1.0 / 240.0
+
+
+@dataclass(frozen=True)
+class BeltSlab:
+    """The belt's body: a slab (a box) that slides along the belt's direction on a prismatic joint.
+
+    One pure description, used by the simulator to build it and by :mod:`pickdemo.checks` to keep
+    things off where it goes, so that the two cannot disagree. Positions are in the table's frame (m).
+    """
+
+    centre: tuple[float, float, float]  # of the slab at joint position 0: the strip's centre, half its height up
+    half_extents: tuple[float, float, float]  # the strip's, lengthened by half the rewind along the direction
+    direction: tuple[float, float]  # unit vector of its travel (+y for a belt that never moves)
+    travel_m: tuple[float, float]  # the joint positions it takes: it starts at the first, is slid back past the second
+    rewind_m: float
+
+    def corners_at(self, q: float) -> list[tuple[float, float]]:
+        """The slab's outline seen from above (4 corners, counter-clockwise) at joint position ``q``."""
+        cx, cy = self.centre[0] + q * self.direction[0], self.centre[1] + q * self.direction[1]
+        hx, hy = self.half_extents[0], self.half_extents[1]
+        return [(cx - hx, cy - hy), (cx + hx, cy - hy), (cx + hx, cy + hy), (cx - hx, cy + hy)]
+
+    def swept_corners(self) -> list[tuple[float, float]]:
+        """The corners of the slab at both ends of its travel: the convex hull of these 8 points is
+        the whole footprint it sweeps on the table (the strip, plus the overhang and its travel)."""
+        return self.corners_at(self.travel_m[0]) + self.corners_at(self.travel_m[1])
 
 
 class ConveyorSpec(_Model):
@@ -328,6 +362,37 @@ class ConveyorSpec(_Model):
             ramp = (t_s - at) * BELT_ACCELERATION_M_S2
             speed = new if abs(new - speed) <= ramp else speed + (ramp if new > speed else -ramp)
         return float(speed)
+
+    @property
+    def top_speed(self) -> float:
+        """The fastest the belt ever runs (m/s)."""
+        return max([self.speed, *(s for _, s in self.speed_changes)])
+
+    def slab(self) -> BeltSlab:
+        """The belt's body and where it goes (:class:`BeltSlab`).
+
+        The slab is the strip lengthened by :data:`BELT_REWIND_M` along the belt's direction (half
+        at each end: on a diagonal belt, its x and y extents grow by their share of it), starts at
+        joint position ``-rewind/2`` and is slid back by ``rewind`` once it is past ``+rewind/2`` (at
+        most one physics step past). A belt that never moves stays where it starts.
+        """
+        (x0, x1), (y0, y1) = self.x_range_m, self.y_range_m
+        speed = self.speed
+        dx, dy = (self.velocity_m_s[0] / speed, self.velocity_m_s[1] / speed) if speed > 0 else (0.0, 1.0)
+        r = BELT_REWIND_M
+        start = -r / 2.0
+        end = r / 2.0 + self.top_speed * MAX_TIME_STEP_S if self.top_speed > 0 else start
+        return BeltSlab(
+            centre=((x0 + x1) / 2.0, (y0 + y1) / 2.0, self.height_m / 2.0),
+            half_extents=(
+                (x1 - x0) / 2.0 + abs(dx) * r / 2.0,
+                (y1 - y0) / 2.0 + abs(dy) * r / 2.0,
+                self.height_m / 2.0,
+            ),
+            direction=(dx, dy),
+            travel_m=(start, end),
+            rewind_m=r,
+        )
 
     def holds(self, x: float, y: float, margin: float = 0.0) -> bool:
         """Whether (x, y) lies on the belt, ``margin`` inside its edges."""
@@ -405,16 +470,35 @@ class Scenario(_Model):
         return tuple(o for o in self.objects if o.target)
 
 
+_NAME_RE = re.compile(NAME_PATTERN)
+
+
+def _item_name(items: object, index: int) -> str | None:
+    """The name of ``items[index]`` when it names the item on its own: a valid, unreserved name that
+    no other item of the list has."""
+    if not isinstance(items, (list, tuple)) or not 0 <= index < len(items) or not isinstance(items[index], dict):
+        return None
+    name = items[index].get("name")
+    if not isinstance(name, str) or not _NAME_RE.fullmatch(name) or name.lower() in RESERVED_NAMES:
+        return None
+    if sum(1 for it in items if isinstance(it, dict) and it.get("name") == name) != 1:
+        return None
+    return name
+
+
 def _format_loc(loc: tuple[int | str, ...], data: object) -> str:
+    """A key's path as every scenario error writes it: ``objects.cube.color``, the way the checks of
+    :mod:`pickdemo.checks` name it too (an object by its name; by its index, ``objects[0]``, only
+    when it has no name of its own), and ``position_range[0][1]`` inside arrays."""
     parts: list[str] = []
     node = data
     for item in loc:
         if isinstance(item, int):
-            name = None
-            if isinstance(node, (list, tuple)) and 0 <= item < len(node) and isinstance(node[item], dict):
-                name = node[item].get("name")
-            label = f"({_printable(name)})" if isinstance(name, str) and name else ""
-            parts[-1] = f"{parts[-1]}[{item}]" + label if parts else f"[{item}]"
+            name = _item_name(node, item)
+            if name is not None and parts:
+                parts.append(name)
+            else:
+                parts[-1:] = [f"{parts[-1]}[{item}]" if parts else f"[{item}]"]
             node = node[item] if isinstance(node, (list, tuple)) and 0 <= item < len(node) else None
         else:
             parts.append(_printable(str(item)))
@@ -476,15 +560,30 @@ def _data_loc(loc: tuple, data: object) -> tuple[int | str, ...]:
     return tuple(out)
 
 
-def _message(err: dict, data: object) -> str:
+def _close_key(loc: tuple[int | str, ...]) -> str | None:
+    """The valid key an unknown key at ``loc`` most likely meant (None if none is close)."""
+    model = _model_at(loc)
+    valid = sorted(model.model_fields) if model is not None else []
+    close = difflib.get_close_matches(str(loc[-1]), valid, n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
+def _message(err: dict, data: object, listed: set[tuple[int | str, ...]] | None = None) -> str:
+    """One problem as ``path: what``. ``listed``: where the valid keys were listed already (a second
+    unknown key there does not list them again)."""
     loc = _data_loc(err["loc"], data)
     where = _format_loc(loc, data)
     if err["type"] == "extra_forbidden" and loc:
         model = _model_at(loc)
         valid = sorted(model.model_fields) if model is not None else []
-        close = difflib.get_close_matches(str(loc[-1]), valid, n=1, cutoff=0.6)
-        hint = f"; did you mean {close[0]!r}?" if close else (f" (valid keys: {', '.join(valid)})" if valid else "")
-        return f"{where}: unknown key{hint}"
+        close = _close_key(loc)
+        if close:
+            return f"{where}: unknown key (did you mean {close!r}?)"
+        if not valid or (listed is not None and loc[:-1] in listed):
+            return f"{where}: unknown key"
+        if listed is not None:
+            listed.add(loc[:-1])
+        return f"{where}: unknown key (valid keys: {', '.join(valid)})"
     msg = err["msg"].removeprefix("Value error, ")
     if not loc:
         return msg
@@ -495,21 +594,48 @@ def _message(err: dict, data: object) -> str:
     return f"{where}: {msg}"
 
 
-def parse_scenario(data: dict, *, source: str = "<scenario>") -> Scenario:
-    """Validate a scenario given as a parsed TOML table."""
+#: Problems of one file spelt out in its error line; any more are named by their keys only.
+SHOWN_PROBLEMS = 3
+
+
+def _problems(exc: ValidationError, data: object) -> str:
+    """Every problem pydantic found, on one line: unknown keys first, then the rest in file order; a
+    key reported missing only because a misspelling of it is there (``colour`` for ``color``) is left
+    out, the misspelling's "did you mean" says it. Past :data:`SHOWN_PROBLEMS`, the others are named."""
+    errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
+    meant = set()
+    for e in errors:
+        loc = _data_loc(e["loc"], data)
+        if e["type"] == "extra_forbidden" and loc:
+            close = _close_key(loc)
+            if close is not None:
+                meant.add((*loc[:-1], close))
+    kept = [e for e in errors if not (e["type"] == "missing" and _data_loc(e["loc"], data) in meant)] or errors[:1]
+    listed: set[tuple[int | str, ...]] = set()
+    messages = list(dict.fromkeys(_message(e, data, listed) for e in kept))
+    text = "; ".join(messages[:SHOWN_PROBLEMS])
+    rest = messages[SHOWN_PROBLEMS:]
+    if rest:
+        where = [m.split(": ", 1)[0] for m in rest]
+        text += f"; {len(rest)} more at {_printable(', '.join(where), 120)}"
+    return text
+
+
+def parse_scenario(data: dict, *, source: str = "<scenario>", default_task: str = "pick") -> Scenario:
+    """Validate a scenario given as a parsed TOML table. ``default_task``: the task of a file without a
+    ``task`` key ("pick"; ``pickdemo perceive`` reads such a file as "perceive")."""
     if not isinstance(data, dict):
         raise ScenarioError(f"{source}: a scenario is a TOML table, got {type(data).__name__}")
     try:
         tupled = _tuples(data)
     except ScenarioError as exc:
         raise ScenarioError(f"{source}: {exc}") from None
+    if "task" not in tupled:
+        tupled["task"] = default_task
     try:
         return Scenario.model_validate(tupled)
     except ValidationError as exc:
-        # An unknown key first: a misspelt key also makes the one it meant "missing".
-        errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
-        extra = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-        raise ScenarioError(f"{source}: {_message(errors[0], data)}{extra}") from None
+        raise ScenarioError(f"{source}: {_problems(exc, data)}") from None
 
 
 def builtin_scenario_dirs() -> list[Path]:
@@ -567,11 +693,12 @@ def resolve_scenario_path(name_or_path: str | Path) -> Path:
     raise ScenarioError(f"{text}: unknown scenario ({hint}known: {', '.join(known) or 'none found'})")
 
 
-def load_scenario(name_or_path: str | Path, *, check: bool = True) -> Scenario:
+def load_scenario(name_or_path: str | Path, *, check: bool = True, default_task: str = "pick") -> Scenario:
     """Load and validate a scenario by name or path; raises :class:`ScenarioError` on bad input.
 
     With ``check`` (the default) it also runs what can be checked without running it
-    (:func:`pickdemo.checks.check_scenario`: geometry, reach, the camera's view).
+    (:func:`pickdemo.checks.check_scenario`: geometry, reach, the camera's view). ``default_task``:
+    the task of a file that has no ``task`` key (see :func:`parse_scenario`).
     """
     path = resolve_scenario_path(name_or_path)
     try:
@@ -596,7 +723,7 @@ def load_scenario(name_or_path: str | Path, *, check: bool = True) -> Scenario:
         raise ScenarioError(f"{path}: invalid TOML: {_printable(str(exc), 120)}") from None
     except RecursionError:
         raise ScenarioError(f"{path}: invalid TOML: nested too deeply") from None
-    scenario = parse_scenario(data, source=str(path))
+    scenario = parse_scenario(data, source=str(path), default_task=default_task)
     if check:
         from pickdemo.checks import check_scenario  # imports the kinematics: only when asked
 

@@ -4,12 +4,16 @@ Pure: images (arrays) in, an MP4 file out. Drawing is OpenCV's; encoding is PyAV
 libx264 inside its wheel, nothing downloaded), an optional extra: ``pip install "pickdemo[video]"``.
 What is drawn on the camera's view:
 
-- the Shi-Tomasi feature points of the newest estimate, each with its covariance ellipse (eq. 14,
+- the Shi-Tomasi feature points of the current estimate (from the newest frame, while perception
+  looks: never an old one over a table it has left), each with its covariance ellipse (eq. 14,
   projected into the image; 3 sigma, magnified ``ELLIPSE_GAIN`` times, as they are sub-pixel);
 - the estimated pose's axes (solid) beside the true pose's (thin, white: a label, for the viewer);
-- the tracker's predicted path for the next second (a dotted line) and its position now;
-- the chosen grasp: the two finger pads' positions across the object;
-- a caption: the state of the pick, the simulated time, the attempt.
+- while it tracks the target: the tracker's predicted path for the next second (a dotted line) and
+  its position now; until the gripper closes: the chosen grasp, the two finger pads across the object;
+- a caption: the state of the pick, the simulated time, the attempt; beneath it a legend of the colours.
+
+The camera's view follows what matters (:func:`panel_centre`): the tracked target until the grasp,
+then the hand that holds it, then the place once the target is let go (and verified there).
 """
 
 from __future__ import annotations
@@ -27,6 +31,37 @@ from pickdemo.perception import PoseEstimate
 ELLIPSE_GAIN = 1.0  # covariance ellipses drawn at this many times their 3-sigma size
 AXIS_M = 0.04  # length of the drawn pose axes
 AXIS_COLOURS = ((230, 40, 40), (40, 200, 40), (60, 90, 240))  # x, y, z in RGB
+TRUTH_COLOUR = (255, 255, 255)
+ELLIPSE_COLOUR = (255, 200, 0)
+FEATURE_COLOUR = (255, 255, 0)
+PATH_COLOUR = (255, 0, 255)
+GRASP_COLOUR = (255, 140, 0)
+CAPTION_BAR_PX = 28
+LEGEND_BAR_PX = 20
+
+#: States of the pick in which the tracker's belief and path are drawn (it looks at the target then).
+TRACKER_STATES = frozenset({"look", "approach", "descend", "close", "back_off"})
+#: States in which the planned grasp is drawn (until the gripper has closed on it).
+GRASP_STATES = frozenset({"approach", "descend", "close"})
+#: States in which the hand holds the target (the camera's view follows the hand).
+HELD_STATES = frozenset({"lift", "transport", "lower", "release"})
+#: States after the target is let go (the camera's view shows the place).
+PLACED_STATES = frozenset({"retreat", "home", "verify", "done"})
+
+
+def panel_centre(
+    state: str, *, tracked: np.ndarray | None, hand: np.ndarray | None, place: np.ndarray
+) -> np.ndarray | None:
+    """Where the camera's view in the video is centred (world, m): the tracked target until the
+    grasp, the hand (the held target) while carrying, the place once the target is let go. ``None``:
+    nothing to follow yet (the whole image's centre)."""
+    if state in HELD_STATES:
+        return hand if hand is not None else tracked
+    if state in PLACED_STATES:
+        return place
+    if state == "failed":
+        return tracked if tracked is not None else hand
+    return tracked
 
 
 class VideoUnavailable(RuntimeError):
@@ -71,7 +106,7 @@ def draw_overlay(img: np.ndarray, K: Intrinsics, T_world_cam: Pose, ov: Overlay)
     out = np.ascontiguousarray(img.copy())
     T = T_world_cam
     if ov.truth is not None:
-        draw_axes(out, ov.truth, K, T, thickness=1, colours=((255, 255, 255),) * 3)
+        draw_axes(out, ov.truth, K, T, thickness=1, colours=(TRUTH_COLOUR,) * 3)
     if ov.estimate is not None:
         for fp in ov.estimate.features:
             uv = _to_pixels(fp.mean_world, K, T)
@@ -86,26 +121,26 @@ def draw_overlay(img: np.ndarray, K: Intrinsics, T_world_cam: Pose, ov: Overlay)
             w, V = np.linalg.eigh(0.5 * (C2 + C2.T))
             axes = tuple(int(max(1, round(3.0 * ELLIPSE_GAIN * np.sqrt(max(x, 0.0))))) for x in w[::-1])
             angle = float(np.degrees(np.arctan2(V[1, -1], V[0, -1])))
-            cv2.ellipse(out, _pt(uv[0]), axes, angle, 0, 360, (255, 200, 0), 1, cv2.LINE_AA)
-            cv2.circle(out, _pt(uv[0]), 1, (255, 255, 0), -1)
+            cv2.ellipse(out, _pt(uv[0]), axes, angle, 0, 360, ELLIPSE_COLOUR, 1, cv2.LINE_AA)
+            cv2.circle(out, _pt(uv[0]), 1, FEATURE_COLOUR, -1)
         draw_axes(out, ov.estimate.pose, K, T, thickness=2)
     if ov.tracked_path is not None and len(ov.tracked_path) > 1:
         uv = _to_pixels(ov.tracked_path, K, T)
         if uv is not None:
             for a in uv[::2]:
-                cv2.circle(out, _pt(a), 1, (255, 0, 255), -1)
+                cv2.circle(out, _pt(a), 1, PATH_COLOUR, -1)
     if ov.tracked is not None:
         uv = _to_pixels(ov.tracked, K, T)
         if uv is not None:
-            cv2.drawMarker(out, _pt(uv[0]), (255, 0, 255), cv2.MARKER_CROSS, 10, 1, cv2.LINE_AA)
+            cv2.drawMarker(out, _pt(uv[0]), PATH_COLOUR, cv2.MARKER_CROSS, 10, 1, cv2.LINE_AA)
     if ov.grasp is not None and ov.grasp_width_m > 0:
         half = ov.grasp_width_m / 2.0
         pads = ov.grasp.transform_points(np.array([[0.0, -half, 0.0], [0.0, half, 0.0]]))
         uv = _to_pixels(pads, K, T)
         if uv is not None:
-            cv2.line(out, _pt(uv[0]), _pt(uv[1]), (255, 140, 0), 1, cv2.LINE_AA)
+            cv2.line(out, _pt(uv[0]), _pt(uv[1]), GRASP_COLOUR, 1, cv2.LINE_AA)
             for a in uv:
-                cv2.circle(out, _pt(a), 3, (255, 140, 0), 1, cv2.LINE_AA)
+                cv2.circle(out, _pt(a), 3, GRASP_COLOUR, 1, cv2.LINE_AA)
     return out
 
 
@@ -121,8 +156,45 @@ def magnify(img: np.ndarray, K: Intrinsics, factor: int) -> tuple[np.ndarray, In
     return big, Kb
 
 
-def compose(left: np.ndarray, right: np.ndarray, caption: str) -> np.ndarray:
-    """Two views side by side (heights matched) above a caption bar; even width and height (H.264)."""
+def legend_bar(width: int, height: int = LEGEND_BAR_PX) -> np.ndarray:
+    """A strip naming each overlay's colour, drawn with the overlay's own marks."""
+    bar = np.full((height, width, 3), 40, np.uint8)
+    font, scale = cv2.FONT_HERSHEY_SIMPLEX, 0.36
+    y = height // 2
+    x = 8
+
+    def text(label: str) -> None:
+        nonlocal x
+        cv2.putText(bar, label, (x, y + 4), font, scale, (225, 225, 225), 1, cv2.LINE_AA)
+        x += cv2.getTextSize(label, font, scale, 1)[0][0] + 12
+
+    for k, c in enumerate(AXIS_COLOURS):  # estimate axes: x, y, z
+        cv2.line(bar, (x + 4 * k, y + 5), (x + 4 * k + 6, y - 5), c, 2, cv2.LINE_AA)
+    x += 20
+    text("estimate xyz")
+    cv2.line(bar, (x, y + 5), (x + 10, y - 5), TRUTH_COLOUR, 1, cv2.LINE_AA)
+    x += 14
+    text("truth")
+    cv2.ellipse(bar, (x + 6, y), (6, 4), 20, 0, 360, ELLIPSE_COLOUR, 2, cv2.LINE_AA)
+    cv2.circle(bar, (x + 6, y), 1, FEATURE_COLOUR, -1)
+    x += 16
+    text("features, 3-sigma")
+    for k in range(4):
+        cv2.circle(bar, (x + 4 * k, y), 1, PATH_COLOUR, -1)
+    cv2.drawMarker(bar, (x + 18, y), PATH_COLOUR, cv2.MARKER_CROSS, 9, 2, cv2.LINE_AA)
+    x += 26
+    text("tracker, path 1 s")
+    cv2.line(bar, (x + 3, y), (x + 15, y), GRASP_COLOUR, 1, cv2.LINE_AA)
+    for u in (x + 3, x + 15):
+        cv2.circle(bar, (u, y), 3, GRASP_COLOUR, 2, cv2.LINE_AA)
+    x += 22
+    text("planned grasp")
+    return bar
+
+
+def compose(left: np.ndarray, right: np.ndarray, caption: str, *, legend: bool = True) -> np.ndarray:
+    """Two views side by side (heights matched) above a caption bar and the overlays' legend; even
+    width and height (H.264)."""
     h = max(left.shape[0], right.shape[0])
 
     def fit(img: np.ndarray) -> np.ndarray:
@@ -132,9 +204,9 @@ def compose(left: np.ndarray, right: np.ndarray, caption: str) -> np.ndarray:
         return cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
 
     row = np.hstack([fit(left), fit(right)])
-    bar = np.full((28, row.shape[1], 3), 24, np.uint8)
+    bar = np.full((CAPTION_BAR_PX, row.shape[1], 3), 24, np.uint8)
     cv2.putText(bar, caption, (8, 19), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (240, 240, 240), 1, cv2.LINE_AA)
-    frame = np.vstack([row, bar])
+    frame = np.vstack([row, bar, legend_bar(row.shape[1])] if legend else [row, bar])
     return frame[: frame.shape[0] // 2 * 2, : frame.shape[1] // 2 * 2]
 
 

@@ -48,7 +48,11 @@ def _edit(old: str, new: str) -> str:
 # (id, file text, what the one line must say)
 FILE_CASES: list[tuple[str, str, str]] = [
     # ---- the schema: no NaN or inf, no coercion, bounds, names
-    ("nan in a range", _edit("[[0.45, 0.55]", "[[nan, 0.55]"), "position_range[0][0]: Input should be a finite number"),
+    (
+        "nan in a range",
+        _edit("[[0.45, 0.55]", "[[nan, 0.55]"),
+        "objects.cube.position_range[0][0]: Input should be a finite number",
+    ),
     (
         "inf budget",
         _edit("max_sim_time_s = 60.0", "max_sim_time_s = inf"),
@@ -115,13 +119,13 @@ FILE_CASES: list[tuple[str, str, str]] = [
     (
         "misspelt colour",
         _edit("color = [0.85, 0.1, 0.1]", "colour = [0.85, 0.1, 0.1]"),
-        "objects[0](cube).colour: unknown key; did you mean 'color'?",
+        "objects.cube.colour: unknown key (did you mean 'color'?)",
     ),
-    ("misspelt table", "[cammera]\nwidth = 640\n" + GOOD, "cammera: unknown key; did you mean 'camera'?"),
+    ("misspelt table", "[cammera]\nwidth = 640\n" + GOOD, "cammera: unknown key (did you mean 'camera'?)"),
     (
         "unknown key, nothing close",
         _edit("mass = 0.1", "mass = 0.1\nflavour = 3"),
-        "objects[0](cube).flavour: unknown key (valid keys:",
+        "objects.cube.flavour: unknown key (valid keys:",
     ),
     (
         "two targets",
@@ -208,7 +212,28 @@ FILE_CASES: list[tuple[str, str, str]] = [
         + "position_range = [[0.49, 0.51], [-0.01, 0.01]]\n",
         "layout (seed 0): objects.other: no free spot found",
     ),
-    ("empty file", "", "name: Field required (and 2 more)"),
+    ("empty file", "", "name: Field required; objects: Field required; place: Field required"),
+    (
+        "misspelt colour and a bad mass: both said",
+        _edit("color = [0.85, 0.1, 0.1]", "colour = [0.85, 0.1, 0.1]").replace("mass = 0.1", 'mass = "0.1"'),
+        "objects.cube.colour: unknown key (did you mean 'color'?); objects.cube.mass: Input should be a valid number",
+    ),
+    (
+        "many problems: the first said, the rest named",
+        _edit("mass = 0.1", "mass = 0.1\nflavour = 1\nsmell = 2\ntaste = 3\nsound = 4\nmood = 5"),
+        "objects.cube.smell: unknown key; objects.cube.taste: unknown key; 2 more at objects.cube.sound, "
+        "objects.cube.mood",
+    ),
+    (
+        "an unnamed object is named by its index",
+        _edit('name = "cube"', 'name = "a cube"'),
+        "objects[0].name: String should match pattern",
+    ),
+    (
+        "a list without names: indices",
+        GOOD + "[[disturbances]]\nat_time_s = -1.0\noffset_m = [0.05, 0.0]\n",
+        "disturbances[0].at_time_s: Input should be greater than or equal to 0",
+    ),
     ("invalid TOML", GOOD + "\n[[objects]\n", "invalid TOML"),
 ]
 
@@ -283,6 +308,13 @@ def test_bad_file_or_name(tmp_path: Path, capsys: pytest.CaptureFixture[str], ma
         (["run", "perceive_boxes"], "a perception-only scenario"),
         (["bench", "pick_cube", "--seeds", "0-999999999999"], "1000000000000 seeds; at most 100000"),
         (["bench", "pick_cube", "--seeds", "3-1"], "bad seeds '3-1'"),
+        (["bench", "pick_cube", "--seeds", "0-"], "--seeds: bad seeds '0-'"),
+        (["bench", "pick_cube", "--seeds", "-3"], "--seeds: bad seeds '-3'"),
+        (["bench", "pick_cube", "--seeds", "0--1"], "--seeds: bad seeds '0--1'"),
+        (["bench", "pick_cube", "--seeds", ","], "--seeds: bad seeds ',': an empty item"),
+        (["bench", "pick_cube", "--seeds", "0,,1"], "--seeds: bad seeds '0,,1': an empty item"),
+        (["bench", "pick_cube", "--seeds", " "], "--seeds: no seeds given"),
+        (["perceive", "pick_cube", "--seeds", "0-"], "--seeds: bad seeds '0-'"),
         (["bench", "pick_cube", "--seeds", "a-b"], "bad seeds"),
         (["bench", "pick_cube", "--seeds", ""], "no seeds given"),
         (["bench", "pick_cube", "--episode-timeout", "nan"], "--episode-timeout must be a number of seconds"),

@@ -41,9 +41,36 @@ def _result(scenario: str, seed: int, ok: bool, stage: str = "grasp") -> dict:
 def test_parse_seeds() -> None:
     assert parse_seeds("0-4") == [0, 1, 2, 3, 4]
     assert parse_seeds("3, 0-1,3") == [0, 1, 3]
+    assert parse_seeds(" 7 ") == [7] and parse_seeds("0-0") == [0]
     for bad in ("", "5-2", "-1", "a", "1-b"):
         with pytest.raises(BenchError):
             parse_seeds(bad)
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [
+        ("0-", "a seed N or a range N-M"),  # issue 17: read as seed 0
+        ("-3", "a seed N or a range N-M"),
+        ("0--1", "a seed N or a range N-M"),
+        ("3-1", "the range runs down (3 > 1); write 1-3"),
+        (",", "an empty item"),
+        ("0,,1", "an empty item"),
+        ("0,", "an empty item"),
+        ("   ", "no seeds given"),
+        ("1 2", "a seed N or a range N-M"),
+        ("0 - 3", "a seed N or a range N-M"),
+        ("+3", "a seed N or a range N-M"),
+        ("\u00b2", "a seed N or a range N-M"),  # a digit to str.isdigit, not a seed
+        ("0-9223372036854775808", "a seed is at most 9223372036854775807"),
+        ("9" * 5000, "a seed is at most"),  # longer than int() reads: still one line
+    ],
+)
+def test_parse_seeds_refuses_what_is_not_a_seed_list(text: str, why: str) -> None:
+    with pytest.raises(BenchError) as err:
+        parse_seeds(text)
+    msg = str(err.value)
+    assert why in msg and "\n" not in msg and len(msg) < 200 and msg.isascii(), msg
 
 
 def test_wilson_interval() -> None:
@@ -134,6 +161,41 @@ def test_existing_results_need_resume(tmp_path: Path) -> None:
     assert sorted(json.loads(line)["seed"] for line in lines) == [0, 1, 2, 3, 4]
 
 
+def test_resume_runs_the_rest_and_every_result_is_of_the_run(tmp_path: Path) -> None:
+    run_bench([Job("x.toml", "x", s) for s in range(3)], LocalExecutor(1, fn=_job_ok), out_dir=tmp_path, progress=False)
+    for name in ("summary.json", "bench.png", "report.html"):  # a summary of these 3, as a finished run leaves
+        (tmp_path / name).write_text("old")
+    more = [Job("x.toml", "x", s) for s in range(5)]
+    out = run_bench(more, LocalExecutor(1, fn=_job_ok), out_dir=tmp_path, resume=True, progress=False)
+    assert sorted(r["seed"] for r in out.results) == [0, 1, 2, 3, 4] and out.summary["x"]["episodes"] == 5
+    assert not any((tmp_path / n).exists() for n in ("summary.json", "bench.png", "report.html"))  # never stale
+
+
+def test_resume_refuses_a_file_holding_episodes_outside_the_run(tmp_path: Path) -> None:
+    run_bench([Job("x.toml", "x", s) for s in range(20)], LocalExecutor(2, fn=_job_ok), out_dir=tmp_path,
+              progress=False)  # fmt: skip
+    jsonl = tmp_path / "episodes.jsonl"
+    before = jsonl.read_text()
+    ran: list[int] = []
+    with pytest.raises(BenchError) as err:
+        run_bench([Job("x.toml", "x", s) for s in range(2)], LocalExecutor(1, fn=_job_ok), out_dir=tmp_path,
+                  resume=True, progress=False, on_result=lambda r: ran.append(r["seed"]))  # fmt: skip
+    msg = str(err.value)
+    assert str(jsonl) in msg and "18 episode(s)" in msg and "x seed 2" in msg and "x seeds 0-19" in msg, msg
+    assert "\n" not in msg and ran == [] and jsonl.read_text() == before
+    # Another perception method, or open loop, is another episode: refused the same way.
+    with pytest.raises(BenchError, match="x seed 0"):
+        run_bench([Job("x.toml", "x", s, open_loop=True) for s in range(20)], LocalExecutor(1, fn=_job_ok),
+                  out_dir=tmp_path, resume=True, progress=False)  # fmt: skip
+
+
+def test_a_fresh_run_removes_an_old_runs_summary(tmp_path: Path) -> None:
+    (tmp_path / "episodes.jsonl").write_text("")
+    (tmp_path / "summary.json").write_text("{}")
+    out = run_bench([Job("x.toml", "x", 0)], LocalExecutor(1, fn=_job_ok), out_dir=tmp_path, progress=False)
+    assert out.ran == 1 and not (tmp_path / "summary.json").exists()
+
+
 def test_bad_scenario_in_a_job_is_an_error_result() -> None:
     r = run_job(Job("/no/such/scenario.toml", "ghost", 0))
     assert r["success"] is False and r["failure"]["stage"] == "error" and "no such scenario" in r["failure"]["reason"]
@@ -179,8 +241,64 @@ def test_cli_bench_gate_and_files(tmp_path: Path) -> None:
     assert clash.returncode == 2 and "--resume" in clash.stderr
 
 
+def test_cli_bench_refuses_to_resume_on_part_of_a_run(tmp_path: Path) -> None:
+    # Issue 17: 20 episodes there, 2 asked for: refused before anything runs, every file left as it was.
+    out = tmp_path / "gate"
+    out.mkdir()
+    jsonl = out / "episodes.jsonl"
+    jsonl.write_text("".join(json.dumps(_result("pick_cube", s, True)) + "\n" for s in range(20)))
+    (out / "junit.xml").write_text("<old/>")
+    proc = _cli("bench", "pick_cube", "--seeds", "0-1", "--out", str(out), "--resume", "--junit",
+                str(out / "junit.xml"), "--no-progress")  # fmt: skip
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stdout + proc.stderr
+    assert str(jsonl) in proc.stderr and "pick_cube seed 2" in proc.stderr and "Traceback" not in proc.stderr
+    assert len(jsonl.read_text().splitlines()) == 20 and (out / "junit.xml").read_text() == "<old/>"
+    assert not (out / "summary.json").exists()
+
+
+def test_bench_gate_has_a_real_default() -> None:
+    from pickdemo.bench import DEFAULT_MIN_SUCCESS
+    from pickdemo.cli import _build_parser
+
+    assert _build_parser().parse_args(["bench"]).min_success == DEFAULT_MIN_SUCCESS == 0.95
+    help_text = " ".join(_cli("bench", "--help").stdout.split())
+    assert "exit 1 if a scenario's success rate is below RATE (default 0.95; 0: no gate)" in help_text
+
+
+@pytest.mark.sim
+def test_bench_gates_without_min_success_and_zero_turns_it_off(tmp_path: Path) -> None:
+    bad = tmp_path / "too_short.toml"  # possible, but given too little simulated time: it fails when it runs
+    bad.write_text('name = "too_short"\n[[objects]]\nname = "c"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\n'
+                   'color = [0.85, 0.1, 0.1]\nposition = [0.5, 0.0]\ntarget = true\n[sim]\nmax_sim_time_s = 2.0\n'
+                   '[place]\nposition = [0.4, 0.3]\n')  # fmt: skip
+    out = tmp_path / "o"
+    gated = _cli("bench", str(bad), "--seeds", "0", "--workers", "1", "--out", str(out), "--no-progress")
+    assert gated.returncode == 1 and "GATE FAILED: success rate below 0.95" in gated.stdout, gated.stdout
+    off = _cli("bench", str(bad), "--seeds", "0", "--out", str(out), "--resume", "--min-success", "0", "--no-progress")
+    assert off.returncode == 0 and "ran 0 episode(s)" in off.stdout and "GATE" not in off.stdout, off.stdout
+
+
+@pytest.mark.sim
+def test_resumed_bench_outputs_all_describe_the_whole_run(tmp_path: Path) -> None:
+    out = tmp_path / "gate"
+    junit = out / "junit.xml"
+    first = _cli("bench", "pick_cube", "--seeds", "0", "--workers", "1", "--out", str(out), "--junit", str(junit),
+                 "--no-progress")  # fmt: skip
+    assert first.returncode == 0, first.stdout + first.stderr
+    more = _cli("bench", "pick_cube", "--seeds", "0-1", "--workers", "1", "--out", str(out), "--resume", "--junit",
+                str(junit), "--no-progress")  # fmt: skip
+    assert more.returncode == 0 and "ran 1 episode(s)" in more.stdout and "1 already done" in more.stdout, more.stdout
+    assert "pick_cube: 2/2 succeeded" in more.stdout and "over seeds 0-1" in more.stdout
+    assert [json.loads(line)["seed"] for line in (out / "episodes.jsonl").read_text().splitlines()] == [0, 1]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["pick_cube"]["seeds"] == [0, 1]
+    cases = ET.parse(junit).getroot().findall("testsuite/testcase")
+    assert sorted(c.get("name") for c in cases) == ["seed 0", "seed 1"]
+    assert "seeds 0-1" in (out / "report.html").read_text()  # the page of this run, not of the first
+
+
 def test_cli_bench_bad_input() -> None:
-    for args in (("--seeds", "9-1"), ("--workers", "0"), ("--resume",), ("--min-success", "2")):
+    for args in (("--seeds", "9-1"), ("--seeds", "0-"), ("--workers", "0"), ("--resume",), ("--min-success", "2")):
         proc = _cli("bench", "pick_cube", *args)
         assert proc.returncode == 2 and proc.stderr.count("\n") == 1, (args, proc.stderr)
 

@@ -42,7 +42,7 @@ def test_bad_scenario_file_names_file_and_key(tmp_path: Path) -> None:
     )
     proc = _run("run", str(f))
     assert proc.returncode == 2
-    assert str(f) in proc.stderr and "objects[0](c).size" in proc.stderr
+    assert str(f) in proc.stderr and "objects.c.size" in proc.stderr
 
 
 @pytest.mark.sim
@@ -77,5 +77,102 @@ def test_run_writes_result_json(tmp_path: Path) -> None:
 
 
 def test_list() -> None:
+    from pickdemo.scenario import list_scenarios, load_scenario
+
     proc = _run("list")
     assert proc.returncode == 0 and "pick_cube" in proc.stdout.split()
+    lines = proc.stdout.splitlines()
+    assert len(lines) == len(list_scenarios())
+    cube = next(line for line in lines if line.split()[0] == "pick_cube")
+    assert cube.endswith(load_scenario("pick_cube", check=False).description)
+    starts = {len(line) - len(line.split(maxsplit=1)[1]) for line in lines}
+    assert len(starts) == 1  # the descriptions line up
+
+
+def test_list_names_is_for_scripts() -> None:
+    from pickdemo.scenario import list_scenarios
+
+    proc = _run("list", "--names")
+    assert proc.returncode == 0 and proc.stdout.splitlines() == list_scenarios()
+
+
+def _help(*args: str) -> str:
+    proc = _run(*args, "--help")
+    assert proc.returncode == 0, proc.stderr
+    return " ".join(proc.stdout.split())  # as one line: argparse wraps where it likes
+
+
+@pytest.mark.parametrize(
+    ("command", "files"),
+    [
+        ("run", ("result.json", "motion.png", "report.html", "episode.mp4")),
+        ("bench", ("episodes.jsonl", "summary.json", "bench.png", "report.html")),
+        ("perceive", ("perception.json", "perception.png", "report.html")),
+    ],
+)
+def test_help_names_every_file_written(command: str, files: tuple[str, ...]) -> None:
+    import pickdemo.cli
+
+    text = _help(command)
+    out_help = text.rsplit("--out DIR", 1)[-1].split(" --", 1)[0]  # the --out option's own line
+    assert all(f in out_help or (f == "episode.mp4" and f in text) for f in files), (files, out_help)
+    usage = " ".join(pickdemo.cli.__doc__.split())
+    assert all(f in usage for f in files), files  # the module's one-line usages say it too
+
+
+def test_episode_options_from_the_package_and_import_stays_light() -> None:
+    code = (
+        "import sys, pickdemo\n"
+        "assert 'pybullet' not in sys.modules and 'pinocchio' not in sys.modules\n"
+        "from pickdemo import EpisodeOptions\n"
+        "from pickdemo.episode import EpisodeOptions as E\n"
+        "assert EpisodeOptions is E and EpisodeOptions(open_loop=True).open_loop\n"
+        "assert 'EpisodeOptions' in pickdemo.__all__\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_yaw_is_said_modulo_the_targets_symmetry() -> None:
+    from pickdemo.cli import _summary, yaw_modulus_deg
+    from pickdemo.result import EpisodeResult, PerceptionScore
+    from pickdemo.scenario import load_scenario
+
+    assert yaw_modulus_deg(load_scenario("pick_cube", check=False).target) == 90.0
+    assert yaw_modulus_deg(load_scenario("pick_box", check=False).target) == 180.0
+    assert yaw_modulus_deg(load_scenario("pick_cylinder", check=False).target) is None
+    score = PerceptionScore({}, {}, position_error_mm=0.5, yaw_error_deg=0.07)
+    r = EpisodeResult("s", 0, True, None, score, 1.0, 50.0, 50.0, 10.0, 1.0)
+    assert "pose error 0.50 mm, yaw error 0.07 deg modulo 90 deg |" in _summary(r, 90.0)
+    no_yaw = EpisodeResult("s", 0, True, None, PerceptionScore({}, {}, 0.5, None), 1.0, 50.0, 50.0, 10.0, 1.0)
+    assert "yaw" not in _summary(no_yaw, None)  # a cylinder has no yaw
+
+
+@pytest.mark.sim
+def test_open_loop_header_and_yaw_modulus_of_a_run() -> None:
+    proc = _run("run", "pick_cube", "--seed", "0", "--open-loop")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.splitlines()[0].startswith("pickdemo: pick_cube seed 0 (open loop: one look): ")
+    assert "deg modulo 90 deg" in proc.stdout.splitlines()[-1]
+
+
+STATIC_TARGET = (
+    'name = "tilted"\n[[objects]]\nname = "c"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.85, 0.1, 0.1]\n'
+    "position = [0.5, 0.0, 0.03]\npitch_deg = 10.0\nstatic = true\ntarget = true\n[place]\nposition = [0.4, 0.3]\n"
+)
+
+
+@pytest.mark.sim
+def test_perceive_reads_a_file_without_task_as_perception(tmp_path: Path) -> None:
+    f = tmp_path / "tilted.toml"
+    f.write_text(STATIC_TARGET)
+    proc = _run("perceive", str(f), "--seeds", "0", "--methods", "pixel")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "pickdemo perceive: tilted, 1 target(s) x 1 seed(s)" in proc.stdout
+    # `run` still refuses it (a pick's target cannot be static), and so does perceive a file that says it is a pick.
+    ran = _run("run", str(f))
+    assert ran.returncode == 2 and "the target of a pick cannot be static" in ran.stderr
+    f.write_text('task = "pick"\n' + STATIC_TARGET)
+    said = _run("perceive", str(f), "--seeds", "0", "--methods", "pixel")
+    assert said.returncode == 2 and "objects.c: the target of a pick cannot be static" in said.stderr
+    assert said.stderr.count("\n") == 1

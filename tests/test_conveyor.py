@@ -76,6 +76,81 @@ def test_bad_conveyor_is_one_line_naming_the_key(tmp_path: Path, edit: dict, mes
     assert message in text and "\n" not in text
 
 
+# The belt's body (its slab) is BELT_REWIND_M longer than its strip and slides along the belt's
+# direction: a place on that overhang is carried away (issue 17: 0/10 on a short or diagonal belt).
+SHORT = {"y_range_m = [-0.6, 0.6]": "y_range_m = [-0.45, 0.1]"}  # the strip ends at y 0.1; its slab at 0.3
+DIAGONAL = {
+    "velocity_m_s = [0.0, 0.05]": "velocity_m_s = [0.035, 0.035]",
+    "y_range_m = [-0.6, 0.6]": "y_range_m = [-0.45, 0.0]",
+}
+
+
+@pytest.mark.parametrize(
+    ("edit", "place", "refused"),
+    [
+        (SHORT, "[0.5, 0.2]", True),  # past the strip's end, on the overhang
+        (SHORT, "[0.5, 0.36]", False),  # past the overhang, by more than the cube's footprint
+        (DIAGONAL, "[0.7, 0.05]", True),  # off the strip's corner, where the diagonal slab slides
+        (DIAGONAL, "[0.45, 0.3]", False),
+        ({**SHORT, "velocity_m_s = [0.0, 0.05]": "velocity_m_s = [0.0, -0.05]",
+          "[[0.45, 0.55], [-0.35, -0.25]]": "[[0.45, 0.55], [-0.05, 0.05]]"}, "[0.5, -0.6]", True),  # the other way
+    ],
+)  # fmt: skip
+def test_place_on_the_belts_overhang_is_refused(tmp_path: Path, edit: dict, place: str, refused: bool) -> None:
+    text = _conveyor_toml(**edit, **{"position = [0.25, 0.3]": f"position = {place}"})
+    if not refused:
+        assert _load(tmp_path, text).conveyor is not None
+        return
+    with pytest.raises(ScenarioError) as info:
+        _load(tmp_path, text)
+    msg = str(info.value)
+    assert "\n" not in msg and "place.position: " in msg and "is on the belt's overhang" in msg, msg
+
+
+def test_object_on_the_belts_overhang_is_refused(tmp_path: Path) -> None:
+    other = '\n[[objects]]\nname = "other"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.1, 0.1, 0.9]\n'
+    with pytest.raises(ScenarioError, match=r"objects\.other: .* reaches onto the belt's overhang"):
+        _load(tmp_path, _conveyor_toml(**SHORT) + other + "position = [0.5, 0.2]\n")
+
+
+@pytest.mark.sim
+def test_the_checks_keep_off_the_footprint_the_simulated_slab_sweeps() -> None:
+    """One geometry (ConveyorSpec.slab) for the simulator and the checks: the slab PyBullet builds
+    lies where the checks say, at both ends of its travel."""
+    import pybullet as p
+    import tomllib
+    from pybullet_utils.bullet_client import BulletClient
+
+    from pickdemo.checks import belt_sweep_mm
+    from pickdemo.sim.conveyor import Belt
+
+    data = tomllib.loads(_conveyor_toml(**DIAGONAL))
+    spec = parse_scenario(data).conveyor
+    slab = spec.slab()
+    assert slab.direction == pytest.approx((2**-0.5, 2**-0.5))
+    client = BulletClient(connection_mode=p.DIRECT)
+    try:
+        belt = Belt(client, spec)
+        assert belt.slab == slab
+        for q in slab.travel_m:
+            client.resetJointState(belt.body, 0, q, 0.0)
+            lo, hi = client.getAABB(belt.body, 0)
+            corners = np.array(slab.corners_at(q))
+            assert lo[:2] == pytest.approx(corners.min(axis=0), abs=0.03)  # PyBullet's AABB margin
+            assert hi[:2] == pytest.approx(corners.max(axis=0), abs=0.03)
+    finally:
+        client.disconnect()
+    sweep = belt_sweep_mm(spec).reshape(-1, 2) / 1e3
+    every = np.array(slab.swept_corners())
+    assert sweep.min(axis=0) == pytest.approx(every.min(axis=0), abs=1e-6)
+    assert sweep.max(axis=0) == pytest.approx(every.max(axis=0), abs=1e-6)
+    (x0, x1), (y0, y1) = spec.x_range_m, spec.y_range_m
+    grow = 0.2 * 2**-0.5  # the rewind's share along x and y, at each end of the travel
+    assert every.min(axis=0) == pytest.approx((x0 - grow, y0 - grow)) and every.max(axis=0) == pytest.approx(
+        (x1 + grow + 0.035 * 2**0.5 / 240 * 2**-0.5, y1 + grow + 0.035 * 2**0.5 / 240 * 2**-0.5)
+    )
+
+
 def test_objects_on_the_belt_rest_on_its_top(tmp_path: Path) -> None:
     from pickdemo.layout import sample_layout
     from pickdemo.streams import spawn_rngs

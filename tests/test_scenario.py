@@ -48,8 +48,8 @@ def test_load_by_path(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("edit", "expected"),
     [
-        (lambda s: s.replace("[0.05, 0.05, 0.05]", "[0.05, 0.05]"), "objects[0](cube).size"),
-        (lambda s: s.replace('shape = "box"', 'shape = "sphere"'), "objects[0](cube).shape"),
+        (lambda s: s.replace("[0.05, 0.05, 0.05]", "[0.05, 0.05]"), "objects.cube.size"),
+        (lambda s: s.replace('shape = "box"', 'shape = "sphere"'), "objects.cube.shape"),
         (lambda s: s.replace("target = true", "target = false"), "target = true"),
         (lambda s: s + "\n[camera]\nfov_deg = [57.0, 200.0]\n", "camera.fov_deg"),
         (lambda s: s + '\n[camera]\ndepht_noise = "kinect"\n', "camera.depht_noise"),
@@ -67,6 +67,30 @@ def test_bad_input_is_one_line_naming_file_and_key(tmp_path: Path, edit, expecte
     assert "\n" not in msg
     assert str(f) in msg
     assert expected in msg
+
+
+def test_default_task_is_the_task_of_a_file_without_one(tmp_path: Path) -> None:
+    f = tmp_path / "static.toml"
+    f.write_text(GOOD.replace("target = true", "target = true\nstatic = true"))
+    with pytest.raises(ScenarioError, match="objects.cube: the target of a pick cannot be static"):
+        load_scenario(f)
+    assert load_scenario(f, default_task="perceive").task == "perceive"
+    assert load_scenario("pick_cube", default_task="perceive").task == "perceive"
+    assert load_scenario("perceive_boxes").task == "perceive"  # said in the file: the default does not matter
+    f.write_text('task = "pick"\n' + f.read_text())
+    with pytest.raises(ScenarioError, match="cannot be static"):
+        load_scenario(f, default_task="perceive")  # the file says it is a pick: checked as one
+
+
+def test_one_path_style_for_schema_and_geometry_errors(tmp_path: Path) -> None:
+    """An object is named by its name in every error (`objects.cube.size`), schema or geometry."""
+    f = tmp_path / "s.toml"
+    f.write_text(GOOD.replace("[0.05, 0.05, 0.05]", "[0.05, 0.05]"))
+    with pytest.raises(ScenarioError, match=r"objects\.cube\.size: "):
+        load_scenario(f)
+    f.write_text(GOOD.replace("[0.05, 0.05, 0.05]", "[0.073, 0.09, 0.05]"))
+    with pytest.raises(ScenarioError, match=r"objects\.cube\.size: its narrower side"):
+        load_scenario(f)
 
 
 def test_unknown_name_lists_known() -> None:

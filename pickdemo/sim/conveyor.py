@@ -20,10 +20,10 @@ import numpy as np
 import pybullet as p
 from pybullet_utils.bullet_client import BulletClient
 
-from pickdemo.scenario import ConveyorSpec
+from pickdemo.scenario import BELT_REWIND_M, ConveyorSpec
 
-#: How far the slab travels before it is slid back (m).
-REWIND_M = 0.2
+#: How far the slab travels before it is slid back (m); the geometry is :meth:`ConveyorSpec.slab`'s.
+REWIND_M = BELT_REWIND_M
 #: The motor's force (N): far more than friction from anything the belt carries.
 MOTOR_FORCE_N = 2000.0
 
@@ -35,15 +35,9 @@ class Belt:
         self.client = client
         self._joint_state = client.getJointState  # bound once: read every physics step
         self.spec = spec
-        (x0, x1), (y0, y1) = spec.x_range_m, spec.y_range_m
-        speed = spec.speed
-        self.direction = np.array(spec.velocity_m_s) / speed if speed > 0 else np.array([0.0, 1.0])
-        h = spec.height_m
-        half = [
-            (x1 - x0) / 2.0 + abs(self.direction[0]) * REWIND_M / 2.0,
-            (y1 - y0) / 2.0 + abs(self.direction[1]) * REWIND_M / 2.0,
-            h / 2.0,
-        ]
+        self.slab = slab = spec.slab()  # the one description of its geometry (checks.py keeps off it)
+        self.direction = np.array(slab.direction)
+        half = list(slab.half_extents)
         col = client.createCollisionShape(p.GEOM_BOX, halfExtents=half)
         # Seen from above only its top: two triangles (a box's twelve cost TinyRenderer 50 % more per frame).
         hx, hy, hz = half
@@ -58,7 +52,7 @@ class Belt:
             baseMass=0.0,
             baseCollisionShapeIndex=-1,
             baseVisualShapeIndex=-1,
-            basePosition=[(x0 + x1) / 2.0, (y0 + y1) / 2.0, h / 2.0],
+            basePosition=list(slab.centre),
             linkMasses=[5.0],
             linkCollisionShapeIndices=[col],
             linkVisualShapeIndices=[vis],
@@ -71,7 +65,7 @@ class Belt:
             linkJointAxis=[[float(self.direction[0]), float(self.direction[1]), 0.0]],
         )
         client.changeDynamics(self.body, 0, lateralFriction=spec.friction, linearDamping=0.0, angularDamping=0.0)
-        client.resetJointState(self.body, 0, -REWIND_M / 2.0, 0.0)
+        client.resetJointState(self.body, 0, slab.travel_m[0], 0.0)
         self._hold(0.0)
         self.start_s: float | None = None
         self.rewinds = 0
@@ -99,8 +93,8 @@ class Belt:
         if self.start_s is None:
             return
         pos, vel = self._joint_state(self.body, 0)[:2]
-        if pos > REWIND_M / 2.0:
-            self.client.resetJointState(self.body, 0, pos - REWIND_M, vel)
+        if pos > self.slab.travel_m[0] + self.slab.rewind_m:
+            self.client.resetJointState(self.body, 0, pos - self.slab.rewind_m, vel)
             self.rewinds += 1
         speed = self.spec.speed_at(now_s - self.start_s)
         if speed != self._speed:
