@@ -7,7 +7,10 @@
   results are the same whatever the number of workers or the executor.
 - Each finished episode is appended to ``DIR/episodes.jsonl`` at once (the same object as its
   ``result.json``); ``--resume`` skips the episodes already there, so an interrupted run loses
-  nothing and none is run twice.
+  nothing and none is run twice. Every output of a run (``episodes.jsonl``, ``summary.json``,
+  ``bench.png``, ``report.html``, the JUnit XML, the printed summary) describes the same episodes:
+  the ones asked for. So ``--resume`` may ask for more than the file holds (it runs the rest), never
+  for less (refused before anything runs, naming the file and an episode it would leave out).
 - A job that raises, kills its worker or overruns the wall-clock guard becomes a failed result with
   stage ``error`` or ``timeout``; the batch goes on. (An episode that overruns its *simulated*
   time budget ends itself with stage ``timeout``.)
@@ -18,6 +21,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import time
 import xml.etree.ElementTree as ET
 from collections import Counter
@@ -33,6 +37,9 @@ from pickdemo.stats import describe
 
 DEFAULT_GUARD_S = 300.0  # wall-clock guard of one episode (a typical one takes 1-2 s)
 MAX_EPISODES = 100_000  # in one bench run (a day on a 2-core machine); more is split into several runs
+MAX_SEED = 2**63 - 1
+#: The default gate of ``pickdemo bench``: exit 1 when a scenario succeeds less often than this.
+DEFAULT_MIN_SUCCESS = 0.95
 
 JobFn = Callable[["Job"], dict[str, Any]]
 
@@ -57,30 +64,43 @@ class Job:
 
 
 # ------------------------------------------------------------------------------------ small pieces
+_SEED_ITEM = re.compile(r"([0-9]+)(?:-([0-9]+))?")
+
+
 def parse_seeds(text: str, *, limit: int = MAX_EPISODES) -> list[int]:
     """``"0-49"``, ``"3"``, ``"0-9,20,30-31"`` -> a sorted list of distinct seeds.
 
-    The ranges are counted before any is expanded: more than ``limit`` seeds is an error, not a
-    list that fills the memory.
+    Items are separated by commas (spaces around an item are allowed); each is a seed ``N`` or a
+    range ``N-M`` with ``N <= M``, in ASCII digits. Anything else is an error, never a guess: an
+    open range (``0-``, ``-3``), a negative seed (``0--1``), a reversed range (``3-1``) or an empty
+    item (``0,,1``, ``,``). The ranges are counted before any is expanded: more than ``limit`` seeds
+    is an error, not a list that fills the memory.
     """
-    ranges: list[tuple[int, int]] = []
     if len(text) > 10_000:
         raise BenchError("seed list longer than 10000 characters")
+    if not text.strip():
+        raise BenchError("no seeds given (use e.g. 0-49 or 0-9,20)")
+    ranges: list[tuple[int, int]] = []
     for part in text.split(","):
-        part = part.strip()
-        if not part:
-            continue
-        try:
-            lo, _, hi = part.partition("-") if not part.startswith("-") else ("", "", "")
-            a, b = int(lo), int(hi if hi else lo)
-            if not (0 <= a <= b <= 2**63 - 1) or not (lo.isdigit() and (not hi or hi.isdigit())):
-                raise ValueError
-        except ValueError:
-            shown = part if part.isprintable() else part.encode("unicode_escape").decode("ascii")
-            raise BenchError(f"bad seeds {shown[:40]!r} (use e.g. 0-49 or 0-9,20)") from None
+        item = part.strip()
+        m = _SEED_ITEM.fullmatch(item)
+        why = ""
+        if not item:
+            why = "an empty item between commas"
+        elif m is None:
+            why = "an item is a seed N or a range N-M, whole numbers from 0"
+        elif max(len(g) for g in m.groups("")) > 19 or int(m.group(2) or m.group(1)) > MAX_SEED:
+            why = f"a seed is at most {MAX_SEED}"
+        else:
+            a, b = int(m.group(1)), int(m.group(2) or m.group(1))
+            if a > b:
+                why = f"the range runs down ({a} > {b}); write {b}-{a}"
+        if why:
+            shown = item or text  # the bad item, or the whole list when the item is empty
+            shown = shown if shown.isascii() and shown.isprintable() else shown.encode("unicode_escape").decode("ascii")
+            shown = shown if len(shown) <= 40 else shown[:37] + "..."
+            raise BenchError(f"bad seeds {shown!r}: {why} (use e.g. 0-49 or 0-9,20)")
         ranges.append((a, b))
-    if not ranges:
-        raise BenchError("no seeds given")
     count = sum(b - a + 1 for a, b in ranges)
     if count > limit:
         raise BenchError(f"{count} seeds; at most {limit} in one run")
@@ -367,7 +387,7 @@ def format_summary(summary: dict[str, dict[str, Any]]) -> str:
             lines.append(f"  failures by diagnosis (perception > 5 mm off at the grasp?): {by_diag}")
         for key, label, unit in (
             ("position_error_mm", "pose error", "mm"),
-            ("yaw_error_deg", "yaw error", "deg"),
+            ("yaw_error_deg", "yaw error (modulo the target's symmetry)", "deg"),
             ("place_error_mm", "place error", "mm"),
         ):
             st = s[key]
@@ -452,6 +472,48 @@ class BenchOutcome:
     skipped: int  # episodes found done already (--resume)
 
 
+#: What a bench writes beside ``episodes.jsonl``, all of it derived from it (rewritten at the end of a run).
+DERIVED_FILES = ("summary.json", "bench.png", "report.html")
+
+
+def prepare_out_dir(out_dir: Path, jobs: list[Job], *, resume: bool) -> list[dict[str, Any]]:
+    """Ready ``out_dir`` for a run of ``jobs``; the results already there (``--resume``).
+
+    One run, one set of episodes, in every output: ``episodes.jsonl`` holds only episodes of this
+    run. Without ``resume`` it must be empty (or absent); with it, every episode it holds must be one
+    of ``jobs`` (a run may add episodes to a directory, never describe a part of it): an episode
+    outside raises :class:`BenchError` naming the file and one such episode, before anything runs.
+    The files derived from the episodes (:data:`DERIVED_FILES`) are removed, so that a run that is
+    interrupted leaves no summary of another set of episodes beside ``episodes.jsonl``.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    jsonl = out_dir / "episodes.jsonl"
+    done: list[dict[str, Any]] = []
+    if resume:
+        done = load_episodes(jsonl)
+        wanted = {j.key for j in jobs}
+        outside = sorted((r for r in done if result_key(r) not in wanted), key=result_key)
+        if outside:
+            r = outside[0]
+            held = summarise(done)
+            what = "; ".join(f"{name} seeds {_seed_ranges(s['seeds'])}" for name, s in held.items())
+            raise BenchError(
+                f"{jsonl}: holds {len(outside)} episode(s) this run does not ask for (e.g. {summary_name(r)} seed "
+                f"{r['seed']}); it holds {_short(what, 160)}: ask for all of them, or use another --out"
+            )
+    elif jsonl.exists() and jsonl.stat().st_size > 0:
+        raise BenchError(f"{jsonl} exists: pass --resume to continue that run, or remove it")
+    else:
+        jsonl.write_text("")
+    for name in DERIVED_FILES:
+        (out_dir / name).unlink(missing_ok=True)
+    return done
+
+
+def _short(text: str, limit: int) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def run_bench(
     jobs: list[Job],
     executor: LocalExecutor | RayExecutor,
@@ -460,23 +522,21 @@ def run_bench(
     resume: bool = False,
     progress: bool = True,
     on_result: Callable[[dict[str, Any]], None] | None = None,
+    done: list[dict[str, Any]] | None = None,
 ) -> BenchOutcome:
-    """Run the jobs not done yet, streaming each result to ``out_dir/episodes.jsonl`` as it finishes."""
+    """Run the jobs not done yet, streaming each result to ``out_dir/episodes.jsonl`` as it finishes.
+
+    ``done``: what :func:`prepare_out_dir` returned, when the caller checked the directory already
+    (before it started an executor); else it is checked here.
+    """
     from tqdm import tqdm
 
-    done: list[dict[str, Any]] = []
     jsonl = None
     if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
         jsonl = out_dir / "episodes.jsonl"
-        if resume:
-            done = load_episodes(jsonl)
-        elif jsonl.exists() and jsonl.stat().st_size > 0:
-            raise BenchError(f"{jsonl} exists: pass --resume to continue that run, or remove it")
-        else:
-            jsonl.write_text("")
-    wanted = {j.key for j in jobs}
-    done = [r for r in done if result_key(r) in wanted]
+        if done is None:
+            done = prepare_out_dir(out_dir, jobs, resume=resume)
+    done = list(done or [])
     done_keys = {result_key(r) for r in done}
     todo = [j for j in jobs if j.key not in done_keys]
     results = list(done)

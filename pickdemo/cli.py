@@ -1,7 +1,17 @@
-"""Command line: ``python -m pickdemo run SCENARIO [--seed N] [--out DIR] [--gui]``.
+"""Command line: ``python -m pickdemo COMMAND``.
 
-Exit codes: 0 the episode succeeded, 1 it failed, 2 bad scenario or bad arguments (one line on
-stderr, no traceback).
+- ``run SCENARIO [--seed N] [--out DIR [--video]] [--gui] [--quiet] [--open-loop] [--perception METHOD]``:
+  one episode; ``--out DIR`` writes ``result.json``, ``motion.png`` and ``report.html`` there (and
+  ``episode.mp4`` with ``--video``).
+- ``bench [SCENARIO ...] [--seeds 0-19] [--min-success 0.95] [--out DIR [--resume]] [--junit FILE]``:
+  many episodes in parallel, gated on the success rate; ``DIR`` gets ``episodes.jsonl``,
+  ``summary.json``, ``bench.png`` and ``report.html``.
+- ``perceive SCENARIO [--seeds ...] [--out DIR]``: perception only; ``DIR`` gets
+  ``perception.json``, ``perception.png`` and ``report.html``.
+- ``validate SCENARIO ...``, ``list [--names]``.
+
+Exit codes: 0 the episode (or every scenario of a bench) succeeded, 1 it failed, 2 bad scenario or
+bad arguments (one line on stderr, no traceback).
 """
 
 from __future__ import annotations
@@ -15,8 +25,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from pickdemo.bench import DEFAULT_MIN_SUCCESS
 from pickdemo.result import EpisodeResult, PhaseRecord
 from pickdemo.scenario import (
+    ObjectSpec,
     Scenario,
     ScenarioError,
     list_scenarios,
@@ -59,7 +71,12 @@ def _build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run one episode of a scenario")
     run.add_argument("scenario", help="a scenario name (see `pickdemo list`) or a path to a .toml file")
     run.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
-    run.add_argument("--out", type=Path, help="directory to write result.json into")
+    run.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="directory to write result.json, motion.png and report.html into (and episode.mp4 with --video)",
+    )
     run.add_argument("--gui", action="store_true", help="open the PyBullet window (needs a display)")
     run.add_argument("--quiet", action="store_true", help="print only the summary line")
     run.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
@@ -71,16 +88,32 @@ def _build_parser() -> argparse.ArgumentParser:
         "bench",
         help="run many seeded episodes in parallel and gate on the success rate",
         description="Runs every scenario x seed as an episode in parallel workers, streams each result to "
-        "DIR/episodes.jsonl, prints and writes a summary. Exit 1 when a scenario's success rate is below "
-        "--min-success.",
+        "DIR/episodes.jsonl, prints a summary and writes it to DIR/summary.json, DIR/bench.png and DIR/report.html "
+        f"(and JUnit XML with --junit). Exit 1 when a scenario's success rate is below --min-success (default "
+        f"{DEFAULT_MIN_SUCCESS:g}; --min-success 0 turns the gate off).",
     )
     bench.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="names or paths (default: the suite)")
     bench.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-199 or 0-9,20 (default 0-19)")
     bench.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)")
-    bench.add_argument("--min-success", type=float, default=0.0, help="exit 1 if a scenario's success rate is below")
-    bench.add_argument("--out", type=Path, help="directory for episodes.jsonl and summary.json")
+    bench.add_argument(
+        "--min-success",
+        type=float,
+        default=DEFAULT_MIN_SUCCESS,
+        metavar="RATE",
+        help=f"exit 1 if a scenario's success rate is below RATE (default {DEFAULT_MIN_SUCCESS:g}; 0: no gate)",
+    )
+    bench.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="directory for episodes.jsonl, summary.json, bench.png and report.html",
+    )
     bench.add_argument("--junit", type=Path, help="write JUnit XML (one test case per episode) to this file")
-    bench.add_argument("--resume", action="store_true", help="skip the episodes already in DIR/episodes.jsonl")
+    bench.add_argument(
+        "--resume",
+        action="store_true",
+        help="skip the episodes already in DIR/episodes.jsonl (it may hold only episodes this run asks for)",
+    )
     bench.add_argument("--executor", choices=("local", "ray"), default="local", help="worker processes or Ray tasks")
     bench.add_argument("--address", help="Ray cluster address (default: RAY_ADDRESS, else a local Ray instance)")
     bench.add_argument(
@@ -94,12 +127,15 @@ def _build_parser() -> argparse.ArgumentParser:
         help="perception only: every method on the same frames, errors against the truth",
         description="Renders each seed's scene (no arm motion), runs each perception method on that frame and "
         "prints position, yaw, pitch and roll errors per method, the covariance's calibration (NEES) and the "
-        "time per frame. --out DIR writes perception.json and perception.png.",
+        "time per frame. --out DIR writes perception.json, perception.png and report.html. A file without a "
+        "`task` key is read as a perception task.",
     )
     perceive.add_argument("scenario", help="a scenario name or path")
     perceive.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-99 (default 0-19)")
     perceive.add_argument("--methods", default="paper,pixel,centroid,icp", help="comma-separated (default: all)")
-    perceive.add_argument("--out", type=Path, help="directory for perception.json and perception.png")
+    perceive.add_argument(
+        "--out", type=Path, metavar="DIR", help="directory for perception.json, perception.png and report.html"
+    )
     perceive.add_argument("--repeat", type=int, default=1, help="time each method N times per frame (median)")
     validate = sub.add_parser(
         "validate",
@@ -109,20 +145,35 @@ def _build_parser() -> argparse.ArgumentParser:
         "regions, the camera's view of the target. Prints `ok NAME` or the error; exit 0 if all are ok, else 2.",
     )
     validate.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="names or paths")
-    sub.add_parser("list", help="list the shipped scenarios")
+    listing = sub.add_parser("list", help="list the shipped scenarios with their descriptions")
+    listing.add_argument("--names", action="store_true", help="only the names, one a line (for scripts)")
     return parser
 
 
-def _summary(result: EpisodeResult) -> str:
+def yaw_modulus_deg(target: ObjectSpec) -> float | None:
+    """The turn (deg) after which the target looks the same, modulo which its yaw is estimated and
+    scored (90 for a square box, 180 for another box); None for a cylinder, which has no yaw."""
+    if target.shape == "cylinder":
+        return None
+    if target.size is not None:
+        square = abs(target.size[0] - target.size[1]) < 1e-9
+    else:  # drawn per seed: square only if both sides are one fixed value
+        (a0, a1), (b0, b1) = target.size_range[:2]  # type: ignore[index]
+        square = a0 == a1 == b0 == b1
+    return 90.0 if square else 180.0
+
+
+def _summary(result: EpisodeResult, yaw_modulus: float | None = None) -> str:
     head = "SUCCESS" if result.success else f"FAILED in {result.failure.stage.value}"  # type: ignore[union-attr]
     parts = [f"{head}: {result.scenario} seed {result.seed}"]
     if result.perception_method != "paper":
         parts[0] += f" [{result.perception_method}]"
     if result.perception is not None:
         yaw = result.perception.yaw_error_deg
+        modulo = f" modulo {yaw_modulus:g} deg" if yaw_modulus else ""
         parts.append(
             f"pose error {result.perception.position_error_mm:.2f} mm"
-            + (f", yaw {yaw:.2f} deg" if yaw is not None else "")
+            + (f", yaw error {yaw:.2f} deg{modulo}" if yaw is not None else "")
         )
     if result.place_error_mm is not None:
         parts.append(f"place error {result.place_error_mm:.1f} mm")
@@ -245,7 +296,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"[sim {rec.sim_time_s:6.2f} s | wall {wall:5.2f} s] {rec.phase:<9} {rec.message}", flush=True)
 
     if not args.quiet:
-        loop = "open loop (one look)" if args.open_loop else "closed loop"
+        loop = "open loop: one look" if args.open_loop else "closed loop"
         print(f"pickdemo: {scenario.name} seed {args.seed} ({loop}): {scenario.description}", flush=True)
     options = EpisodeOptions(
         gui=args.gui,
@@ -255,7 +306,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         video_path=str(args.out / "episode.mp4") if args.video else None,
     )
     result = run_episode(scenario, args.seed, options=options, on_phase=on_phase)
-    print(_summary(result), flush=True)
+    print(_summary(result, yaw_modulus_deg(scenario.target)), flush=True)
     if args.out is not None:
         path = _save_result(result, args.out)
         written = [path] + _run_pictures(result, args.out, video=args.video)
@@ -285,6 +336,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.out is not None:
         _writable_dir(args.out, "--out")
     if args.junit is not None:
+        if args.junit.is_dir():
+            raise UsageError(f"--junit {args.junit}: is a directory; give a file, e.g. {args.junit / 'junit.xml'}")
         _writable_dir(args.junit.parent if str(args.junit.parent) else Path("."), "--junit")
     names = args.scenarios or suite_scenarios()
     if not names:
@@ -302,6 +355,17 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         seen[scenario.name] = path.resolve()
         jobs += [bench.Job(str(path.resolve()), scenario.name, seed, args.open_loop, args.perception) for seed in seeds]
     jobs = list({j.key: j for j in jobs}.values())
+    done = None
+    if args.out is not None:  # before an executor starts: a directory this run cannot describe is refused here
+        try:
+            done = bench.prepare_out_dir(args.out, jobs, resume=args.resume)
+        except bench.BenchError as exc:
+            raise UsageError(str(exc)) from None
+    if args.junit is not None:
+        try:
+            args.junit.unlink(missing_ok=True)  # written at the end, for this run's episodes: never a stale one
+        except OSError as exc:
+            raise UsageError(f"--junit {args.junit}: cannot replace it ({exc.strerror or exc})") from None
 
     if args.executor == "ray":
         executor = bench.RayExecutor(args.address, args.episode_timeout, num_cpus=args.workers)
@@ -322,7 +386,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     try:
         outcome = bench.run_bench(
-            jobs, executor, out_dir=args.out, resume=args.resume, progress=not args.no_progress, on_result=on_result
+            jobs,
+            executor,
+            out_dir=args.out,
+            resume=args.resume,
+            progress=not args.no_progress,
+            on_result=on_result,
+            done=done,
         )
     except bench.BenchError as exc:
         raise UsageError(str(exc)) from None
@@ -364,7 +434,9 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
         raise UsageError(
             f"--methods: unknown {', '.join(unknown) or '(none given)'}; known: {', '.join(perceive.METHODS)}"
         )
-    scenario = load_scenario(args.scenario)
+    # The command says the task: a file without a `task` key is read as a perception task (a static,
+    # tilted target is fine to look at); a file that says `task = "pick"` is checked as the pick it says it is.
+    scenario = load_scenario(args.scenario, default_task="perceive")
     print(f"pickdemo perceive: {scenario.name}, {len(scenario.targets)} target(s) x {len(seeds)} seed(s), "
           f"methods {', '.join(methods)}", flush=True)  # fmt: skip
     samples: list[dict] = []
@@ -394,6 +466,21 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_list(args: argparse.Namespace) -> int:
+    names = list_scenarios()
+    if args.names:
+        print("\n".join(names))
+        return EXIT_OK
+    width = max((len(n) for n in names), default=0)
+    for name in names:
+        try:
+            text = load_scenario(name, check=False).description or "(no description)"
+        except ScenarioError as exc:
+            text = f"(does not load: {str(exc).split(': ', 1)[-1]})"
+        print(f"{name:<{width}}  {text}")
+    return EXIT_OK
+
+
 def _cmd_validate(args: argparse.Namespace) -> int:
     bad = 0
     for name in args.scenarios:
@@ -420,8 +507,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "validate":
             return _cmd_validate(args)
         if args.command == "list":
-            print("\n".join(list_scenarios()))
-            return EXIT_OK
+            return _cmd_list(args)
         parser.print_help()
         return EXIT_BAD_INPUT
     except (ScenarioError, UsageError) as exc:
