@@ -50,6 +50,11 @@ from pickdemo.result import AttemptRecord, Failure, Stage
 from pickdemo.tracker import TargetTracker, TrackerParams
 
 
+def _wrap(yaw_rad: float, period_rad: float) -> float:
+    """The yaw in [-period/2, period/2): how a symmetric shape's yaw is said (a cube's modulo 90 deg)."""
+    return float((yaw_rad + period_rad / 2.0) % period_rad - period_rad / 2.0)
+
+
 class State(str, enum.Enum):
     LOOK = "look"
     APPROACH = "approach"
@@ -644,8 +649,14 @@ class PickMachine:
             self.plan = plan
             tp = self.tracker.predict(obs.time_s)
             return State.APPROACH, (
-                f"target at ({tp.position[0]:.4f}, {tp.position[1]:.4f}, {tp.position[2]:.4f}) m, "
-                f"yaw {np.degrees(tp.yaw_rad):+.2f} deg from {self.tracker.accepted} estimate(s); "
+                f"target at ({tp.position[0]:.4f}, {tp.position[1]:.4f}, {tp.position[2]:.4f}) m"
+                + (
+                    f", yaw {np.degrees(_wrap(tp.yaw_rad, self.symmetry)):+.2f} deg"
+                    f" (modulo {np.degrees(self.symmetry):.0f})"
+                    if self.symmetry > 0
+                    else ""
+                )
+                + f" from {self.tracker.accepted} estimate(s); "
                 f"grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg"
                 + (f" (attempt {self.attempt})" if self.attempt > 1 else "")
             )
