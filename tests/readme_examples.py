@@ -124,7 +124,9 @@ def differences(expected: str, actual: str) -> list[str]:
         elif i < len(exp) and i in exp_notice:
             i += 1  # noticed in the README's run, not here: allowed
         elif i < len(exp):
-            problems.append(f"the README says {exp[i]!r}; the run printed {act[j] if j < len(act) else '(nothing more)'!r}")
+            problems.append(
+                f"the README says {exp[i]!r}; the run printed {act[j] if j < len(act) else '(nothing more)'!r}"
+            )
             return problems
         else:
             problems.append(f"the run printed {act[j]!r}, which the README does not show")

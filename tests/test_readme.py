@@ -6,7 +6,6 @@ from __future__ import annotations
 import re
 
 import pytest
-
 from readme_examples import README, differences, examples, run
 
 LOG = """\
