@@ -32,14 +32,9 @@ from pickdemo.perception import (
     target_roi,
     world_points,
 )
+from pickdemo.shapes import Box
 
 NO_ORIENTATION = np.full((3, 3), np.inf)
-
-
-def _symmetry(model: TargetModel) -> float:
-    if model.shape == "cylinder":
-        return 0.0
-    return np.pi / 2.0 if abs(model.size[0] - model.size[1]) < 1e-9 else np.pi
 
 
 def _segment(frame: RGBDFrame, model: TargetModel, params: PerceptionParams):
@@ -59,7 +54,7 @@ def _estimate(pose: Pose, pos_cov: np.ndarray, rpy_cov: np.ndarray, model: Targe
         pose=pose,
         position_cov=pos_cov,
         rpy_cov=rpy_cov,
-        yaw_symmetry_rad=_symmetry(model),
+        yaw_symmetry_rad=model.geometry.yaw_symmetry_rad,
         top_face_size_m=(0.0, 0.0),
         n_features=0,
         n_face_pixels=n,
@@ -98,7 +93,8 @@ def _centroid_pose(cloud: np.ndarray, model: TargetModel) -> tuple[Pose, np.ndar
     w2, V2 = np.linalg.eigh(np.cov(xy.T))
     major = V2[:, 1]
     yaw = float(np.arctan2(major[1], major[0]))
-    if model.shape == "box" and model.size[1] > model.size[0]:
+    shape = model.geometry
+    if isinstance(shape, Box) and shape.size_m[1] > shape.size_m[0]:
         yaw += np.pi / 2.0  # the model's x axis is its shorter side
     x_axis = np.array([np.cos(yaw), np.sin(yaw), 0.0])
     x_axis -= normal * (x_axis @ normal)

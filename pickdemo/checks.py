@@ -1,7 +1,7 @@
 """What can be checked of a scenario without running it: geometry, reach, the camera's view.
 
 Pure: no simulator (reach is checked with the arm's kinematics). :func:`check_scenario` raises
-:class:`~pickdemo.scenario.ScenarioError` naming the key and what is impossible, so that a task that
+:class:`~pickdemo.schema.ScenarioError` naming the key and what is impossible, so that a task that
 could never succeed is refused before any simulation starts (exit 2), not failed after it (exit 1).
 """
 
@@ -13,8 +13,8 @@ import numpy as np
 from pickdemo import robot_model as rm
 from pickdemo.camera import look_at_pose, project, rendered_intrinsics
 from pickdemo.grasp import GraspParams, top_down
-from pickdemo.layout import LayoutError, footprint_radius_m, sample_layout
-from pickdemo.scenario import ConveyorSpec, ObjectSpec, Scenario, ScenarioError
+from pickdemo.layout import LayoutError, sample_layout
+from pickdemo.schema import ConveyorSpec, ObjectSpec, Scenario, ScenarioError
 from pickdemo.streams import spawn_rngs
 
 #: The robot's base on the table: nothing may stand within this radius of the origin (m).
@@ -29,18 +29,6 @@ LAYOUT_SEEDS = range(3)
 VIEW_MARGIN_PX = 2.0
 
 
-def _extents(obj: ObjectSpec) -> tuple[float, ...]:
-    """The largest size the object may have (its size, or the top of each size range)."""
-    if obj.size is not None:
-        return tuple(obj.size)
-    return tuple(hi for _, hi in obj.size_range)  # type: ignore[union-attr]
-
-
-def _height(obj: ObjectSpec) -> float:
-    ext = _extents(obj)
-    return ext[2] if obj.shape == "box" else ext[1]
-
-
 def _region(obj: ObjectSpec) -> list[tuple[float, float]]:
     """Corners of where the object's centre may be (one point for a fixed position)."""
     if obj.position is not None:
@@ -51,16 +39,8 @@ def _region(obj: ObjectSpec) -> list[tuple[float, float]]:
 
 def _footprint_mm(obj: ObjectSpec) -> np.ndarray:
     """The outline (mm, float32 polygon) of an object at a fixed position seen from above, untilted."""
-    ext = _extents(obj)
     x, y = obj.position[:2]  # type: ignore[index]
-    if obj.shape == "box":
-        yaw = np.radians(obj.yaw_deg or 0.0)
-        local = np.array([[sx * ext[0], sy * ext[1]] for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]) / 2.0
-        rot = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
-        pts = local @ rot.T
-    else:
-        a = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
-        pts = ext[0] / 2.0 * np.column_stack([np.cos(a), np.sin(a)])
+    pts = obj.largest_shape.outline_xy(np.radians(obj.yaw_deg or 0.0))
     return ((pts + [x, y]) * 1e3).astype(np.float32)
 
 
@@ -79,7 +59,7 @@ def _check_objects(sc: Scenario) -> None:
     fixed: list[tuple[str, np.ndarray]] = []
     for obj in sc.objects:
         key = f"objects.{obj.name}"
-        r = footprint_radius_m(obj.shape, _extents(obj))
+        r = obj.largest_shape.footprint_radius_m
         for x, y in _region(obj):
             if not table.holds(x, y, margin=r):
                 raise ScenarioError(
@@ -93,7 +73,7 @@ def _check_objects(sc: Scenario) -> None:
                     f"(keep {(ROBOT_BASE_RADIUS_M + r) * 1e3:.0f} mm from the origin)"
                 )
         if obj.position is not None and len(obj.position) == 3:
-            h = _height(obj)
+            h = obj.largest_shape.height_m
             if obj.position[2] < h / 2.0 - 1e-3 and not any((obj.pitch_deg, obj.roll_deg)):
                 raise ScenarioError(f"{key}.position: centre z {obj.position[2]:.3f} m sinks it into the table")
         if obj.position is not None:
@@ -165,7 +145,7 @@ def _check_conveyor(sc: Scenario) -> None:
     if _sweep_distance_mm(sweep, 0.0, 0.0) < ROBOT_BASE_RADIUS_M * 1e3:
         raise ScenarioError(f"conveyor: the belt runs through the robot's base ({overhang})")
     for obj in sc.objects:
-        r = footprint_radius_m(obj.shape, _extents(obj))
+        r = obj.largest_shape.footprint_radius_m
         region = _region(obj)
         on = [belt.holds(x, y, margin=r) for x, y in region]
         touching = [belt.touches(x, y, r) for x, y in region]
@@ -183,7 +163,7 @@ def _check_conveyor(sc: Scenario) -> None:
                 )
     if sc.task == "pick":
         target = sc.target
-        r = footprint_radius_m(target.shape, _extents(target))
+        r = target.largest_shape.footprint_radius_m
         px, py = sc.place.position
         if belt.touches(px, py, r):
             raise ScenarioError(
@@ -209,8 +189,8 @@ def _check_camera(sc: Scenario) -> None:
     for obj in sc.objects:
         if not obj.target:
             continue
-        h = _height(obj)
-        r = footprint_radius_m(obj.shape, _extents(obj))
+        shape = obj.largest_shape
+        h, r = shape.height_m, shape.footprint_radius_m
         pts = np.array([[x + dx, y + dy, sc.surface_z(x, y) + z] for x, y in _region(obj) for dx in (-r, r)
                         for dy in (-r, r) for z in (0.0, h)])  # fmt: skip
         p_cam = T_cam_world.transform_points(pts)
@@ -235,8 +215,7 @@ def _check_pick(sc: Scenario) -> None:
 
     target = sc.target
     key = f"objects.{target.name}"
-    ext = _extents(target)
-    narrow = min(ext[0], ext[1]) if target.shape == "box" else ext[0]
+    narrow = target.largest_shape.grasp_width_m
     opening = 2.0 * rm.FINGER_MAX_M
     if narrow > opening - GRIPPER_CLEARANCE_M:
         raise ScenarioError(
@@ -258,7 +237,7 @@ def _check_pick(sc: Scenario) -> None:
     spots = [(f"{key} at ({x:.2f}, {y:.2f})", x, y) for x, y in _region(target)]
     spots.append(("place.position", *sc.place.position))
     for what, x, y in spots:
-        z = max(_height(target) / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y)
+        z = max(target.largest_shape.height_m / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y)
         for dz in (0.0, grasp.pregrasp_height_m):
             res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), rm.HOME_Q, rng, IKParams())
             if not res.success:

@@ -70,14 +70,15 @@ def joint7_centre_yaw(*xy: tuple[float, float]) -> float:
 
 def hand_yaw_for(pose: Pose, model: TargetModel, centre_rad: float = 0.0) -> tuple[float, float]:
     """Hand angle (rad) that closes across the narrower side, nearest ``centre_rad``; the width (m)."""
-    if model.shape == "cylinder":
-        return float(centre_rad), model.size[0]
+    shape = model.geometry
+    period = shape.yaw_symmetry_rad
+    if period == 0.0:  # the same from every side (a cylinder): the hand angle is free
+        return float(centre_rad), shape.grasp_width_m
     obj_yaw = float(pose.rpy[2])
-    sx, sy = model.size[0], model.size[1]
+    sx, sy = shape.size[0], shape.size[1]
     # Finger axis along the object's x axis when x is the narrower side, else along its y axis.
     psi = obj_yaw + np.pi / 2.0 if sx <= sy else obj_yaw
-    period = np.pi / 2.0 if abs(sx - sy) < 1e-9 else np.pi
-    return float(centre_rad + wrap_angle(psi - centre_rad, period)), min(sx, sy)
+    return float(centre_rad + wrap_angle(psi - centre_rad, period)), shape.grasp_width_m
 
 
 def plan_grasp(

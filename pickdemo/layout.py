@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo.geometry import Pose
-from pickdemo.scenario import CameraSpec, ObjectSpec, Scenario
+from pickdemo.schema import CameraSpec, ObjectSpec, Scenario
+from pickdemo.shapes import Shape
 
 MAX_DRAWS = 200
 
@@ -25,29 +26,25 @@ class LayoutError(ValueError):
 
 @dataclass(frozen=True)
 class Placement:
+    """Where one object starts, and its shape at the size drawn for this seed."""
+
     name: str
     pose: Pose  # world pose of the object's centre
-    size: tuple[float, ...]  # box: x, y, z; cylinder: diameter, height (m)
-    shape: str
+    geometry: Shape
+
+    @property
+    def size(self) -> tuple[float, ...]:
+        """The size in the scenario's order (box: x, y, z; cylinder: diameter, height), m."""
+        return self.geometry.size
+
+    @property
+    def shape(self) -> str:
+        """The shape's name (``"box"``, ``"cylinder"``), as in the scenario file."""
+        return self.geometry.kind
 
     @property
     def height_m(self) -> float:
-        return self.size[2] if self.shape == "box" else self.size[1]
-
-
-def footprint_radius_m(shape: str, size: tuple[float, ...]) -> float:
-    """Radius of the circle that holds the object's footprint on the table."""
-    if shape == "box":
-        return 0.5 * float(np.hypot(size[0], size[1]))
-    return 0.5 * size[0]
-
-
-def resting_height_m(shape: str, size: tuple[float, ...], rotation: np.ndarray) -> float:
-    """Height of the centre of an object whose lowest point touches the table z = 0."""
-    if shape == "box":
-        return 0.5 * float(np.abs(rotation[2]) @ np.asarray(size))
-    axis_z = abs(float(rotation[2, 2]))
-    return 0.5 * (size[1] * axis_z + size[0] * float(np.sqrt(max(1.0 - axis_z**2, 0.0))))
+        return self.geometry.height_m
 
 
 def _angle(fixed: float | None, rng_range: tuple[float, float] | None, rng: np.random.Generator) -> float:
@@ -82,8 +79,8 @@ def sample_layout(scenario: Scenario, rng: np.random.Generator) -> tuple[Placeme
     placed: list[tuple[np.ndarray, float]] = []
     out: list[Placement] = []
     for obj in scenario.objects:
-        size = _size(obj, rng)
-        r = footprint_radius_m(obj.shape, size)
+        shape = obj.shape_of_size(_size(obj, rng))
+        r = shape.footprint_radius_m
         for _ in range(MAX_DRAWS):
             xy, yaw, pitch, roll = _draw(obj, rng)
             if obj.position is not None:  # a fixed spot: the scenario's author answers for the spacing
@@ -96,8 +93,8 @@ def sample_layout(scenario: Scenario, rng: np.random.Generator) -> tuple[Placeme
         pose = Pose.from_xyz_rpy(np.array([xy[0], xy[1], 0.0]), roll=roll, pitch=pitch, yaw=yaw)
         z = obj.position[2] if obj.position is not None and len(obj.position) == 3 else None
         if z is None:  # resting on the table, or on the belt where there is one
-            z = resting_height_m(obj.shape, size, pose.rotation) + scenario.surface_z(float(xy[0]), float(xy[1]))
-        out.append(Placement(obj.name, Pose(np.array([xy[0], xy[1], z]), pose.rotation), size, obj.shape))
+            z = shape.resting_height_m(pose.rotation) + scenario.surface_z(float(xy[0]), float(xy[1]))
+        out.append(Placement(obj.name, Pose(np.array([xy[0], xy[1], z]), pose.rotation), shape))
     return tuple(out)
 
 

@@ -5,6 +5,7 @@ The simulator's true poses reach this module and the labels only, never the cont
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,6 +14,7 @@ from pickdemo.evaluation import pose_errors
 from pickdemo.geometry import Pose
 from pickdemo.perception import PoseEstimate
 from pickdemo.result import PerceptionScore
+from pickdemo.shapes import Shape, make_shape
 
 
 def position_nees(estimate: PoseEstimate, true: Pose) -> float:
@@ -42,19 +44,6 @@ class PlaceOutcome:
     reason: str  # why it failed, or ""
 
 
-def resting_face(final: Pose, shape: str, size: tuple[float, ...]) -> tuple[float, float]:
-    """The tilt (deg) of the object's body axis nearest the vertical, and its extent along it (m).
-
-    A box rests on any face; a cylinder stands only on a cap (its axis is its body z).
-    """
-    if shape == "cylinder":
-        tilt = float(np.degrees(np.arccos(np.clip(abs(final.rotation[2, 2]), -1.0, 1.0))))
-        return tilt, float(size[1])
-    axis = int(np.argmax(np.abs(final.rotation[2])))  # body axis with the largest world-z component
-    tilt = float(np.degrees(np.arccos(np.clip(abs(final.rotation[2, axis]), -1.0, 1.0))))
-    return tilt, float(size[axis])
-
-
 def score_place(
     *,
     start: Pose,
@@ -62,18 +51,25 @@ def score_place(
     final: Pose,
     final_speed_m_s: float,
     place_xy: tuple[float, float],
-    shape: str,
-    size: tuple[float, ...],
+    shape: Shape | str,
+    size: Sequence[float] | None = None,
     lift_height_m: float,
     place_tolerance_m: float,
 ) -> PlaceOutcome:
     """Success: rose at least ``lift_height_m``, ended within tolerance of the place position, upright
     and at rest. Upright: on the face it stood on, or one the same height (a cube on any face) with
-    that face within 10 deg of level; a cylinder on a cap."""
-    height_m = float(size[2] if shape == "box" else size[1])
+    that face within 10 deg of level; a cylinder on a cap.
+
+    ``shape``: the target's :class:`~pickdemo.shapes.Shape`. (A shape's name with its ``size`` is
+    taken as the shape they make: the form an episode passed before placements carried shapes.)"""
+    if isinstance(shape, str):
+        if size is None:
+            raise TypeError("score_place: a shape given by name needs its size")
+        shape = make_shape(shape, size)
+    height_m = float(shape.height_m)
     lifted = max_z_m - float(start.position[2])
     err = float(np.hypot(final.position[0] - place_xy[0], final.position[1] - place_xy[1]))
-    tilt, extent = resting_face(final, shape, size)
+    tilt, extent = shape.resting_face(final.rotation)
     upright = tilt < 10.0 and abs(extent - height_m) < 2e-3 and abs(float(final.position[2]) - height_m / 2.0) < 0.01
     at_rest = final_speed_m_s < 0.01
     reason = ""

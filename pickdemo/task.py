@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from pickdemo.layout import Placement
 from pickdemo.perception import TargetModel
-from pickdemo.scenario import Scenario
+from pickdemo.schema import Scenario
 
 
 def target_model(scenario: Scenario, placement: Placement) -> TargetModel:
-    """What the task tells the robot about an object: shape, size (as placed) and colour."""
+    """What the task tells the robot about an object: its shape (at the size placed) and colour."""
     spec = next(o for o in scenario.objects if o.name == placement.name)
-    return TargetModel(shape=spec.shape, size=tuple(placement.size), color=tuple(spec.color))
+    return TargetModel(geometry=placement.geometry, color=tuple(spec.color))

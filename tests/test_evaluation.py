@@ -49,16 +49,17 @@ def test_no_orientation() -> None:
 
 def test_place_scoring_accepts_a_cube_on_any_face_but_not_a_box_on_its_side() -> None:
     from pickdemo.metrics import score_place
+    from pickdemo.shapes import Box, Cylinder
 
     start = Pose.from_xyz_rpy([0.5, 0.0, 0.025])
     common = dict(start=start, max_z_m=0.2, final_speed_m_s=0.0, place_xy=(0.45, 0.3), lift_height_m=0.05,
                   place_tolerance_m=0.02)  # fmt: skip
     on_side = Pose.from_xyz_rpy([0.45, 0.3, 0.025], roll=np.pi / 2, yaw=0.3)
-    assert score_place(final=on_side, shape="box", size=(0.05, 0.05, 0.05), **common).success
+    assert score_place(final=on_side, shape=Box((0.05, 0.05, 0.05)), **common).success
     box_on_side = Pose.from_xyz_rpy([0.45, 0.3, 0.0175], roll=np.pi / 2)
-    out = score_place(final=box_on_side, shape="box", size=(0.07, 0.035, 0.04), **common)
+    out = score_place(final=box_on_side, shape=Box((0.07, 0.035, 0.04)), **common)
     assert not out.success and "upright" in out.reason
     lying = Pose.from_xyz_rpy([0.45, 0.3, 0.02], roll=np.pi / 2)
-    assert not score_place(final=lying, shape="cylinder", size=(0.04, 0.08), **common).success
+    assert not score_place(final=lying, shape=Cylinder(0.04, 0.08), **common).success
     upside_down = Pose.from_xyz_rpy([0.45, 0.3, 0.04], roll=np.pi)
-    assert score_place(final=upside_down, shape="cylinder", size=(0.04, 0.08), **common).success
+    assert score_place(final=upside_down, shape=Cylinder(0.04, 0.08), **common).success

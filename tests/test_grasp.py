@@ -8,6 +8,7 @@ import pytest
 from pickdemo.geometry import Pose
 from pickdemo.grasp import GraspPlanningError, hand_yaw_for, plan_grasp
 from pickdemo.perception import TargetModel
+from pickdemo.shapes import Box
 
 
 def _estimate(yaw_deg: float, z: float = 0.025) -> Pose:
@@ -20,7 +21,7 @@ def _finger_axis(psi: float) -> np.ndarray:
 
 @pytest.mark.parametrize("yaw_deg", [-80.0, -30.0, 0.0, 25.0, 60.0, 89.0])
 def test_closes_across_the_narrow_side(yaw_deg: float) -> None:
-    model = TargetModel("box", (0.06, 0.03, 0.04), (1.0, 0.0, 0.0))  # narrow along the object's y
+    model = TargetModel(Box((0.06, 0.03, 0.04)), (1.0, 0.0, 0.0))  # narrow along the object's y
     psi, width = hand_yaw_for(_estimate(yaw_deg), model)
     obj_y = np.array([-np.sin(np.radians(yaw_deg)), np.cos(np.radians(yaw_deg))])
     assert abs(abs(_finger_axis(psi) @ obj_y) - 1.0) < 1e-9
@@ -29,7 +30,7 @@ def test_closes_across_the_narrow_side(yaw_deg: float) -> None:
 
 
 def test_square_box_uses_quarter_turn_symmetry() -> None:
-    model = TargetModel("box", (0.05, 0.05, 0.05), (1.0, 0.0, 0.0))
+    model = TargetModel(Box((0.05, 0.05, 0.05)), (1.0, 0.0, 0.0))
     psi, _ = hand_yaw_for(_estimate(80.0), model)
     assert abs(psi) <= np.pi / 4 + 1e-9
 
@@ -40,7 +41,7 @@ def test_hand_angle_keeps_joint7_mid_range_over_grasp_and_place() -> None:
     from pickdemo.kinematics import panda_kinematics
 
     kin = panda_kinematics()
-    model = TargetModel("box", (0.07, 0.035, 0.04), (0.0, 0.0, 1.0))
+    model = TargetModel(Box((0.07, 0.035, 0.04)), (0.0, 0.0, 1.0))
     for yaw in np.linspace(-90.0, 90.0, 13):
         plan = plan_grasp(_estimate(yaw, z=0.02), model, (0.45, 0.3))
         for pose in (plan.grasp, plan.place):
@@ -49,7 +50,7 @@ def test_hand_angle_keeps_joint7_mid_range_over_grasp_and_place() -> None:
 
 
 def test_plan_heights() -> None:
-    model = TargetModel("box", (0.05, 0.05, 0.05), (1.0, 0.0, 0.0))
+    model = TargetModel(Box((0.05, 0.05, 0.05)), (1.0, 0.0, 0.0))
     plan = plan_grasp(_estimate(10.0), model, (0.45, 0.3))
     assert plan.grasp.position[2] == pytest.approx(0.025)  # 25 mm below the top of a 50 mm cube
     assert plan.pregrasp.position[2] == pytest.approx(0.125)
@@ -59,13 +60,13 @@ def test_plan_heights() -> None:
 
 
 def test_too_wide_for_the_gripper() -> None:
-    model = TargetModel("box", (0.09, 0.09, 0.05), (1.0, 0.0, 0.0))
+    model = TargetModel(Box((0.09, 0.09, 0.05)), (1.0, 0.0, 0.0))
     with pytest.raises(GraspPlanningError, match="clearance"):
         plan_grasp(_estimate(0.0), model, (0.45, 0.3))
 
 
 def test_hand_yaw_near_keeps_the_hand_angle() -> None:
-    model = TargetModel("box", (0.05, 0.05, 0.05), (1.0, 0.0, 0.0))
+    model = TargetModel(Box((0.05, 0.05, 0.05)), (1.0, 0.0, 0.0))
     first = plan_grasp(_estimate(44.0), model, (0.45, 0.3))
     # The estimate crosses the quarter-turn boundary; the re-plan keeps the hand where it was.
     again = plan_grasp(_estimate(46.0), model, (0.45, 0.3), hand_yaw_near_rad=first.hand_yaw_rad)

@@ -19,6 +19,7 @@ from pickdemo.perception import (
     point_covariance,
     refine_circle,
 )
+from pickdemo.shapes import Box
 
 
 def test_mixture_weights() -> None:
@@ -118,7 +119,7 @@ def _rectangle_outline(cx: float, cy: float, yaw: float, sx: float, sy: float, n
 def test_rectangle_fit_recovers_centre_and_yaw() -> None:
     rng = np.random.default_rng(1)
     xy = _rectangle_outline(0.01, -0.02, 0.4, 0.05, 0.03) + 2e-4 * rng.standard_normal((240, 2))
-    centre, yaw, size, cov = fit_outline(xy, TargetModel("box", (0.05, 0.03, 0.02), (1.0, 0.0, 0.0)))
+    centre, yaw, size, cov = fit_outline(xy, TargetModel(Box((0.05, 0.03, 0.02)), (1.0, 0.0, 0.0)))
     np.testing.assert_allclose(centre, [0.01, -0.02], atol=5e-5)
     assert np.cos(2 * (yaw - 0.4)) == pytest.approx(1.0, abs=1e-5)  # yaw modulo the half turn
     assert size == pytest.approx((0.05, 0.03), abs=2e-3)  # minAreaRect hull: inflated by the noise
@@ -135,7 +136,7 @@ def test_circle_fit_recovers_centre_from_an_arc() -> None:
 def test_rectangle_fit_covariance_matches_scatter() -> None:
     """Over many noisy outlines, the fit's reported covariance matches its actual errors."""
     rng = np.random.default_rng(5)
-    model = TargetModel("box", (0.05, 0.03, 0.02), (1.0, 0.0, 0.0))
+    model = TargetModel(Box((0.05, 0.03, 0.02)), (1.0, 0.0, 0.0))
     sigma = 3e-4
     errs, covs = [], []
     for _ in range(200):

@@ -16,6 +16,7 @@ from pickdemo.camera import Intrinsics, RGBDFrame, add_kinect_noise, look_at_pos
 from pickdemo.evaluation import pose_errors
 from pickdemo.geometry import Pose
 from pickdemo.perception import FitQuality, PerceptionError, PerceptionParams, TargetModel, estimate_pose
+from pickdemo.shapes import Box, Cylinder
 
 LIGHT = np.array([0.4, -0.3, 1.0]) / np.linalg.norm([0.4, -0.3, 1.0])
 
@@ -55,7 +56,7 @@ def render_box(pose: Pose, size, color, cam_pos, look_at, *, noise_seed: int | N
     return RGBDFrame(rgb=rgb.astype(np.uint8), depth_m=depth, intrinsics=K, T_world_cam=T, time_s=0.0)
 
 
-MODEL = TargetModel("box", (0.06, 0.04, 0.05), (0.85, 0.1, 0.1))
+MODEL = TargetModel(Box((0.06, 0.04, 0.05)), (0.85, 0.1, 0.1))
 
 
 @pytest.mark.parametrize(
@@ -81,12 +82,12 @@ def test_noise_free_frame_is_nearly_exact() -> None:
 
 
 def test_closest_points_on_a_box_and_a_cylinder() -> None:
-    box = TargetModel("box", (0.2, 0.1, 0.06), (1, 0, 0))
+    box = TargetModel(Box((0.2, 0.1, 0.06)), (1, 0, 0))
     pts = np.array([[0.15, 0.0, 0.0], [0.0, 0.0, 0.01], [0.095, 0.02, 0.0]])
     q, n = closest_on_model(pts, box)
     np.testing.assert_allclose(q, [[0.1, 0.0, 0.0], [0.0, 0.0, 0.03], [0.1, 0.02, 0.0]])
     np.testing.assert_allclose(n, [[1, 0, 0], [0, 0, 1], [1, 0, 0]])
-    cyl = TargetModel("cylinder", (0.04, 0.1), (1, 0, 0))
+    cyl = TargetModel(Cylinder(0.04, 0.1), (1, 0, 0))
     q, n = closest_on_model(np.array([[0.03, 0.0, 0.01], [0.0, 0.005, 0.06]]), cyl)
     np.testing.assert_allclose(q, [[0.02, 0.0, 0.01], [0.0, 0.005, 0.05]], atol=1e-12)
     np.testing.assert_allclose(n, [[1, 0, 0], [0, 0, 1]], atol=1e-12)
@@ -133,7 +134,7 @@ def test_a_model_that_does_not_fit_is_rejected_with_the_reason() -> None:
     (the rejected estimate travels with the error, for scoring only)."""
     true = Pose.from_xyz_rpy([0.5, 0.02, 0.025], yaw=np.radians(20.0))
     frame = render_box(true, MODEL.size, MODEL.color, (1.1, 0.0, 0.75), (0.5, 0.0, 0.0))
-    wrong = TargetModel("cylinder", (0.05, 0.05), MODEL.color)
+    wrong = TargetModel(Cylinder(0.05, 0.05), MODEL.color)
     with pytest.raises(PerceptionError, match="the model does not fit what was seen: .* outline") as info:
         estimate_pose(frame, wrong)
     assert info.value.estimate is not None and info.value.estimate.fit is not None

@@ -11,6 +11,7 @@ import numpy as np
 
 from pickdemo.camera import RGBDFrame, pixel_rays_cam
 from pickdemo.perception.model import PerceptionError, TargetModel
+from pickdemo.shapes import Box, Cylinder
 
 
 def fit_plane_weighted(points: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
@@ -82,19 +83,23 @@ def fit_outline(
 ) -> tuple[np.ndarray, float, tuple[float, float], np.ndarray]:
     """Centre (2,), in-plane yaw (rad), measured size and 3x3 covariance of (cx, cy, yaw) of the top
     face from outline points in plane coordinates (yaw variance 0 for a cylinder)."""
-    if model.shape == "box":
+    shape = model.geometry
+    if isinstance(shape, Box):
+        sx, sy = shape.size_m[0], shape.size_m[1]
         (cx2, cy2), (w2, h2), ang = cv2.minAreaRect(xy.astype(np.float32))
         if init is None:
             yaw = float(np.radians(ang))
-            if (w2 < h2) == (model.size[0] >= model.size[1]):
+            if (w2 < h2) == (sx >= sy):
                 yaw += np.pi / 2.0
                 w2, h2 = h2, w2
             init = (np.array([cx2, cy2], dtype=np.float64), yaw)
-        center, yaw, cov = refine_rectangle(xy, init[0], init[1], model.size[0], model.size[1], weights)
+        center, yaw, cov = refine_rectangle(xy, init[0], init[1], sx, sy, weights)
         return center, yaw, (float(max(w2, h2)), float(min(w2, h2))), cov
+    if not isinstance(shape, Cylinder):
+        raise TypeError(f"no outline fit for a {shape.kind}")
     (cx2, cy2), (a2, b2), _ = cv2.fitEllipse(xy.astype(np.float32))
     start = np.array([cx2, cy2], dtype=np.float64) if init is None else init[0]
-    center, cov2 = refine_circle(xy, start, model.size[0] / 2.0, weights)
+    center, cov2 = refine_circle(xy, start, shape.diameter_m / 2.0, weights)
     cov = np.zeros((3, 3))
     cov[:2, :2] = cov2
     return center, 0.0, (float(a2), float(b2)), cov

@@ -20,40 +20,7 @@ MODEL_FLOOR_M = 10e-6
 
 def closest_on_model(points: np.ndarray, model: TargetModel) -> tuple[np.ndarray, np.ndarray]:
     """Closest points on the model's surface (model frame, centred) and the outward normals there."""
-    if model.shape == "box":
-        h = np.array(model.size) / 2.0
-        inside = np.all(np.abs(points) <= h, axis=1)
-        q = np.clip(points, -h, h)
-        # Points inside the box go to their nearest face.
-        gap = h - np.abs(points)
-        axis_in = np.argmin(gap, axis=1)
-        idx = np.nonzero(inside)[0]
-        q[idx, axis_in[idx]] = np.sign(points[idx, axis_in[idx]] + 1e-15) * h[axis_in[idx]]
-        # The normal of the face the closest point lies on (the axis where it sits on the boundary,
-        # preferring the one the point is furthest out along).
-        out = np.abs(points) - h
-        out[inside] = -gap[inside]
-        axis = np.argmax(out, axis=1)
-        n = np.zeros_like(points)
-        n[np.arange(len(points)), axis] = np.sign(points[np.arange(len(points)), axis] + 1e-15)
-        return q, n
-    r, hh = model.size[0] / 2.0, model.size[1] / 2.0
-    rho = np.hypot(points[:, 0], points[:, 1])
-    radial = np.column_stack([points[:, 0], points[:, 1]]) / np.maximum(rho, 1e-12)[:, None]
-    d_side = np.where(np.abs(points[:, 2]) <= hh, np.abs(rho - r), np.inf)
-    d_cap = np.where(rho <= r, np.abs(np.abs(points[:, 2]) - hh), np.inf)
-    on_side = d_side <= d_cap
-    q = points.copy()
-    n = np.zeros_like(points)
-    q[on_side, :2] = radial[on_side] * r
-    q[on_side, 2] = np.clip(points[on_side, 2], -hh, hh)
-    n[on_side, :2] = radial[on_side]
-    caps = ~on_side
-    clip_rho = np.minimum(rho[caps], r)
-    q[caps, :2] = radial[caps] * clip_rho[:, None]
-    q[caps, 2] = np.sign(points[caps, 2] + 1e-15) * hh
-    n[caps, 2] = np.sign(points[caps, 2] + 1e-15)
-    return q, n
+    return model.geometry.closest_points(points)
 
 
 def _rpy_jacobian(R: np.ndarray) -> np.ndarray:
@@ -113,7 +80,8 @@ def refine_pose_6dof(
     s2z2 = SIGMA_UV_PX**2 * z * z
     Rc = Tc.rotation
     rays = pixel_rays_cam(outline_uv, K) @ Rc.T
-    half_h = model.height_m / 2.0
+    shape = model.geometry
+    half_h = shape.height_m / 2.0
 
     def edge_residuals(T: pin.SE3) -> np.ndarray:
         """Outline rays against the model's top plane and its top face's edges (m)."""
@@ -122,11 +90,7 @@ def refine_pose_6dof(
         top = t + normal * half_h
         tr = ((top - Tc.position) @ normal) / (rays @ normal)
         lp = (Tc.position + tr[:, None] * rays - t) @ R
-        if model.shape == "box":
-            hx, hy = model.size[0] / 2.0, model.size[1] / 2.0
-            on_x = np.abs(np.abs(lp[:, 0]) - hx) < np.abs(np.abs(lp[:, 1]) - hy)
-            return np.where(on_x, np.abs(lp[:, 0]) - hx, np.abs(lp[:, 1]) - hy)
-        return np.hypot(lp[:, 0], lp[:, 1]) - model.size[0] / 2.0
+        return shape.outline_residuals(lp)
 
     T = start.to_se3()
     edge_sd = np.sqrt(outline_var)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pickdemo.geometry import Pose
+from pickdemo.shapes import Shape
 
 
 class PerceptionError(RuntimeError):
@@ -57,15 +58,24 @@ class PerceptionParams:
 
 @dataclass(frozen=True)
 class TargetModel:
-    """What the task says about the target: shape, size (m) and nominal colour (0-1)."""
+    """What the task says about the target: its shape with its size (m), and its nominal colour (0-1)."""
 
-    shape: str  # "box" | "cylinder"
-    size: tuple[float, ...]  # box: x, y, z; cylinder: diameter, height
+    geometry: Shape
     color: tuple[float, float, float]
 
     @property
+    def shape(self) -> str:
+        """The shape's name (``"box"``, ``"cylinder"``)."""
+        return self.geometry.kind
+
+    @property
+    def size(self) -> tuple[float, ...]:
+        """Box: x, y, z; cylinder: diameter, height (m)."""
+        return self.geometry.size
+
+    @property
     def height_m(self) -> float:
-        return self.size[2] if self.shape == "box" else self.size[1]
+        return self.geometry.height_m
 
 
 @dataclass(frozen=True)

@@ -34,6 +34,7 @@ from pickdemo.perception.segmentation import (
     unoccluded,
     world_heights,
 )
+from pickdemo.shapes import Box, Cylinder
 
 #: The outline's shared shift (px) per unit of RGB noise (8-bit sigma) and of edge dropout (fraction).
 OUTLINE_PX_PER_RGB_SIGMA = 0.0103
@@ -75,8 +76,9 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     inner = cv2.erode(face.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     normal, plane_point, _ = fit_face_plane(f, inner if inner.sum() >= 6 else face, mu_z, var_z)
 
+    shape = model.geometry
     outline_uv = outline_pixels(face)
-    if model.shape == "cylinder":
+    if isinstance(shape, Cylinder):
         # Only the arc that is also the silhouette: where the flat cap meets the smooth-shaded side,
         # the colour boundary sits up to a pixel off (measured: 0.24 mm bias toward the camera).
         rim = mask & ~cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
@@ -115,10 +117,12 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
         c3 = covs - cn[:, :, None] * cn[:, None, :] / sn[:, None, None]
         p2a = (m3 - plane_point) @ B[:, :2]
         c2a = B[:, :2].T @ c3 @ B[:, :2]
-        if model.shape == "box":
-            r, J = rectangle_residuals(p2a, model.size[0], model.size[1])(np.array([*center2, yaw_face]))
+        if isinstance(shape, Box):
+            r, J = rectangle_residuals(p2a, shape.size_m[0], shape.size_m[1])(np.array([*center2, yaw_face]))
+        elif isinstance(shape, Cylinder):
+            r, J = circle_residuals(p2a, shape.diameter_m / 2.0)(center2)
         else:
-            r, J = circle_residuals(p2a, model.size[0] / 2.0)(center2)
+            raise TypeError(f"no outline fit for a {shape.kind}")
         n2 = -J[:, :2]  # the outline's normal at each feature (the residual's gradient in the point)
         var = np.einsum("ij,ijk,ik->i", n2, c2a, n2) + var_edge
         # On the top face's outline in the image too: a corner elsewhere on the object (a bottom or
@@ -129,12 +133,10 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
         feat_var = var[on_outline]
         feat_uv = np.array([fp.uv for fp in features])[on_outline] - np.array([x0, y0], dtype=np.float64)
     n_used = len(feat_var)
-    symmetry = (
-        0.0 if model.shape == "cylinder" else (np.pi / 2.0 if abs(model.size[0] - model.size[1]) < 1e-9 else np.pi)
-    )
+    symmetry = shape.yaw_symmetry_rad
 
     top_center = plane_point + B[:, :2] @ center2
-    center = top_center - normal * (model.height_m / 2.0)
+    center = top_center - normal * (shape.height_m / 2.0)
     x_axis = B[:, :2] @ np.array([np.cos(yaw_face), np.sin(yaw_face)])
     R = np.column_stack([x_axis, np.cross(normal, x_axis), normal])
 
@@ -170,7 +172,7 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
         rng_m = float(np.linalg.norm(pose.position - f.T_world_cam.position))
         pos_cov = pos_cov + np.eye(3) * (s_t**2 + (s_r * rng_m) ** 2) / 3.0
     rpy_cov = cov6[3:, 3:]
-    if model.shape == "cylinder":
+    if symmetry == 0.0:
         rpy_cov = rpy_cov.copy()
         rpy_cov[2, :] = rpy_cov[:, 2] = 0.0  # no yaw to speak of
     estimate = PoseEstimate(

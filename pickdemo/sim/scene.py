@@ -18,6 +18,7 @@ from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose
 from pickdemo.layout import Placement
 from pickdemo.scenario import ObjectSpec, Scenario
+from pickdemo.shapes import Box, Cylinder
 from pickdemo.sim import quiet_c_stdout
 
 TABLE_THICKNESS_M = 0.05
@@ -147,13 +148,13 @@ class Scene:
         )
 
     def _build_object(self, spec: ObjectSpec, placement: Placement) -> None:
-        c, pose, size = self.client, placement.pose, placement.size
-        if spec.shape == "box":
-            half = [s / 2.0 for s in size]
+        c, pose, shape = self.client, placement.pose, placement.geometry
+        if isinstance(shape, Box):
+            half = [s / 2.0 for s in shape.size_m]
             col = c.createCollisionShape(p.GEOM_BOX, halfExtents=half)
             vis = c.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[*spec.color, 1.0])
-        else:
-            radius, height = size[0] / 2.0, size[1]
+        elif isinstance(shape, Cylinder):
+            radius, height = shape.diameter_m / 2.0, shape.height_m
             col = c.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=height)
             # PyBullet's own cylinder visual renders 1 mm taller than its collision shape (measured)
             # and smooth-shades the rim; a mesh of the exact size with flat caps renders true.
@@ -161,6 +162,8 @@ class Scene:
             vis = c.createVisualShape(
                 p.GEOM_MESH, vertices=verts, normals=normals, indices=indices, rgbaColor=[*spec.color, 1.0]
             )
+        else:
+            raise TypeError(f"objects.{spec.name}: the scene cannot build a {shape.kind}")
         mass = 0.0 if spec.static else spec.mass  # a static body stays where it is put
         body = c.createMultiBody(
             mass, col, vis, basePosition=list(pose.position), baseOrientation=list(pose.quaternion_xyzw)

@@ -1,0 +1,254 @@
+"""The objects' shapes as types: a box and a cylinder, and everything that follows from a shape and its
+size, each written once.
+
+A scenario names an object's shape with a string (``"box"``, ``"cylinder"``: :data:`ShapeName`, the
+same strings ``result.json`` and the TOML files use); those strings are written here only.
+:func:`make_shape` turns a name and a size (in the scenario's order: a box's x, y, z extents, a
+cylinder's diameter and height) into a :class:`Shape`, once per object and seed (where the layout
+draws its size); the layout's placement and the robot's target model carry it, and every derivation
+(height, footprint, yaw symmetry, resting height, the surface's closest points ...) is asked of it.
+
+Sizes are in metres, in the object's body frame: its centre at the origin, its z axis up through its
+top face (a cylinder's axis). Pure: numpy only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import ClassVar, Literal, Protocol
+
+import numpy as np
+
+#: The names a scenario gives shapes (its ``shape`` key), as written in ``result.json``.
+ShapeName = Literal["box", "cylinder"]
+
+
+class Shape(Protocol):
+    """What a shape of the task answers: its size and what follows from it."""
+
+    kind: ClassVar[str]  # its :data:`ShapeName`
+    n_sizes: ClassVar[int]  # how many numbers its size has
+    size_text: ClassVar[str]  # what they are, for messages
+
+    @property
+    def size(self) -> tuple[float, ...]:
+        """The size in the scenario's order (box: x, y, z; cylinder: diameter, height), m."""
+        ...
+
+    @property
+    def height_m(self) -> float:
+        """Extent along the body's z axis (standing upright, its height)."""
+        ...
+
+    @property
+    def footprint_radius_m(self) -> float:
+        """Radius of the circle that holds its footprint on the table, upright."""
+        ...
+
+    @property
+    def bounding_radius_m(self) -> float:
+        """Radius of the sphere about its centre that holds it, whatever its orientation."""
+        ...
+
+    @property
+    def yaw_symmetry_rad(self) -> float:
+        """The turn about its z axis after which it looks the same (0: any turn, no yaw at all)."""
+        ...
+
+    @property
+    def grasp_width_m(self) -> float:
+        """Its width across the narrower side of its top: what a top-down grasp closes on."""
+        ...
+
+    @property
+    def top_extents_m(self) -> tuple[float, float]:
+        """Extents of its top face, the larger first (a circle's: its diameter twice)."""
+        ...
+
+    def resting_height_m(self, rotation: np.ndarray) -> float:
+        """Height of its centre above a plane its lowest point touches, turned by ``rotation``."""
+        ...
+
+    def resting_face(self, rotation: np.ndarray) -> tuple[float, float]:
+        """The tilt (deg) of the body axis it stands on nearest the vertical, and its extent along it (m)."""
+        ...
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Closest points on its surface to ``points`` (N, 3) and the outward normals there (body frame)."""
+        ...
+
+    def outline_residuals(self, xy: np.ndarray) -> np.ndarray:
+        """Signed distance (m) of points of its top plane ((N, >=2), body x, y) from its top face's outline."""
+        ...
+
+    def outline_xy(self, yaw_rad: float) -> np.ndarray:
+        """Its outline seen from above, upright and turned ``yaw_rad`` about z (m, a polygon about its centre)."""
+        ...
+
+
+@dataclass(frozen=True)
+class Box:
+    """A box: its x, y, z extents (m)."""
+
+    size_m: tuple[float, float, float]
+    kind: ClassVar[ShapeName] = "box"
+    n_sizes: ClassVar[int] = 3
+    size_text: ClassVar[str] = "x, y, z extents"
+
+    @property
+    def size(self) -> tuple[float, ...]:
+        return self.size_m
+
+    @property
+    def height_m(self) -> float:
+        return self.size_m[2]
+
+    @property
+    def footprint_radius_m(self) -> float:
+        return 0.5 * float(np.hypot(self.size_m[0], self.size_m[1]))
+
+    @property
+    def bounding_radius_m(self) -> float:
+        return 0.5 * float(np.linalg.norm(self.size_m))
+
+    @property
+    def yaw_symmetry_rad(self) -> float:
+        """A quarter turn for a square top, else a half turn."""
+        return np.pi / 2.0 if abs(self.size_m[0] - self.size_m[1]) < 1e-9 else np.pi
+
+    @property
+    def grasp_width_m(self) -> float:
+        return min(self.size_m[0], self.size_m[1])
+
+    @property
+    def top_extents_m(self) -> tuple[float, float]:
+        a, b = sorted(self.size_m[:2], reverse=True)
+        return a, b
+
+    def resting_height_m(self, rotation: np.ndarray) -> float:
+        return 0.5 * float(np.abs(rotation[2]) @ np.asarray(self.size_m))
+
+    def resting_face(self, rotation: np.ndarray) -> tuple[float, float]:
+        """A box rests on any face: the body axis with the largest world-z component."""
+        axis = int(np.argmax(np.abs(rotation[2])))
+        tilt = float(np.degrees(np.arccos(np.clip(abs(rotation[2, axis]), -1.0, 1.0))))
+        return tilt, float(self.size_m[axis])
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        h = np.array(self.size_m) / 2.0
+        inside = np.all(np.abs(points) <= h, axis=1)
+        q = np.clip(points, -h, h)
+        # Points inside the box go to their nearest face.
+        gap = h - np.abs(points)
+        axis_in = np.argmin(gap, axis=1)
+        idx = np.nonzero(inside)[0]
+        q[idx, axis_in[idx]] = np.sign(points[idx, axis_in[idx]] + 1e-15) * h[axis_in[idx]]
+        # The normal of the face the closest point lies on (the axis where it sits on the boundary,
+        # preferring the one the point is furthest out along).
+        out = np.abs(points) - h
+        out[inside] = -gap[inside]
+        axis = np.argmax(out, axis=1)
+        n = np.zeros_like(points)
+        n[np.arange(len(points)), axis] = np.sign(points[np.arange(len(points)), axis] + 1e-15)
+        return q, n
+
+    def outline_residuals(self, xy: np.ndarray) -> np.ndarray:
+        """To the nearer pair of sides."""
+        hx, hy = self.size_m[0] / 2.0, self.size_m[1] / 2.0
+        on_x = np.abs(np.abs(xy[:, 0]) - hx) < np.abs(np.abs(xy[:, 1]) - hy)
+        return np.where(on_x, np.abs(xy[:, 0]) - hx, np.abs(xy[:, 1]) - hy)
+
+    def outline_xy(self, yaw_rad: float) -> np.ndarray:
+        """Its four corners."""
+        corners = ((-1, -1), (1, -1), (1, 1), (-1, 1))
+        local = np.array([[sx * self.size_m[0], sy * self.size_m[1]] for sx, sy in corners]) / 2.0
+        rot = np.array([[np.cos(yaw_rad), -np.sin(yaw_rad)], [np.sin(yaw_rad), np.cos(yaw_rad)]])
+        return local @ rot.T
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """An upright cylinder (its axis the body's z): diameter and height (m)."""
+
+    diameter_m: float
+    height_m: float
+    kind: ClassVar[ShapeName] = "cylinder"
+    n_sizes: ClassVar[int] = 2
+    size_text: ClassVar[str] = "diameter, height"
+
+    @property
+    def size(self) -> tuple[float, ...]:
+        return (self.diameter_m, self.height_m)
+
+    @property
+    def footprint_radius_m(self) -> float:
+        return 0.5 * self.diameter_m
+
+    @property
+    def bounding_radius_m(self) -> float:
+        return 0.5 * float(np.linalg.norm(self.size))
+
+    @property
+    def yaw_symmetry_rad(self) -> float:
+        """Any turn: a cylinder has no yaw."""
+        return 0.0
+
+    @property
+    def grasp_width_m(self) -> float:
+        return self.diameter_m
+
+    @property
+    def top_extents_m(self) -> tuple[float, float]:
+        return self.diameter_m, self.diameter_m
+
+    def resting_height_m(self, rotation: np.ndarray) -> float:
+        axis_z = abs(float(rotation[2, 2]))
+        return 0.5 * (self.height_m * axis_z + self.diameter_m * float(np.sqrt(max(1.0 - axis_z**2, 0.0))))
+
+    def resting_face(self, rotation: np.ndarray) -> tuple[float, float]:
+        """A cylinder stands only on a cap: its axis is its body z."""
+        tilt = float(np.degrees(np.arccos(np.clip(abs(rotation[2, 2]), -1.0, 1.0))))
+        return tilt, float(self.height_m)
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r, hh = self.diameter_m / 2.0, self.height_m / 2.0
+        rho = np.hypot(points[:, 0], points[:, 1])
+        radial = np.column_stack([points[:, 0], points[:, 1]]) / np.maximum(rho, 1e-12)[:, None]
+        d_side = np.where(np.abs(points[:, 2]) <= hh, np.abs(rho - r), np.inf)
+        d_cap = np.where(rho <= r, np.abs(np.abs(points[:, 2]) - hh), np.inf)
+        on_side = d_side <= d_cap
+        q = points.copy()
+        n = np.zeros_like(points)
+        q[on_side, :2] = radial[on_side] * r
+        q[on_side, 2] = np.clip(points[on_side, 2], -hh, hh)
+        n[on_side, :2] = radial[on_side]
+        caps = ~on_side
+        clip_rho = np.minimum(rho[caps], r)
+        q[caps, :2] = radial[caps] * clip_rho[:, None]
+        q[caps, 2] = np.sign(points[caps, 2] + 1e-15) * hh
+        n[caps, 2] = np.sign(points[caps, 2] + 1e-15)
+        return q, n
+
+    def outline_residuals(self, xy: np.ndarray) -> np.ndarray:
+        return np.hypot(xy[:, 0], xy[:, 1]) - self.diameter_m / 2.0
+
+    def outline_xy(self, yaw_rad: float) -> np.ndarray:
+        """A 24-gon on its circle (the same whatever the yaw)."""
+        a = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+        return self.diameter_m / 2.0 * np.column_stack([np.cos(a), np.sin(a)])
+
+
+#: Each shape's class by its name.
+SHAPES: dict[str, type[Box] | type[Cylinder]] = {cls.kind: cls for cls in (Box, Cylinder)}
+
+
+def make_shape(kind: str, size: Sequence[float]) -> Box | Cylinder:
+    """The shape named ``kind`` of this size (the scenario's order: box x, y, z; cylinder diameter, height)."""
+    if kind == Box.kind:
+        x, y, z = size
+        return Box((x, y, z))
+    if kind == Cylinder.kind:
+        d, h = size
+        return Cylinder(d, h)
+    raise ValueError(f"unknown shape {kind!r} (known: {', '.join(SHAPES)})")
