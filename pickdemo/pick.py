@@ -27,6 +27,13 @@ velocity as its target velocity and that time as its minimum duration; the hand 
 it, goes down with it, closes on it and lifts it off the belt. A target that will have left the
 arm's reach by the time it is held, or that runs faster than the hand, fails the episode in ``ik``
 by name.
+
+The skill is states and transitions only, dispatched from a table (:data:`STATES`: each state's
+entry action and exit test). What it does, it does through its parts: the hand's :class:`~pickdemo.actions.Move`
+and the fingers' :class:`~pickdemo.actions.Grip` (started, then finished or failed), the target's
+:class:`~pickdemo.belief.TargetBelief` (the tracker and the gate in front of it), a
+:class:`~pickdemo.grasp_selection.GraspSelector` (ranked grasps from the belief), and the Panda's
+wrist rules (:mod:`pickdemo.wrist`).
 """
 
 from __future__ import annotations
@@ -39,15 +46,25 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo import robot_model as rm
+from pickdemo import wrist
+from pickdemo.actions import Grip, GripParams, Move
+from pickdemo.belief import Counters, GateParams, TargetBelief, Verdict
 from pickdemo.camera import Intrinsics, roi_around
-from pickdemo.geometry import Pose, wrap_angle
-from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, joint7_centre_yaw, plan_grasp
+from pickdemo.geometry import Pose
+from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError
+from pickdemo.grasp_selection import GraspRequest, GraspSelector, TopDownFaceGrasps
 from pickdemo.interfaces import Command, Observation
 from pickdemo.kinematics import IKParams, PandaKinematics
-from pickdemo.motion import CartesianLimits, MotionError, MotionSample, OnlineMotion, pose_to_x4
+from pickdemo.motion import CartesianLimits, MotionSample, OnlineMotion, pose_to_x4
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.result import AttemptRecord, Failure, Stage
 from pickdemo.tracker import TargetTracker, TrackerParams
+
+#: Re-exported for callers of the old name: the wrist's rule lives in :mod:`pickdemo.wrist`.
+WRIST_TURN_LIMIT_RAD = wrist.WRIST_TURN_LIMIT_RAD
+UNIT_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+#: A state may hand over to the next within one tick (an exit test met at once): at most this many times.
+MAX_TRANSITIONS_PER_TICK = 4
 
 
 def _wrap(yaw_rad: float, period_rad: float) -> float:
@@ -72,12 +89,10 @@ class State(str, enum.Enum):
     FAILED = "failed"
 
 
-#: A turned hand (a retry's other grasp yaw) is taken only if joint 7 stays within this (its limit: 2.90 rad).
-WRIST_TURN_LIMIT_RAD = 2.4
-UNIT_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
-
 #: States in which the closed loop keeps looking at the target (a region of interest around it).
 TRACKING_STATES = frozenset({State.APPROACH, State.DESCEND, State.CLOSE, State.BACK_OFF})
+#: States in which the hand is over the target: a partial view of it is not acted on.
+HAND_OVER_TARGET = frozenset({State.DESCEND, State.CLOSE})
 
 
 @dataclass(frozen=True)
@@ -89,24 +104,24 @@ class MachineParams:
         velocity=0.30, acceleration=1.5, jerk=15.0, yaw_velocity=1.5, yaw_acceleration=6.0, yaw_jerk=60.0
     )
     near: CartesianLimits = CartesianLimits(velocity=0.10, acceleration=0.5, jerk=5.0)  # near it: descend, lift
+    grip: GripParams = GripParams()  # the fingers: forces, when they have stopped, held, dropped
+    gate: GateParams = GateParams()  # when an estimate is no use, whatever the tracker says
     grip_force_n: float = 20.0  # per finger; measured: holds a 5 cm cube with ~1 mm slip
     max_grip_force_n: float = 70.0  # the Franka Hand's continuous grip force
-    open_force_n: float = 20.0
     look_min_estimates: int = 2  # accepted estimates before the first plan (1 when open loop)
     look_max_frames: int = 10  # frames in LOOK without an accepted estimate: the episode fails
     max_relooks: int = 2  # the target lost while approaching: look again from home, at most this often
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
     moved_tolerance_rad: float = float(np.radians(8.0))
-    hold_margin_m: float = 0.008  # fingers closed this far past the object's width: nothing held
-    drop_ticks: int = 3  # ticks in a row without a hold before a drop is called
-    stall_ticks: int = 8  # ticks in a row of fingers not moving: they have closed or opened
     close_timeout_s: float = 2.0
     verify_wait_s: float = 0.3  # let the placed object come to rest before the last look
     roi_margin_m: float = 0.03  # around the target's box, for the region of interest
-    face_size_tolerance: float = 0.2  # a top face measured this far off the model's size: a partial view
-    max_estimate_sigma_m: float = 0.005  # an estimate less sure than this is no use to a grasp
-    table_gap_m: float = 0.008  # a target resting on the table has its centre at half its height, give or take
+    verify_roi_extra_m: float = 0.03  # the last look's region: this much wider (the object may lie off the place)
+    roi_floor_z_m: float = -0.005  # a region of interest reaches this far below the table top
+    roi_pad_px: int = 4
+    back_off_grasp_z_m: float = 0.02  # backing off with no plan yet: as if the grasp were this high
     moving_speed_m_s: float = 0.01  # a target tracked faster than this (and than 3 sigma) is met where it will be
+    chase_fraction: float = 0.9  # a target faster than this share of the hand's speed (an axis) runs away from it
     grasp_time_s: float = 2.0  # from above a moving target to holding it (descent and close): it travels on meanwhile
     meet_horizon_s: float = 15.0  # a moving target that cannot be met within this is out of reach
     lift_lead_s: float = 0.3  # lifting a moving target, the hand carries on along its way this long
@@ -147,14 +162,7 @@ class FrameRequest:
     roi: tuple[int, int, int, int] | None
 
 
-@dataclass
-class _Counters:
-    estimates: int = 0
-    rejected: int = 0
-    perception_errors: int = 0
-    jumps: int = 0
-    retargets: int = 0
-    last_error: str = ""
+Transition = tuple[State, str] | None  # the next state and what it says, or stay
 
 
 class PickMachine:
@@ -175,32 +183,44 @@ class PickMachine:
         open_loop: bool = False,
         params: MachineParams | None = None,
         surface_z: Callable[[float, float], float] | None = None,
+        selector: GraspSelector | None = None,
     ) -> None:
         """``surface_z(x, y)``: the height of what a target at (x, y) rests on, as the cell's layout
-        says (a belt's top, or the table at 0)."""
+        says (a belt's top, or the table at 0). ``selector``: where grasps come from (default: a
+        top-down grasp across the target's narrower side)."""
         self.p = params or MachineParams()
-        self.surface_z = surface_z or (lambda x, y: 0.0)
         self.kin = kin
         self.model = model
         self.symmetry = symmetry_rad
         self.place_xy = place_xy
         self.camera = camera
-        self.rng = rng
+        self.rng = rng  # the IK's restarts
         self.max_attempts = max_attempts
         self.open_loop = open_loop
         self.dt_s = dt_s
+        self.selector: GraspSelector = selector or TopDownFaceGrasps(self.p.grasp)
+        # The parts: the hand's motion, the fingers, the belief about the target.
         self.motion = OnlineMotion(kin, q0, dt_s, self.p.free)
+        self.move = Move(self.motion, chase_fraction=self.p.chase_fraction, meet_horizon_s=self.p.meet_horizon_s)
+        self.grip = Grip(self.p.grip, dt_s)
+        self.counters = Counters()
+        self.belief = TargetBelief(
+            model,
+            symmetry_rad,
+            self.p.tracker,
+            self.p.gate,
+            surface_z=surface_z or (lambda x, y: 0.0),
+            counters=self.counters,
+        )
         self.home_x4 = pose_to_x4(kin.forward(rm.HOME_Q))
-        self.tracker = TargetTracker(symmetry_rad, self.p.tracker)
+        # What happened.
         self.state = State.LOOK
         self.failure: Failure | None = None
         self.events: list[Event] = []
         self.attempts: list[AttemptRecord] = []
-        self.counters = _Counters()
         self.plan: GraspPlan | None = None
         self.grasp_width_m: float | None = None  # finger opening on the object at the last grasp
         self.verify_estimate: PoseEstimate | None = None
-        self.last_sample: MotionSample | None = None
         # Per attempt: what a retry may change.
         self.attempt = 1
         self.grip_force_n = self.p.grip_force_n
@@ -211,17 +231,11 @@ class PickMachine:
         self._entered = False
         self._since_s = 0.0
         self._now_s = 0.0
-        self._finger_target = rm.FINGER_MAX_M
-        self._finger_force = self.p.open_force_n
         self._fresh_estimate = False
         self._look_frames = 0
-        self._stall = 0
-        self._no_hold = 0
-        self._prev_opening: float | None = None
         self._after_back_off = State.LOOK
         self._descent_plan: GraspPlan | None = None
         self._planned_at_s = 0.0  # the plan is for the target where it was then
-        self._velocity_cache: tuple[tuple, np.ndarray | None] | None = None
         self._descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
         self._verify_asked = False
         self._relooks = 0
@@ -231,109 +245,91 @@ class PickMachine:
     def finished(self) -> bool:
         return self.state in (State.DONE, State.FAILED)
 
+    @property
+    def tracker(self) -> TargetTracker:
+        """The belief's tracker (read by observers: the video, the trace, the scoring)."""
+        return self.belief.tracker
+
+    @property
+    def last_sample(self) -> MotionSample | None:
+        return self.move.last_sample
+
     def frame_request(self, now_s: float) -> FrameRequest | None:
         """Whether perception should look now, and at what (the loop applies the frame rate)."""
         if self.state is State.LOOK:  # the whole image, then around the first estimate
             if not (self._entered and self.motion.finished):
                 return None
-            return FrameRequest(self._roi(now_s) if self.tracker.initialised else None)
+            return FrameRequest(self._roi(now_s) if self.belief.initialised else None)
         if self.state is State.VERIFY:  # around where it was put down
             wait_over = now_s - self._since_s >= self.p.verify_wait_s
             if not wait_over or self._verify_asked:
                 return None
             z = self.model.height_m / 2.0
-            return FrameRequest(self._roi_at(np.array([*self.place_xy, z]), self.p.roi_margin_m + 0.03))
-        if self.open_loop or self.state not in TRACKING_STATES or not self.tracker.initialised:
+            return FrameRequest(
+                self._roi_at(np.array([*self.place_xy, z]), self.p.roi_margin_m + self.p.verify_roi_extra_m)
+            )
+        if self.open_loop or self.state not in TRACKING_STATES or not self.belief.initialised:
             return None
         return FrameRequest(self._roi(now_s))
 
-    def on_estimate(self, result: PoseEstimate | PerceptionError, frame_time_s: float) -> str:
-        """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``.
-
-        Returns what became of it: ``accepted`` (fused into the belief), ``rejected`` (implausible,
-        or beyond the tracker's gate), ``no estimate``, or ``unused`` (not looking now).
-        """
+    def on_estimate(self, result: PoseEstimate | PerceptionError, frame_time_s: float) -> Verdict:
+        """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``;
+        what became of it (:class:`~pickdemo.belief.Verdict`)."""
         if self.state is State.VERIFY:
             self._verify_asked = True
             if isinstance(result, PoseEstimate):
                 self.verify_estimate = result
-            return "unused"
+            return Verdict.UNUSED
         looking = self.state is State.LOOK or (self.state in TRACKING_STATES and not self.open_loop)
         if not looking:
-            return "unused"
+            return Verdict.UNUSED
         if self.state is State.LOOK:
             self._look_frames += 1
-        status = "no estimate"
-        if isinstance(result, PoseEstimate):
-            implausible = self._implausible(result)
-            if not implausible and self.state in (State.DESCEND, State.CLOSE) and not self._complete_view(result):
-                # The hand is over the target: a face it partly hides can mislead the fit consistently,
-                # so such a view is not acted on; the tracker predicts through.
-                implausible = "a partial view: its top face measures off the model's size"
-            if implausible:
-                result = PerceptionError(implausible)
-                status = "rejected"
-        if isinstance(result, PerceptionError):
-            self.counters.perception_errors += 1
-            self.counters.last_error = str(result)
-            return status
-        self.counters.estimates += 1
-        up = self.tracker.update(result, frame_time_s, partial=not self._complete_view(result))
-        if not up.accepted:
-            self.counters.rejected += 1
-        if up.jumped:
-            self.counters.jumps += 1
-            tp = self.tracker.predict(frame_time_s)
+        offered = self.belief.offer(result, frame_time_s, hand_over_target=self.state in HAND_OVER_TARGET)
+        if offered.jumped:
+            tp = self.belief.predict(frame_time_s)
             moved = ""
             if self.plan is not None:
                 d = float(np.linalg.norm(tp.position[:2] - self.plan.grasp.position[:2]))
                 moved = f" {d * 1e3:.0f} mm from the plan"
-            self.events.append(
-                Event(
-                    self.state,
-                    self._now_s,
-                    f"the target moved{moved} (seen in the frame of t = {frame_time_s:.2f} s): tracking it again",
-                    note=True,
-                )
-            )
-        if up.accepted:
+            message = f"the target moved{moved} (seen in the frame of t = {frame_time_s:.2f} s): tracking it again"
+            self.events.append(Event(self.state, self._now_s, message, note=True))
+        if offered.verdict is Verdict.ACCEPTED:
             self._fresh_estimate = True
-        return "accepted" if up.accepted else "rejected"
+        return offered.verdict
 
     def update(self, obs: Observation) -> Command:
         """One control tick: the state's entry action (once), its exit test, then the motion's tick."""
         self._now_s = obs.time_s
-        for _ in range(4):  # a state may hand over to the next within the tick
+        for _ in range(MAX_TRANSITIONS_PER_TICK):
             if not self._entered:
                 self._entered = True
                 self._since_s = obs.time_s
-                getattr(self, f"_enter_{self.state.value}")(obs)
+                STATES[self.state].enter(self, obs)
             if self.finished:
                 break
-            nxt = getattr(self, f"_tick_{self.state.value}")(obs)
+            nxt = STATES[self.state].tick(self, obs)
             if nxt is None:
                 break
             self._go(*nxt)
         if self.finished:
             return self._command_hold()
-        try:
-            sample = self.motion.step()
-        except MotionError as exc:
-            self._fail(Stage.TRAJECTORY, str(exc))
+        sample = self.move.step()
+        if sample is None:
+            self._fail(Stage.TRAJECTORY, str(self.move.failure))
             return self._command_hold()
-        self.last_sample = sample
         self.counters.retargets = self.motion.retargets
-        return Command(sample.q, sample.dq, self._finger_target, self._finger_force)
+        return Command(sample.q, sample.dq, self.grip.target_m, self.grip.force_n)
+
+    def abort(self, stage: Stage, reason: str) -> None:
+        """End the episode from outside (the step budget is spent)."""
+        self._fail(stage, reason)
 
     # ============================================================================== transitions
     def _go(self, state: State, message: str) -> None:
         self.state = state
         self._entered = False
         self.events.append(Event(state, self._now_s, message))
-
-    def abort(self, stage: Stage, reason: str) -> None:
-        """End the episode from outside (the step budget is spent)."""
-        self._fail(stage, reason)
 
     def _fail(self, stage: Stage, reason: str) -> None:
         if self.plan is not None and (not self.attempts or self.attempts[-1].number != self.attempt):
@@ -345,7 +341,7 @@ class PickMachine:
 
     def _command_hold(self) -> Command:
         q = self.motion.q
-        return Command(q.copy(), np.zeros(7), self._finger_target, self._finger_force)
+        return Command(q.copy(), np.zeros(7), self.grip.target_m, self.grip.force_n)
 
     def _end_attempt(self, outcome: str, reason: str) -> None:
         self.attempts.append(
@@ -361,7 +357,7 @@ class PickMachine:
             )
         )
 
-    def _retry(self, stage: Stage, outcome: str, reason: str) -> tuple[State, str] | None:
+    def _retry(self, stage: Stage, outcome: str, reason: str) -> Transition:
         """End this attempt; start the next (changed by what failed) or fail the episode."""
         self._end_attempt(outcome, reason)
         if self.attempt >= self.max_attempts:
@@ -379,51 +375,42 @@ class PickMachine:
         return State.BACK_OFF, f"{outcome}: {reason}; attempt {self.attempt} of {self.max_attempts} follows"
 
     # ==================================================================================== helpers
-    def _open(self) -> None:
-        self._finger_target, self._finger_force = rm.FINGER_MAX_M, self.p.open_force_n
-
-    def _fingers_stalled(self, obs: Observation) -> bool:
-        opening = obs.opening_m
-        moved = self._prev_opening is None or abs(opening - self._prev_opening) > 2e-6 * 240.0 * self.dt_s
-        self._prev_opening = opening
-        self._stall = 0 if moved else self._stall + 1
-        return self._stall >= self.p.stall_ticks
-
     def _holding(self, obs: Observation) -> bool:
         assert self.plan is not None
-        left, right = obs.finger_contacts
-        return left > 0 and right > 0 and obs.opening_m > self.plan.object_width_m - self.p.hold_margin_m
+        return self.grip.holding(obs, self.plan.object_width_m)
 
     def _dropped(self, obs: Observation) -> bool:
-        self._no_hold = 0 if self._holding(obs) else self._no_hold + 1
-        return self._no_hold >= self.p.drop_ticks
+        assert self.plan is not None
+        return self.grip.dropped(obs, self.plan.object_width_m)
 
     def _tracked_pose(self) -> Pose:
-        tp = self.tracker.predict(self._now_s)
+        tp = self.belief.predict(self._now_s)
         return Pose.from_xyz_rpy(tp.position, yaw=tp.yaw_rad)
+
+    def _grasp(self, pose: Pose, near: float | None) -> GraspPlan:
+        """The selector's best grasp for the target at ``pose`` with the hand angle nearest ``near``."""
+        return next(iter(self.selector.candidates(GraspRequest(pose, self.model, self.place_xy, (near,)))))
 
     def _replan(self, *, first: bool) -> GraspPlan | None:
         """A grasp plan from the tracker's belief now; None after failing the episode.
 
-        A re-plan keeps the hand's angle. The first plan of an attempt checks that the whole pick and
-        place is in reach; after a miss it first tries the hand turned a quarter (a square box's other
-        pair of faces), and the usual angle if that is out of reach.
+        A re-plan keeps the hand's angle (unless the wrist would then leave its room). The first plan
+        of an attempt takes the selector's first candidate the whole pick and place can reach; after
+        a miss it first asks for the hand turned a quarter (a square box's other pair of faces).
         """
         pose = self._tracked_pose()
         self._planned_at_s = self._now_s
         if not first:
             near = None if self.plan is None else self.plan.hand_yaw_rad
             try:
-                plan = plan_grasp(pose, self.model, self.place_xy, self.p.grasp, hand_yaw_near_rad=near)
-                centre = joint7_centre_yaw(tuple(pose.position[:2]), tuple(self.place_xy))
-                # Joint 7 where the plan would take it (it turns against the hand's yaw) and, as a
-                # second opinion, the estimate from the arm's bearing alone.
-                q7_then = float(self.motion.q[6]) - (float(self._x4(plan.pregrasp)[3]) - float(self.motion.setpoint[3]))
-                if max(abs(plan.hand_yaw_rad - centre), abs(q7_then)) > WRIST_TURN_LIMIT_RAD:
-                    # Keeping the hand's angle, re-plan after re-plan, can walk the wrist into its
-                    # limit when the estimated yaw drifts (a noisy estimator's, measured: IK lost the
-                    # setpoint at joint 7's stop); take the equivalent angle nearest mid-range.
-                    plan = plan_grasp(pose, self.model, self.place_xy, self.p.grasp)
+                plan = self._grasp(pose, near)
+                centre = wrist.centre_yaw(tuple(pose.position[:2]), tuple(self.place_xy))
+                # Joint 7 where the plan would take it (it turns against the hand's yaw).
+                q7_then = float(self.motion.q[6]) - (
+                    float(self.move.x4(plan.pregrasp)[3]) - float(self.motion.setpoint[3])
+                )
+                if wrist.drifts_too_far(plan.hand_yaw_rad, centre, q7_then):
+                    plan = self._grasp(pose, None)
             except GraspPlanningError as exc:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
                 return None
@@ -433,97 +420,72 @@ class PickMachine:
                     self._fail(Stage.IK, reason)
                     return None
             return plan
-        candidates: list[float | None] = [None]
+        hand_yaws: list[float | None] = [None]
         v = self._target_velocity()
         if v is not None:
             # A moving target: the least turn of the hand first (turning the wrist a quarter while
             # chasing it across the table drifts the arm's redundancy towards a singularity,
             # measured), then joint 7 mid-range where it will be held rather than where it is.
             held = pose.position[:2] + v * self.p.grasp_time_s
-            candidates = [float(self.motion.setpoint[3]), joint7_centre_yaw(tuple(held), tuple(self.place_xy)), None]
+            hand_yaws = [float(self.motion.setpoint[3]), wrist.centre_yaw(tuple(held), tuple(self.place_xy)), None]
         if self._turn_hand and self.plan is not None:
-            # The other pair of faces: a quarter turn from the usual angle, towards the middle of
-            # joint 7's range (q7 ~ centre - psi), so the wrist keeps room.
-            centre = joint7_centre_yaw(tuple(pose.position[:2]), tuple(self.place_xy))
+            centre = wrist.centre_yaw(tuple(pose.position[:2]), tuple(self.place_xy))
             try:
-                usual = plan_grasp(pose, self.model, self.place_xy, self.p.grasp).hand_yaw_rad
+                usual = self._grasp(pose, None).hand_yaw_rad
             except GraspPlanningError as exc:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
                 return None
-            candidates.insert(0, usual + (np.pi / 2.0 if usual < centre else -np.pi / 2.0))
+            hand_yaws.insert(0, wrist.quarter_turn(usual, centre))
         self._turn_hand = False
+        candidates = iter(self.selector.candidates(GraspRequest(pose, self.model, self.place_xy, tuple(hand_yaws))))
         reason = ""
-        for near in candidates:
+        for near in hand_yaws:
             try:
-                plan = plan_grasp(pose, self.model, self.place_xy, self.p.grasp, hand_yaw_near_rad=near)
+                plan = next(candidates)
             except GraspPlanningError as exc:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
                 return None
-            reason = ""
-            reach = self._reach_targets(plan)
-            if isinstance(reach, str):
-                self._fail(Stage.IK, reach)
+            reason = self._unreachable(plan, turned=near is not None)
+            if isinstance(reason, tuple):
+                self._fail(*reason)
                 return None
-            for name, target in (*reach, ("place", plan.place)):
-                res = self.kin.solve(target, self.motion.q, self.rng, IKParams())
-                if not res.success:
-                    reason = f"{name} pose out of reach: {res.reason}"
-                    if name not in ("grasp", "place"):  # a moving target's
-                        reason = f"the target leaves the arm's reach before the arm can meet it: {name} is out of reach"
-                    break
-                if near is not None and abs(res.q[6]) > WRIST_TURN_LIMIT_RAD:  # a turned hand: keep wrist room
-                    reason = f"{name} pose turns joint 7 to {res.q[6]:.2f} rad"
-                    break
             if not reason:
                 return plan
         self._fail(Stage.IK, reason)
         return None
 
+    def _unreachable(self, plan: GraspPlan, *, turned: bool) -> str | tuple[Stage, str]:
+        """Why the arm cannot do this plan's pick and place ("" if it can; a (stage, reason) to fail
+        the episode at once: a moving target that cannot be met at all)."""
+        reach = self._reach_targets(plan)
+        if isinstance(reach, str):
+            return Stage.IK, reach
+        for name, target in (*reach, ("place", plan.place)):
+            res = self.kin.solve(target, self.motion.q, self.rng, IKParams())
+            if not res.success:
+                if name not in ("grasp", "place"):  # a moving target's
+                    return f"the target leaves the arm's reach before the arm can meet it: {name} is out of reach"
+                return f"{name} pose out of reach: {res.reason}"
+            if turned and not wrist.has_room(float(res.q[6])):  # a turned hand: keep wrist room
+                return f"{name} pose turns joint 7 to {res.q[6]:.2f} rad"
+        return ""
+
     # ------------------------------------------------------------------------- moving targets
     def _target_velocity(self) -> np.ndarray | None:
         """The target's horizontal velocity (m/s) while the tracker sees it move; None when it is at
         rest (or not surely moving), and always in open loop (it plans to where the target was)."""
-        if self.open_loop or not self.tracker.initialised:
+        if self.open_loop:
             return None
-        key = (self._now_s, id(self.tracker), self.tracker.accepted)  # the belief changes only on an accept
-        if self._velocity_cache is not None and self._velocity_cache[0] == key:
-            v = self._velocity_cache[1]
-            return None if v is None else v.copy()
-        v = self._moving_velocity()
-        self._velocity_cache = (key, v)
-        return None if v is None else v.copy()
-
-    def _moving_velocity(self) -> np.ndarray | None:
-        tp = self.tracker.predict(self._now_s)
-        v = tp.velocity[:2]
-        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(tp.covariance[4:6, 4:6])), 0.0)))
-        if float(np.linalg.norm(v)) <= max(self.p.moving_speed_m_s, 3.0 * sigma):
-            return None
-        return v.copy()
-
-    def _meet(self, x4: np.ndarray, v: np.ndarray, limits: CartesianLimits | None) -> float | None:
-        """Seconds from now until the hand can be at ``x4`` carried along at ``v`` (a plan's pose for
-        the target where it is now) moving with it; None: not within the horizon."""
-        vel4 = np.array([v[0], v[1], 0.0, 0.0])
-        reach = np.array((limits or self.motion.limits).arrays()[0][:2])
-        if np.any(np.abs(v) > 0.9 * reach):  # it would run away from the hand
-            return None
-        return self.motion.intercept(lambda t: x4 + vel4 * t, vel4, limits=limits, latest_s=self.p.meet_horizon_s)
+        return self.belief.moving_velocity(self._now_s, self.p.moving_speed_m_s)
 
     def _go_to(self, pose: Pose | np.ndarray, limits: CartesianLimits | None = None) -> None:
-        """Send the hand to a pose of the plan (or an x4). For a moving target: to where they meet, arriving
-        then with its velocity (Ruckig's target velocity and minimum duration), and following it."""
-        x4 = self._x4(pose)
+        """Send the hand to a pose of the plan (or an x4). For a moving target: to where they meet,
+        arriving then with its velocity, and following it."""
         v = self._target_velocity()
         if v is None:
-            self.motion.set_target(x4, limits=limits)
-            return
-        t = self._meet(x4, v, limits or self.motion.limits)
-        if t is None:
+            self.move.to(pose, limits=limits)
+        elif not self.move.meet(pose, v, limits):
             self._fail(Stage.IK, self._too_fast(v))
-            return
-        vel4 = np.array([v[0], v[1], 0.0, 0.0])
-        self.motion.set_target(x4 + vel4 * t, velocity=vel4, limits=limits, arrive_in_s=t)
 
     def _too_fast(self, v: np.ndarray) -> str:
         return (
@@ -538,7 +500,7 @@ class PickMachine:
         if v is None:
             return False
         vel4 = np.array([v[0], v[1], 0.0, 0.0])
-        want = self._x4(pose) + vel4 * (self._now_s - self._planned_at_s)
+        want = self.move.x4(pose) + vel4 * (self._now_s - self._planned_at_s)
         off = np.abs(self.motion.setpoint - want)
         p = self.p
         return bool(
@@ -553,7 +515,7 @@ class PickMachine:
         v = self._target_velocity()
         if v is None:
             return [("grasp", plan.grasp)]
-        t = self._meet(self._x4(plan.pregrasp), v, self.p.free)
+        t = self.move.meet_in(self.move.x4(plan.pregrasp), v, self.p.free)
         if t is None:
             return self._too_fast(v)
         out = []
@@ -573,91 +535,55 @@ class PickMachine:
                 return f"the target leaves the arm's reach before the arm can meet it: {name} is out of reach"
         return ""
 
-    def _x4(self, pose: Pose | np.ndarray) -> np.ndarray:
-        """(x, y, z, yaw) of a pose (or of an x4), its yaw the turn of the hand that keeps joint 7 in
-        range: the equivalent nearest the current setpoint's, unless that one would take joint 7
-        beyond half a turn from mid-range, where the other way round does not (a turn near half a
-        revolution: the nearest way can run into joint 7's stop)."""
-        x4 = pose_to_x4(pose) if isinstance(pose, Pose) else np.array(pose, dtype=float)
-        sp = self.motion.setpoint
-        x4[3] = sp[3] + wrap_angle(x4[3] - sp[3])
-        # Joint 7 turns against the hand's yaw and with the arm's bearing (q7 ~ pi/4 + q1 - yaw).
-        q7 = float(self.motion.q[6]) + float(np.arctan2(x4[1], x4[0]) - np.arctan2(sp[1], sp[0])) - (x4[3] - sp[3])
-        if abs(q7) > np.pi:
-            x4[3] += 2.0 * np.pi * np.sign(q7)
-        return x4
-
-    def _implausible(self, est: PoseEstimate) -> str:
-        """Why an estimate cannot be the target resting on the table or the belt ("" if it can): not
-        finite, an uncertainty beyond anything the grasp tolerates, or floating above / sunk into what
-        it rests on."""
-        p = est.pose.position
-        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(est.position_cov))):
-            return "estimate not finite"
-        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(est.position_cov)), 0.0)))
-        if sigma > self.p.max_estimate_sigma_m:
-            return f"estimate too uncertain ({sigma * 1e3:.1f} mm)"
-        surface = self.surface_z(float(p[0]), float(p[1]))
-        gap = float(p[2]) - surface - self.model.height_m / 2.0
-        if abs(gap) > self.p.table_gap_m:
-            where = "above" if gap > 0 else "into"
-            what = "the table" if surface == 0.0 else "the belt"
-            return f"estimate {'floats' if gap > 0 else 'sinks'} {abs(gap) * 1e3:.0f} mm {where} {what}"
-        return ""
-
-    def _complete_view(self, estimate: PoseEstimate) -> bool:
-        """Whether the estimate saw the whole top face: its measured extents within
-        ``face_size_tolerance`` of the model's. A partly hidden face (the hand over it while it
-        descends) can mislead the fit consistently, so only a complete view may restart the track."""
-        if self.model.shape == "box":
-            expected = sorted(self.model.size[:2], reverse=True)
-        else:
-            expected = [self.model.size[0]] * 2
-        measured = sorted(estimate.top_face_size_m, reverse=True)
-        tol = self.p.face_size_tolerance
-        return all(abs(m - e) <= tol * e for m, e in zip(measured, expected, strict=True))
-
     def _roi(self, now_s: float) -> tuple[int, int, int, int] | None:
         """Around the tracked target, widened by its uncertainty (None: the whole image)."""
-        tp = self.tracker.predict(now_s)
+        tp = self.belief.predict(now_s)
         return self._roi_at(tp.position, self.p.roi_margin_m + 3.0 * tp.position_sigma_m)
 
     def _roi_at(self, centre: np.ndarray, margin_m: float) -> tuple[int, int, int, int] | None:
         r = 0.5 * float(np.linalg.norm(self.model.size)) + margin_m
         corners = centre + r * UNIT_CUBE
-        corners[:, 2] = np.maximum(corners[:, 2], -0.005)
-        return roi_around(corners, self.camera.intrinsics, self.camera.T_world_cam, pad_px=4)
+        corners[:, 2] = np.maximum(corners[:, 2], self.p.roi_floor_z_m)
+        return roi_around(corners, self.camera.intrinsics, self.camera.T_world_cam, pad_px=self.p.roi_pad_px)
+
+    def _near_limits(self) -> CartesianLimits:
+        """Near the object: gentle, but keeping up across the table with a target that moves."""
+        return self.p.near if self._target_velocity() is None else self.p.near.with_xy_of(self.p.free)
+
+    def _track_plan(self) -> GraspPlan | None:
+        """A fresh plan when a new estimate has come in (closed loop), else None."""
+        if self.open_loop or not self._fresh_estimate:
+            return None
+        self._fresh_estimate = False
+        return self._replan(first=False)
 
     # ===================================================================================== states
     # ---- LOOK: from the home pose, full frames until the tracker holds the target.
     def _enter_look(self, obs: Observation) -> None:
         if not self.events:
             self.events.append(Event(State.LOOK, obs.time_s, "looking for the target", note=True))
-        self._open()
+        self.grip.open()
         self._attempt_start_s = obs.time_s
-        self.tracker = TargetTracker(self.symmetry, self.p.tracker)
+        self.belief.restart()
         self._look_frames = 0
         self._fresh_estimate = False
-        self.motion.set_target(self._x4(self.home_x4), limits=self.p.free)
+        self.move.to(self.home_x4, limits=self.p.free)
 
-    def _tick_look(self, obs: Observation) -> tuple[State, str] | None:
+    def _tick_look(self, obs: Observation) -> Transition:
         needed = 1 if self.open_loop else self.p.look_min_estimates
-        if self.tracker.accepted >= needed:
+        if self.belief.accepted >= needed:
             plan = self._replan(first=True)
             if plan is None:
                 return None
             self.plan = plan
-            tp = self.tracker.predict(obs.time_s)
+            tp = self.belief.predict(obs.time_s)
+            yaw = ""
+            if self.symmetry > 0:
+                said = np.degrees(_wrap(tp.yaw_rad, self.symmetry))
+                yaw = f", yaw {said:+.2f} deg (modulo {np.degrees(self.symmetry):.0f})"
             return State.APPROACH, (
-                f"target at ({tp.position[0]:.4f}, {tp.position[1]:.4f}, {tp.position[2]:.4f}) m"
-                + (
-                    f", yaw {np.degrees(_wrap(tp.yaw_rad, self.symmetry)):+.2f} deg"
-                    f" (modulo {np.degrees(self.symmetry):.0f})"
-                    if self.symmetry > 0
-                    else ""
-                )
-                + f" from {self.tracker.accepted} estimate(s); "
-                f"grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg"
+                f"target at ({tp.position[0]:.4f}, {tp.position[1]:.4f}, {tp.position[2]:.4f}) m{yaw} "
+                f"from {self.belief.accepted} estimate(s); grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg"
                 + (f" (attempt {self.attempt})" if self.attempt > 1 else "")
             )
         if self._look_frames >= self.p.look_max_frames:
@@ -672,15 +598,8 @@ class PickMachine:
         assert self.plan is not None
         self._go_to(self.plan.pregrasp, limits=self.p.free)
 
-    def _track_plan(self) -> GraspPlan | None:
-        """A fresh plan when a new estimate has come in (closed loop), else None."""
-        if self.open_loop or not self._fresh_estimate:
-            return None
-        self._fresh_estimate = False
-        return self._replan(first=False)
-
-    def _tick_approach(self, obs: Observation) -> tuple[State, str] | None:
-        if not self.open_loop and self.tracker.lost(obs.time_s):
+    def _tick_approach(self, obs: Observation) -> Transition:
+        if not self.open_loop and self.belief.lost(obs.time_s):
             # Nothing it sees agrees with its belief any more: look again from home, a few times.
             self._relooks += 1
             if self._relooks > self.p.max_relooks:
@@ -692,17 +611,13 @@ class PickMachine:
         if plan is not None:
             self.plan = plan
             self._go_to(plan.pregrasp)
-        if (self.motion.finished or self._with_target(self.plan.pregrasp)) and not self.finished:
+        if (self.move.finished or self._with_target(self.plan.pregrasp)) and not self.finished:
             return State.DESCEND, "above the target" + (
                 ", moving with it" if self._target_velocity() is not None else ""
             )
         return None
 
     # ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
-    def _near_limits(self) -> CartesianLimits:
-        """Near the object: gentle, but keeping up across the table with a target that moves."""
-        return self.p.near if self._target_velocity() is None else self.p.near.with_xy_of(self.p.free)
-
     def _enter_descend(self, obs: Observation) -> None:
         assert self.plan is not None
         self._descent_plan = self.plan
@@ -710,7 +625,7 @@ class PickMachine:
         self._descent_ref = (self.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, self._planned_at_s)
         self._go_to(self.plan.grasp, limits=self._near_limits())
 
-    def _tick_descend(self, obs: Observation) -> tuple[State, str] | None:
+    def _tick_descend(self, obs: Observation) -> Transition:
         plan = self._track_plan()
         if plan is not None:
             assert self._descent_plan is not None and self._descent_ref is not None
@@ -725,19 +640,18 @@ class PickMachine:
                     "backing off to approach again"
                 )
             self._go_to(plan.grasp)
-        if (self.motion.finished or self._with_target(self.plan.grasp)) and not self.finished:
+        if (self.move.finished or self._with_target(self.plan.grasp)) and not self.finished:
             return State.CLOSE, "at the grasp pose"
         return None
 
     # ---- CLOSE: fingers close with this attempt's force; held or missed.
     def _enter_close(self, obs: Observation) -> None:
-        self._finger_target, self._finger_force = 0.0, self.grip_force_n
-        self._stall = 0
-        self._prev_opening = None
+        self.grip.close(self.grip_force_n)
+        self.grip.watch()
 
-    def _tick_close(self, obs: Observation) -> tuple[State, str] | None:
+    def _tick_close(self, obs: Observation) -> Transition:
         assert self.plan is not None
-        stalled = self._fingers_stalled(obs)
+        stalled = self.grip.stopped(obs)
         if not stalled and obs.time_s - self._since_s < self.p.close_timeout_s:
             return None
         if self._holding(obs):
@@ -754,51 +668,50 @@ class PickMachine:
     # ---- LIFT, TRANSPORT, LOWER: carry it, watching the hold.
     def _enter_lift(self, obs: Observation) -> None:
         assert self.plan is not None
-        self._no_hold = 0
-        lift = self._x4(self.plan.lift)
+        self.grip.watch_hold()
+        lift = self.move.x4(self.plan.lift)
         v = self.motion.velocity[:2]
         if np.any(v != 0.0):  # held on the move: carry on along its way a little while rising
             lift[:2] = self.motion.setpoint[:2] + v * self.p.lift_lead_s
         self.motion.set_target(lift, limits=self._near_limits().scaled(self.lift_scale))
 
-    def _tick_lift(self, obs: Observation) -> tuple[State, str] | None:
+    def _tick_lift(self, obs: Observation) -> Transition:
         if self._dropped(obs):
             return self._retry(Stage.LIFT, "dropped while lifting", f"fingers at {obs.opening_m * 1e3:.1f} mm")
-        if self.motion.finished:
+        if self.move.finished:
             return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
         return None
 
     def _enter_transport(self, obs: Observation) -> None:
         assert self.plan is not None
-        self.motion.set_target(self._x4(self.plan.place_above), limits=self.p.free.scaled(self.lift_scale))
+        self.move.to(self.plan.place_above, limits=self.p.free.scaled(self.lift_scale))
 
-    def _tick_transport(self, obs: Observation) -> tuple[State, str] | None:
+    def _tick_transport(self, obs: Observation) -> Transition:
         if self._dropped(obs):
             return self._retry(Stage.TRANSPORT, "dropped in transit", f"fingers at {obs.opening_m * 1e3:.1f} mm")
-        if self.motion.finished:
+        if self.move.finished:
             return State.LOWER, "above the place position"
         return None
 
     def _enter_lower(self, obs: Observation) -> None:
         assert self.plan is not None
-        self.motion.set_target(self._x4(self.plan.place), limits=self.p.near)
+        self.move.to(self.plan.place, limits=self.p.near)
 
-    def _tick_lower(self, obs: Observation) -> tuple[State, str] | None:
+    def _tick_lower(self, obs: Observation) -> Transition:
         if self._dropped(obs):
             return self._retry(Stage.TRANSPORT, "dropped in transit", f"fingers at {obs.opening_m * 1e3:.1f} mm")
-        if self.motion.finished:
+        if self.move.finished:
             return State.RELEASE, "lowered onto the table"
         return None
 
     # ---- RELEASE, RETREAT, HOME, VERIFY.
     def _enter_release(self, obs: Observation) -> None:
-        self._open()
-        self._stall = 0
-        self._prev_opening = None
+        self.grip.open()
+        self.grip.watch()
 
-    def _tick_release(self, obs: Observation) -> tuple[State, str] | None:
-        opened = obs.opening_m > 2.0 * rm.FINGER_MAX_M - 0.004
-        if opened or self._fingers_stalled(obs) or obs.time_s - self._since_s > self.p.close_timeout_s:
+    def _tick_release(self, obs: Observation) -> Transition:
+        opened = self.grip.opened(obs)
+        if opened or self.grip.stopped(obs) or obs.time_s - self._since_s > self.p.close_timeout_s:
             assert self.plan is not None
             self._end_attempt("placed", "")
             p = self.plan.place.position
@@ -807,22 +720,22 @@ class PickMachine:
 
     def _enter_retreat(self, obs: Observation) -> None:
         assert self.plan is not None
-        self.motion.set_target(self._x4(self.plan.retreat), limits=self.p.near)
+        self.move.to(self.plan.retreat, limits=self.p.near)
 
-    def _tick_retreat(self, obs: Observation) -> tuple[State, str] | None:
-        return (State.HOME, "clear of the object") if self.motion.finished else None
+    def _tick_retreat(self, obs: Observation) -> Transition:
+        return (State.HOME, "clear of the object") if self.move.finished else None
 
     def _enter_home(self, obs: Observation) -> None:
-        self.motion.set_target(self._x4(self.home_x4), limits=self.p.free)
+        self.move.to(self.home_x4, limits=self.p.free)
 
-    def _tick_home(self, obs: Observation) -> tuple[State, str] | None:
-        return (State.VERIFY, "arm home") if self.motion.finished else None
+    def _tick_home(self, obs: Observation) -> Transition:
+        return (State.VERIFY, "arm home") if self.move.finished else None
 
     def _enter_verify(self, obs: Observation) -> None:
         self._verify_asked = False
         self.verify_estimate = None
 
-    def _tick_verify(self, obs: Observation) -> tuple[State, str] | None:
+    def _tick_verify(self, obs: Observation) -> Transition:
         if not self._verify_asked:
             return None
         if self.verify_estimate is None:
@@ -834,14 +747,15 @@ class PickMachine:
     def _enter_done(self, obs: Observation) -> None:
         pass
 
-    def _tick_done(self, obs: Observation) -> tuple[State, str] | None:
+    def _tick_done(self, obs: Observation) -> Transition:
         return None
 
     # ---- BACK_OFF: open, straight up to a safe height, then look or approach again.
     def _enter_back_off(self, obs: Observation) -> None:
         if self._after_back_off is State.LOOK:
-            self._open()
-        safe_z = self.p.grasp.pregrasp_height_m + (self.plan.grasp.position[2] if self.plan is not None else 0.02)
+            self.grip.open()
+        grasp_z = self.plan.grasp.position[2] if self.plan is not None else self.p.back_off_grasp_z_m
+        safe_z = self.p.grasp.pregrasp_height_m + grasp_z
         x4 = self.motion.setpoint.copy()
         x4[2] = max(x4[2], safe_z)
         # Limits change only at rest: lowered mid-motion, Ruckig may overshoot while braking.
@@ -851,12 +765,38 @@ class PickMachine:
             return
         self.motion.set_target(x4, limits=limits)
 
-    def _tick_back_off(self, obs: Observation) -> tuple[State, str] | None:
+    def _tick_back_off(self, obs: Observation) -> Transition:
         if self._after_back_off is State.APPROACH:
             plan = self._track_plan()  # keep following the target while rising
             if plan is not None:
                 self.plan = plan
-        if self.motion.finished:
+        if self.move.finished:
             nxt = self._after_back_off
             return nxt, "clear above the table: " + ("look again" if nxt is State.LOOK else "approach again")
         return None
+
+
+@dataclass(frozen=True)
+class StateHandlers:
+    """A state's entry action (run once, when it is entered) and exit test (run every tick)."""
+
+    enter: Callable[[PickMachine, Observation], None]
+    tick: Callable[[PickMachine, Observation], Transition]
+
+
+#: The dispatch table: every state the machine runs (``FAILED`` is final and runs nothing).
+STATES: dict[State, StateHandlers] = {
+    State.LOOK: StateHandlers(PickMachine._enter_look, PickMachine._tick_look),
+    State.APPROACH: StateHandlers(PickMachine._enter_approach, PickMachine._tick_approach),
+    State.DESCEND: StateHandlers(PickMachine._enter_descend, PickMachine._tick_descend),
+    State.CLOSE: StateHandlers(PickMachine._enter_close, PickMachine._tick_close),
+    State.LIFT: StateHandlers(PickMachine._enter_lift, PickMachine._tick_lift),
+    State.TRANSPORT: StateHandlers(PickMachine._enter_transport, PickMachine._tick_transport),
+    State.LOWER: StateHandlers(PickMachine._enter_lower, PickMachine._tick_lower),
+    State.RELEASE: StateHandlers(PickMachine._enter_release, PickMachine._tick_release),
+    State.RETREAT: StateHandlers(PickMachine._enter_retreat, PickMachine._tick_retreat),
+    State.HOME: StateHandlers(PickMachine._enter_home, PickMachine._tick_home),
+    State.VERIFY: StateHandlers(PickMachine._enter_verify, PickMachine._tick_verify),
+    State.BACK_OFF: StateHandlers(PickMachine._enter_back_off, PickMachine._tick_back_off),
+    State.DONE: StateHandlers(PickMachine._enter_done, PickMachine._tick_done),
+}

@@ -1,0 +1,152 @@
+"""The pick skill's actions, as Drake's ``IiwaMove`` and ``WsgAction``: a move of the hand and a
+grip of the fingers, each started by the skill and then asked whether it has finished or failed.
+
+Pure: no simulator. :class:`Move` drives the online Ruckig motion of the TCP (x, y, z, yaw) and,
+for a target that moves, meets it where it will be; the Panda's wrist rule chooses which way round
+the hand turns (:mod:`pickdemo.wrist`). :class:`Grip` commands the Franka Hand's opening and force
+and reads its fingers: stopped, holding, dropped.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo import robot_model as rm
+from pickdemo import wrist
+from pickdemo.geometry import Pose
+from pickdemo.interfaces import Observation
+from pickdemo.motion import CartesianLimits, MotionError, MotionSample, OnlineMotion, pose_to_x4
+
+
+class Status(str, enum.Enum):
+    RUNNING = "running"
+    FINISHED = "finished"
+    FAILED = "failed"
+
+
+class Move:
+    """The hand's motion: one online Ruckig trajectory, re-targeted as the skill asks."""
+
+    def __init__(self, motion: OnlineMotion, *, chase_fraction: float, meet_horizon_s: float) -> None:
+        """``chase_fraction``: a target faster than this share of the hand's speed limit (an axis)
+        runs away from it; ``meet_horizon_s``: a moving target not met within this is out of reach."""
+        self.motion = motion
+        self.chase_fraction = chase_fraction
+        self.meet_horizon_s = meet_horizon_s
+        self.failure: str | None = None
+        self.last_sample: MotionSample | None = None
+
+    # -------------------------------------------------------------------------------- started
+    def x4(self, target: Pose | np.ndarray) -> np.ndarray:
+        """(x, y, z, yaw) of a pose (or of an x4), turned the way round that keeps the wrist in range."""
+        x4 = pose_to_x4(target) if isinstance(target, Pose) else np.array(target, dtype=float)
+        return wrist.way_round(x4, self.motion.setpoint, float(self.motion.q[6]))
+
+    def to(self, target: Pose | np.ndarray, *, limits: CartesianLimits | None = None) -> None:
+        """Go to a fixed pose (limits change only at rest: ``None`` keeps the current ones)."""
+        self.motion.set_target(self.x4(target), limits=limits)
+
+    def meet_in(self, x4: np.ndarray, v: np.ndarray, limits: CartesianLimits | None) -> float | None:
+        """Seconds from now until the hand can be at ``x4`` carried along at ``v`` (a plan's pose for
+        the target where it is now), moving with it; None: not within the horizon, or faster than the hand."""
+        vel4 = np.array([v[0], v[1], 0.0, 0.0])
+        reach = np.array((limits or self.motion.limits).arrays()[0][:2])
+        if np.any(np.abs(v) > self.chase_fraction * reach):  # it would run away from the hand
+            return None
+        return self.motion.intercept(lambda t: x4 + vel4 * t, vel4, limits=limits, latest_s=self.meet_horizon_s)
+
+    def meet(self, target: Pose | np.ndarray, v: np.ndarray, limits: CartesianLimits | None = None) -> bool:
+        """Go to where a target moving at ``v`` (m/s, horizontal) will be met, arriving then with its
+        velocity (Ruckig's target velocity and minimum duration), and follow it; False: it cannot be met."""
+        x4 = self.x4(target)
+        t = self.meet_in(x4, v, limits or self.motion.limits)
+        if t is None:
+            return False
+        vel4 = np.array([v[0], v[1], 0.0, 0.0])
+        self.motion.set_target(x4 + vel4 * t, velocity=vel4, limits=limits, arrive_in_s=t)
+        return True
+
+    # ------------------------------------------------------------------------ finished, failed
+    def step(self) -> MotionSample | None:
+        """Advance one control tick; None when the motion failed (``failure`` says why)."""
+        try:
+            sample = self.motion.step()
+        except MotionError as exc:
+            self.failure = str(exc)
+            return None
+        self.last_sample = sample
+        return sample
+
+    @property
+    def status(self) -> Status:
+        if self.failure is not None:
+            return Status.FAILED
+        return Status.FINISHED if self.motion.finished else Status.RUNNING
+
+    @property
+    def finished(self) -> bool:
+        return self.motion.finished
+
+
+@dataclass(frozen=True)
+class GripParams:
+    """The Franka Hand as the skill uses it; SI units."""
+
+    open_force_n: float = 20.0
+    #: fingers moving slower than this are still (2 um a 240 Hz physics step)
+    still_speed_m_s: float = 2e-6 * 240.0
+    stall_ticks: int = 8  # ticks in a row of fingers not moving: they have closed or opened
+    drop_ticks: int = 3  # ticks in a row without a hold before a drop is called
+    hold_margin_m: float = 0.008  # fingers closed this far past the object's width: nothing held
+    open_margin_m: float = 0.004  # fingers within this of wide open: opened
+
+
+class Grip:
+    """The fingers: a target opening and force, and what the finger sensors say of them."""
+
+    def __init__(self, params: GripParams, dt_s: float) -> None:
+        self.p = params
+        self.dt_s = dt_s
+        self.target_m = rm.FINGER_MAX_M
+        self.force_n = params.open_force_n
+        self._stall = 0
+        self._no_hold = 0
+        self._prev_opening: float | None = None
+
+    def open(self) -> None:
+        self.target_m, self.force_n = rm.FINGER_MAX_M, self.p.open_force_n
+
+    def close(self, force_n: float) -> None:
+        self.target_m, self.force_n = 0.0, force_n
+
+    def watch(self) -> None:
+        """Started: watch the fingers from now on until they stop."""
+        self._stall = 0
+        self._prev_opening = None
+
+    def stopped(self, obs: Observation) -> bool:
+        """Finished: the fingers have not moved for ``stall_ticks`` ticks (closed on something, or open)."""
+        opening = obs.opening_m
+        moved = self._prev_opening is None or abs(opening - self._prev_opening) > self.p.still_speed_m_s * self.dt_s
+        self._prev_opening = opening
+        self._stall = 0 if moved else self._stall + 1
+        return self._stall >= self.p.stall_ticks
+
+    def opened(self, obs: Observation) -> bool:
+        return obs.opening_m > 2.0 * rm.FINGER_MAX_M - self.p.open_margin_m
+
+    def holding(self, obs: Observation, width_m: float) -> bool:
+        """Both fingers touch and the opening matches an object ``width_m`` wide."""
+        left, right = obs.finger_contacts
+        return left > 0 and right > 0 and obs.opening_m > width_m - self.p.hold_margin_m
+
+    def watch_hold(self) -> None:
+        self._no_hold = 0
+
+    def dropped(self, obs: Observation, width_m: float) -> bool:
+        """Failed: no hold for ``drop_ticks`` ticks in a row."""
+        self._no_hold = 0 if self.holding(obs, width_m) else self._no_hold + 1
+        return self._no_hold >= self.p.drop_ticks

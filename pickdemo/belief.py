@@ -1,0 +1,171 @@
+"""The robot's belief about one target: the tracker, and the gate every estimate passes on its way in.
+
+Pure: no simulator. :meth:`TargetBelief.offer` takes what perception made of a frame (an estimate,
+or its word that it found none) and says what became of it (:class:`Verdict`): an estimate that
+cannot be the target resting where the cell's layout says it rests, one less sure than any grasp
+tolerates, or (while the hand is over the target) one that saw only part of its top face, is
+rejected before the tracker sees it; the rest go to the tracker, whose gate may reject them too.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
+from pickdemo.tracker import TargetTracker, TrackedPose, TrackerParams
+
+
+class Verdict(str, enum.Enum):
+    """What became of an estimate offered to the controller."""
+
+    ACCEPTED = "accepted"  # fused into the belief
+    REJECTED = "rejected"  # implausible, a partial view under the hand, or beyond the tracker's gate
+    NO_ESTIMATE = "no estimate"  # perception found none (or its own fit check refused it)
+    UNUSED = "unused"  # the controller was not looking
+
+
+@dataclass
+class Counters:
+    """What the controller counted of perception and motion (reported in ``EpisodeResult``)."""
+
+    estimates: int = 0
+    rejected: int = 0
+    perception_errors: int = 0
+    jumps: int = 0
+    retargets: int = 0
+    last_error: str = ""
+
+
+@dataclass(frozen=True)
+class GateParams:
+    """When an estimate is no use, whatever the tracker would say; SI units."""
+
+    max_sigma_m: float = 0.005  # an estimate less sure than this is no use to a grasp
+    table_gap_m: float = 0.008  # a resting target has its centre at half its height, give or take
+    face_size_tolerance: float = 0.2  # a top face measured this far off the model's size: a partial view
+
+
+@dataclass(frozen=True)
+class Offered:
+    """An estimate's fate: the verdict, and whether the track restarted on it (the target moved)."""
+
+    verdict: Verdict
+    jumped: bool = False
+
+
+class TargetBelief:
+    """One tracked target: its :class:`~pickdemo.tracker.TargetTracker` and the gate in front of it."""
+
+    def __init__(
+        self,
+        model: TargetModel,
+        symmetry_rad: float,
+        tracker_params: TrackerParams,
+        gate: GateParams,
+        *,
+        surface_z: Callable[[float, float], float],
+        counters: Counters,
+    ) -> None:
+        """``surface_z(x, y)``: the height of what a target at (x, y) rests on (a belt's top, the table)."""
+        self.model = model
+        self.symmetry = symmetry_rad
+        self.tracker_params = tracker_params
+        self.gate = gate
+        self.surface_z = surface_z
+        self.counters = counters
+        self.tracker = TargetTracker(symmetry_rad, tracker_params)
+        self._velocity_cache: tuple[tuple, np.ndarray | None] | None = None
+
+    def restart(self) -> None:
+        """Forget the target: the next estimate starts a new track."""
+        self.tracker = TargetTracker(self.symmetry, self.tracker_params)
+
+    @property
+    def initialised(self) -> bool:
+        return self.tracker.initialised
+
+    @property
+    def accepted(self) -> int:
+        return self.tracker.accepted
+
+    def predict(self, t_s: float) -> TrackedPose:
+        return self.tracker.predict(t_s)
+
+    def lost(self, t_s: float) -> bool:
+        return self.tracker.lost(t_s)
+
+    # ============================================================================== the gate
+    def offer(self, result: PoseEstimate | PerceptionError, frame_time_s: float, *, hand_over_target: bool) -> Offered:
+        """Gate and fuse what perception made of a frame taken at ``frame_time_s``. While the hand is
+        over the target a view of part of its top face is not acted on (it can mislead the fit
+        consistently); the tracker predicts through."""
+        verdict = Verdict.NO_ESTIMATE
+        if isinstance(result, PoseEstimate):
+            implausible = self.implausible(result)
+            if not implausible and hand_over_target and not self.complete_view(result):
+                implausible = "a partial view: its top face measures off the model's size"
+            if implausible:
+                result = PerceptionError(implausible)
+                verdict = Verdict.REJECTED
+        if isinstance(result, PerceptionError):
+            self.counters.perception_errors += 1
+            self.counters.last_error = str(result)
+            return Offered(verdict)
+        self.counters.estimates += 1
+        up = self.tracker.update(result, frame_time_s, partial=not self.complete_view(result))
+        if not up.accepted:
+            self.counters.rejected += 1
+        if up.jumped:
+            self.counters.jumps += 1
+        return Offered(Verdict.ACCEPTED if up.accepted else Verdict.REJECTED, jumped=up.jumped)
+
+    def implausible(self, est: PoseEstimate) -> str:
+        """Why an estimate cannot be the target resting on the table or the belt ("" if it can): not
+        finite, an uncertainty beyond anything the grasp tolerates, or floating above / sunk into what
+        it rests on."""
+        p = est.pose.position
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(est.position_cov))):
+            return "estimate not finite"
+        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(est.position_cov)), 0.0)))
+        if sigma > self.gate.max_sigma_m:
+            return f"estimate too uncertain ({sigma * 1e3:.1f} mm)"
+        surface = self.surface_z(float(p[0]), float(p[1]))
+        gap = float(p[2]) - surface - self.model.height_m / 2.0
+        if abs(gap) > self.gate.table_gap_m:
+            where = "above" if gap > 0 else "into"
+            what = "the table" if surface == 0.0 else "the belt"
+            return f"estimate {'floats' if gap > 0 else 'sinks'} {abs(gap) * 1e3:.0f} mm {where} {what}"
+        return ""
+
+    def complete_view(self, estimate: PoseEstimate) -> bool:
+        """Whether the estimate saw the whole top face: its measured extents within
+        ``face_size_tolerance`` of the model's. A partly hidden face (the hand over it while it
+        descends) can mislead the fit consistently, so only a complete view may restart the track."""
+        if self.model.shape == "box":
+            expected = sorted(self.model.size[:2], reverse=True)
+        else:
+            expected = [self.model.size[0]] * 2
+        measured = sorted(estimate.top_face_size_m, reverse=True)
+        tol = self.gate.face_size_tolerance
+        return all(abs(m - e) <= tol * e for m, e in zip(measured, expected, strict=True))
+
+    # ========================================================================= a moving target
+    def moving_velocity(self, now_s: float, min_speed_m_s: float) -> np.ndarray | None:
+        """The target's horizontal velocity (m/s) while the tracker sees it move (faster than
+        ``min_speed_m_s`` and than 3 sigma of its speed); None when it is at rest, or not surely moving."""
+        if not self.tracker.initialised:
+            return None
+        key = (now_s, id(self.tracker), self.tracker.accepted)  # the belief changes only on an accept
+        if self._velocity_cache is not None and self._velocity_cache[0] == key:
+            v = self._velocity_cache[1]
+            return None if v is None else v.copy()
+        tp = self.tracker.predict(now_s)
+        v = tp.velocity[:2]
+        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(tp.covariance[4:6, 4:6])), 0.0)))
+        v = None if float(np.linalg.norm(v)) <= max(min_speed_m_s, 3.0 * sigma) else v.copy()
+        self._velocity_cache = (key, v)
+        return None if v is None else v.copy()

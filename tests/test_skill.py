@@ -1,0 +1,235 @@
+"""The pick skill without a simulator, as Drake's ``pick_and_place_state_machine_test.cc`` tests its
+state machine: hand-fed observations and estimates, tick by tick, through a pick, a miss and its
+retry, a drop, a target that moved during the approach, and a lost target.
+
+The "plant" here is a few lines: the joints follow the command exactly, each finger moves at 5 cm/s
+towards its target and stops on the object when the object lies between them; the object rides in
+a closed hand and falls back to the table when let go. Perception is a perfect estimate of where the
+object is, every 0.1 s when the skill asks for a frame (none while it is carried, or when the test
+says the camera has lost it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pickdemo import robot_model as rm
+from pickdemo.belief import Verdict
+from pickdemo.camera import Intrinsics, look_at_pose
+from pickdemo.geometry import Pose
+from pickdemo.interfaces import Command, Observation
+from pickdemo.kinematics import panda_kinematics
+from pickdemo.layout import sample_layout
+from pickdemo.perception import PerceptionError, PoseEstimate
+from pickdemo.pick import CameraModel, PickMachine, State
+from pickdemo.result import Stage
+from pickdemo.scenario import load_scenario
+from pickdemo.task import target_model
+
+DT = 1.0 / 120.0
+FRAME_TICKS = 12  # 10 Hz
+FINGER_SPEED_M_S = 0.05
+PLACE = (0.45, 0.3)
+FULL_PICK = ["look", "approach", "descend", "close", "lift", "transport", "lower", "release", "retreat", "home",
+             "verify", "done"]  # fmt: skip
+
+
+class Cell:
+    """The robot, the object and the camera, as plain arithmetic."""
+
+    def __init__(self, xy=(0.5, 0.05), yaw_deg=10.0) -> None:
+        sc = load_scenario("pick_cube")
+        self.model = target_model(sc, sample_layout(sc, np.random.default_rng(0))[0])
+        self.half_h = self.model.height_m / 2.0
+        self.width = min(self.model.size[:2])
+        self.kin = panda_kinematics()
+        self.q = rm.HOME_Q.copy()
+        self.fingers = rm.FINGER_MAX_M
+        self.finger_target = rm.FINGER_MAX_M
+        self.obj = np.array([xy[0], xy[1], self.half_h])
+        self.yaw = np.radians(yaw_deg)
+        self.held_offset: np.ndarray | None = None  # object minus TCP while held
+        self.graspable = True  # the fingers close on the object when it lies between them
+        self.visible = True
+        K = Intrinsics.from_fov(640, 480, 57.0, 43.0)
+        self.camera = CameraModel(K, look_at_pose(np.array([1.1, 0.0, 0.75]), np.array([0.5, 0.0, 0.0])))
+
+    def machine(self, **kw) -> PickMachine:
+        return PickMachine(kin=self.kin, model=self.model, symmetry_rad=np.pi / 2.0, place_xy=PLACE,
+                           camera=self.camera, q0=self.q, dt_s=DT, rng=np.random.default_rng(1), **kw)  # fmt: skip
+
+    def tcp(self) -> np.ndarray:
+        return self.kin.forward(self.q).position
+
+    def between_fingers(self) -> bool:
+        return bool(np.linalg.norm(self.tcp()[:2] - self.obj[:2]) < 0.01 and abs(self.tcp()[2] - self.obj[2]) < 0.03)
+
+    def observe(self, t: float) -> Observation:
+        touching = self.held_offset is not None
+        return Observation(t, self.q.copy(), np.zeros(7), np.array([self.fingers, self.fingers]),
+                           (1, 1) if touching else (0, 0))  # fmt: skip
+
+    def apply(self, cmd: Command, t: float) -> None:
+        self.q = cmd.arm_q.copy()
+        self.finger_target = cmd.finger_opening_m
+        step = FINGER_SPEED_M_S * DT
+        holds = self.held_offset is not None or (self.graspable and self.between_fingers())
+        stop = self.width / 2.0 if holds and self.fingers >= self.width / 2.0 else 0.0
+        if self.finger_target < self.fingers:
+            self.fingers = max(self.finger_target, self.fingers - step, stop)
+            if stop and self.fingers == stop and self.held_offset is None:
+                self.held_offset = self.obj - self.tcp()
+        elif self.finger_target > self.fingers:
+            self.fingers = min(self.finger_target, self.fingers + step)
+            if self.held_offset is not None and self.fingers > self.width / 2.0 + 0.002:
+                self.drop()
+        if self.held_offset is not None:
+            self.obj = self.tcp() + self.held_offset
+
+    def drop(self) -> None:
+        self.held_offset = None
+        self.obj = np.array([self.obj[0], self.obj[1], self.half_h])  # falls back onto the table
+
+    def estimate(self) -> PoseEstimate | PerceptionError:
+        if not self.visible:
+            return PerceptionError("the target's colour is not in view")
+        pose = Pose.from_xyz_rpy(self.obj, yaw=self.yaw)
+        return PoseEstimate(pose=pose, position_cov=np.eye(3) * 1e-8, rpy_cov=np.eye(3) * 1e-6,
+                            yaw_symmetry_rad=np.pi / 2.0, top_face_size_m=(self.width, self.width), n_features=12,
+                            n_face_pixels=800)  # fmt: skip
+
+
+def run(cell: Cell, machine: PickMachine, seconds: float = 60.0, events: dict | None = None) -> list[str]:
+    """Tick the machine until it is done (or ``seconds`` of simulated time): the states it entered.
+    ``events``: {time_s: function(cell)} applied once that time has come (a push, a lost view)."""
+    pending: list[tuple[float, object]] = []
+    due = sorted((events or {}).items())
+    verdicts = []
+    for tick in range(int(seconds / DT)):
+        t = tick * DT
+        while due and due[0][0] <= t:
+            due.pop(0)[1](cell)
+        for taken, est in pending:
+            verdicts.append(machine.on_estimate(est, taken))
+        pending.clear()
+        cmd = machine.update(cell.observe(t))
+        if machine.finished:
+            break
+        cell.apply(cmd, t)
+        if tick % FRAME_TICKS == 0 and machine.frame_request(t) is not None:
+            pending.append((t, cell.estimate()))
+    assert all(isinstance(v, Verdict) for v in verdicts)
+    states = [e.state.value for e in machine.events if not e.note]
+    return ["look", *states]
+
+
+def test_a_pick_from_look_to_done() -> None:
+    cell = Cell()
+    m = cell.machine()
+    assert run(cell, m) == FULL_PICK
+    assert m.failure is None and [a.outcome for a in m.attempts] == ["placed"]
+    assert np.linalg.norm(cell.obj[:2] - np.array(PLACE)) < 0.005  # the object was put where asked
+    assert "mm from the place position" in m.events[-1].message
+    assert m.grasp_width_m == pytest.approx(cell.width)
+
+
+def test_a_miss_is_retried_with_the_cubes_other_faces() -> None:
+    cell = Cell()
+    cell.graspable = False  # the first close finds nothing between the fingers
+    m = cell.machine()
+
+    def graspable_again(c: Cell) -> None:
+        c.graspable = True
+
+    states = run(cell, m, events={6.0: graspable_again})
+    assert states[:5] == ["look", "approach", "descend", "close", "back_off"] and states[-1] == "done"
+    assert states[5:] == FULL_PICK  # looked again, and picked it
+    assert [a.outcome for a in m.attempts] == ["missed", "placed"]
+    assert "nothing held" in m.attempts[0].reason
+    turn = abs(m.attempts[1].hand_yaw_deg - m.attempts[0].hand_yaw_deg)
+    assert turn == pytest.approx(90.0, abs=1.0)  # a cube's other pair of faces
+
+
+def test_a_drop_is_retried_with_more_force_and_a_gentler_lift() -> None:
+    cell = Cell()
+    m = cell.machine()
+    slipped: list[float] = []
+    apply = cell.apply
+
+    def apply_and_slip_once(cmd: Command, t: float) -> None:
+        apply(cmd, t)
+        if m.state is State.LIFT and cell.held_offset is not None and not slipped:
+            slipped.append(t)  # the first hold slips out as the lift starts
+            cell.drop()
+            cell.graspable = False
+        elif m.state is State.LOOK and slipped:
+            cell.graspable = True
+
+    cell.apply = apply_and_slip_once  # type: ignore[method-assign]
+    states = run(cell, m)
+    assert states[:6] == ["look", "approach", "descend", "close", "lift", "back_off"] and states[-1] == "done"
+    assert [a.outcome for a in m.attempts] == ["dropped while lifting", "placed"]
+    assert m.attempts[1].grip_force_n == 2.0 * m.attempts[0].grip_force_n
+    assert m.attempts[1].lift_speed_scale == 0.5
+
+
+def test_a_target_moved_during_the_approach_is_followed() -> None:
+    cell = Cell()
+    m = cell.machine()
+
+    def push(c: Cell) -> None:
+        c.obj = c.obj + np.array([0.04, -0.03, 0.0])
+        c.yaw += np.radians(20.0)
+
+    states = run(cell, m, events={0.8: push})
+    assert states == FULL_PICK  # no retry: the closed loop followed it before closing
+    moved = [e for e in m.events if e.note and "the target moved" in e.message]
+    assert len(moved) == 1 and moved[0].state is State.APPROACH
+    assert m.counters.jumps == 1
+    assert [a.outcome for a in m.attempts] == ["placed"]
+    assert np.linalg.norm(cell.obj[:2] - np.array(PLACE)) < 0.005
+
+
+def test_a_target_lost_while_approaching_is_looked_for_again_then_given_up() -> None:
+    cell = Cell()
+    m = cell.machine()
+
+    def hide(c: Cell) -> None:
+        c.visible = False
+
+    states = run(cell, m, events={0.6: hide})
+    assert states[:4] == ["look", "approach", "back_off", "look"]
+    assert any(e.message == "target lost while approaching: looking again" for e in m.events)
+    assert states[-1] == "failed" and m.failure.stage is Stage.PERCEPTION
+    assert "not in view" in m.failure.reason
+    assert m.counters.perception_errors >= 10
+
+
+def test_estimates_that_cannot_be_the_target_are_rejected() -> None:
+    cell = Cell()
+    m = cell.machine()
+    floating = Pose.from_xyz_rpy(np.array([0.5, 0.05, 0.08]), yaw=0.0)
+    est = cell.estimate()
+    assert m.on_estimate(est, 0.0) is Verdict.ACCEPTED
+    import dataclasses
+
+    assert m.on_estimate(dataclasses.replace(est, pose=floating), 0.1) is Verdict.REJECTED
+    unsure = dataclasses.replace(est, position_cov=np.eye(3) * 1e-4)  # 10 mm
+    assert m.on_estimate(unsure, 0.2) is Verdict.REJECTED
+    assert m.on_estimate(PerceptionError("nothing"), 0.3) is Verdict.NO_ESTIMATE
+    assert m.counters.perception_errors == 3 and m.counters.last_error == "nothing"
+
+
+def test_the_skill_and_its_parts_import_no_simulator() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "import pickdemo.pick, pickdemo.belief, pickdemo.actions, pickdemo.grasp_selection, pickdemo.wrist\n"
+        "import pickdemo.tracker, pickdemo.grasp, pickdemo.motion, pickdemo.kinematics, pickdemo.metrics\n"
+        "assert 'pybullet' not in sys.modules, 'pybullet imported'\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
