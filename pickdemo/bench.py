@@ -30,9 +30,9 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures import as_completed
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
-from pickdemo.result import Stage
+from pickdemo.result import EpisodeRecord, EpisodeResult, Stage, result_key, summary_name
 from pickdemo.stats import describe
 
 DEFAULT_GUARD_S = 300.0  # wall-clock guard of one episode (a typical one takes 1-2 s)
@@ -41,7 +41,15 @@ MAX_SEED = 2**63 - 1
 #: The default gate of ``pickdemo bench``: exit 1 when a scenario succeeds less often than this.
 DEFAULT_MIN_SUCCESS = 0.95
 
-JobFn = Callable[["Job"], dict[str, Any]]
+JobFn = Callable[["Job"], EpisodeRecord]
+#: One scenario's statistics in ``summary.json`` (:func:`summarise` writes every key): ``episodes``,
+#: ``successes``, ``success_rate``, ``success_rate_wilson95`` ([lo, hi]), ``seeds`` and ``failed_seeds``
+#: (sorted lists), ``failures_by_stage`` and ``failures_by_diagnosis`` ({name: count}), counts
+#: (``first_attempt_successes``, ``estimates_rejected``, ``target_moves_detected``, ``estimates_off``,
+#: ``estimates_off_accepted``, ``estimates_off_fit_rejected``, ``failed_off_table``), ``real_time_factor``
+#: (or None) and, for the measured quantities, :func:`pickdemo.stats.describe` of them (a dict of n, mean,
+#: median, p95, max ..., or None when nothing was measured). A dict, as read back from the JSON file.
+ScenarioSummary: TypeAlias = dict[str, Any]
 
 
 class BenchError(ValueError):
@@ -121,44 +129,20 @@ def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float,
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> dict[str, Any]:
-    """The result object of a job that produced none (it raised, crashed or hung)."""
-    return {
-        "scenario": job.scenario_name,
-        "seed": job.seed,
-        "success": False,
-        "failure": {"stage": stage.value, "reason": reason},
-        "perception": None,
-        "place_error_mm": None,
-        "lift_height_mm": None,
-        "grasp_width_mm": None,
-        "sim_time_s": 0.0,
-        "wall_time_s": wall_time_s,
-        "stage_wall_times_s": {},
-        "phases": [],
-        "open_loop": job.open_loop,
-        "attempts": [],
-        "perception_frames": 0,
-        "perception_rate_hz": None,
-        "estimates_rejected": 0,
-        "perception_failures": 0,
-        "target_moves_detected": 0,
-        "retargets": 0,
-        "tracking_error_mm": None,
-        "tracking_yaw_error_deg": None,
-        "disturbances": [],
-        "control_tick_wall_ms": {},
-        "diagnosis": "not_committed",
-        "perception_method": job.perception,
-        "estimates_off": 0,
-        "estimates_off_accepted": 0,
-        "estimates_off_fit_rejected": 0,
-        "target_off_table": None,
-        "limit_exceedances": [],
-    }
+def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> EpisodeRecord:
+    """The record of a job that produced none (it raised, crashed or hung): :meth:`EpisodeResult.failed`."""
+    return EpisodeResult.failed(
+        job.scenario_name,
+        job.seed,
+        stage,
+        reason,
+        wall_time_s=wall_time_s,
+        open_loop=job.open_loop,
+        perception_method=job.perception,
+    ).to_dict()
 
 
-def run_job(job: Job) -> dict[str, Any]:
+def run_job(job: Job) -> EpisodeRecord:
     """Run one episode (in a worker) and return its result dict."""
     from pickdemo.episode import run_episode
     from pickdemo.scenario import load_scenario
@@ -187,7 +171,7 @@ class LocalExecutor:
             raise BenchError("--workers must be at least 1")
         self.workers, self.guard_s, self.fn = workers, guard_s, fn
 
-    def run(self, jobs: list[Job]) -> Iterator[dict[str, Any]]:
+    def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
         from pebble import ProcessExpired, ProcessPool
 
         with ProcessPool(max_workers=self.workers) as pool:
@@ -239,7 +223,7 @@ class RayExecutor:
         self.guard_s = guard_s
         self.remote_fn = ray.remote(num_cpus=1, max_retries=0)(fn)
 
-    def run(self, jobs: list[Job]) -> Iterator[dict[str, Any]]:
+    def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
         ray = self.ray
         slots = max(1, int(ray.cluster_resources().get("CPU", 1)))
         queue = list(jobs)
@@ -267,7 +251,7 @@ class RayExecutor:
 
 
 # ----------------------------------------------------------------------------------- result files
-def load_episodes(path: Path) -> list[dict[str, Any]]:
+def load_episodes(path: Path) -> list[EpisodeRecord]:
     """Results already in ``episodes.jsonl``, each (scenario, seed, open loop or not) once.
 
     A line cut short by a kill is dropped, and the file is rewritten with the good lines only, so
@@ -275,7 +259,7 @@ def load_episodes(path: Path) -> list[dict[str, Any]]:
     """
     if not path.exists():
         return []
-    good: dict[tuple[str, int], dict[str, Any]] = {}
+    good: dict[tuple[str, int], EpisodeRecord] = {}
     for line in path.read_text().splitlines():
         if not line.strip():
             continue
@@ -289,19 +273,19 @@ def load_episodes(path: Path) -> list[dict[str, Any]]:
     return list(good.values())
 
 
-def append_episode(path: Path, result: dict[str, Any]) -> None:
+def append_episode(path: Path, result: EpisodeRecord) -> None:
     with path.open("a") as fh:
         fh.write(json.dumps(result, allow_nan=False) + "\n")
         fh.flush()
         os.fsync(fh.fileno())
 
 
-def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+def summarise(results: Iterable[EpisodeRecord]) -> dict[str, ScenarioSummary]:
     """Per-scenario statistics of result dicts (as in ``episodes.jsonl``)."""
-    by_scenario: dict[str, list[dict[str, Any]]] = {}
+    by_scenario: dict[str, list[EpisodeRecord]] = {}
     for r in results:
         by_scenario.setdefault(summary_name(r), []).append(r)
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, ScenarioSummary] = {}
     for name, rs in sorted(by_scenario.items()):
         n = len(rs)
         ok = sum(1 for r in rs if r["success"])
@@ -341,26 +325,6 @@ def summarise(results: Iterable[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     return out
 
 
-def result_key(result: dict[str, Any]) -> tuple[str, int, bool, str]:
-    """Which job a result belongs to: scenario, seed, open or closed loop, perception method."""
-    return (
-        result["scenario"],
-        result["seed"],
-        bool(result.get("open_loop", False)),
-        result.get("perception_method", "paper"),
-    )
-
-
-def summary_name(result: dict[str, Any]) -> str:
-    """The scenario's name, marked when the episode ran open loop or with another perception."""
-    method = result.get("perception_method", "paper")
-    return (
-        result["scenario"]
-        + (" [open loop]" if result.get("open_loop") else "")
-        + (f" [{method}]" if method != "paper" else "")
-    )
-
-
 def _seed_ranges(seeds: list[int]) -> str:
     parts, i = [], 0
     while i < len(seeds):
@@ -372,7 +336,7 @@ def _seed_ranges(seeds: list[int]) -> str:
     return ",".join(parts)
 
 
-def format_summary(summary: dict[str, dict[str, Any]]) -> str:
+def format_summary(summary: dict[str, ScenarioSummary]) -> str:
     lines = []
     for name, s in summary.items():
         lo, hi = s["success_rate_wilson95"]
@@ -434,9 +398,9 @@ def xml_text(text: object) -> str:
     return "".join(f"\\x{ord(c):02x}" if (ord(c) in _XML_INVALID or 0xD800 <= ord(c) <= 0xDFFF) else c for c in s)
 
 
-def junit_xml(results: Iterable[dict[str, Any]]) -> str:
+def junit_xml(results: Iterable[EpisodeRecord]) -> str:
     """JUnit XML: one test suite per scenario, one test case per episode, the failure as message."""
-    by_scenario: dict[str, list[dict[str, Any]]] = {}
+    by_scenario: dict[str, list[EpisodeRecord]] = {}
     for r in results:
         by_scenario.setdefault(r["scenario"], []).append(r)
     root = ET.Element("testsuites", name="pickdemo bench")
@@ -466,8 +430,8 @@ def junit_xml(results: Iterable[dict[str, Any]]) -> str:
 # ------------------------------------------------------------------------------------------ driver
 @dataclass(frozen=True)
 class BenchOutcome:
-    results: list[dict[str, Any]]  # every episode of the batch, resumed ones included
-    summary: dict[str, dict[str, Any]]
+    results: list[EpisodeRecord]  # every episode of the batch, resumed ones included
+    summary: dict[str, ScenarioSummary]
     ran: int  # episodes run by this call
     skipped: int  # episodes found done already (--resume)
 
@@ -476,7 +440,7 @@ class BenchOutcome:
 DERIVED_FILES = ("summary.json", "bench.png", "report.html")
 
 
-def prepare_out_dir(out_dir: Path, jobs: list[Job], *, resume: bool) -> list[dict[str, Any]]:
+def prepare_out_dir(out_dir: Path, jobs: list[Job], *, resume: bool) -> list[EpisodeRecord]:
     """Ready ``out_dir`` for a run of ``jobs``; the results already there (``--resume``).
 
     One run, one set of episodes, in every output: ``episodes.jsonl`` holds only episodes of this
@@ -488,7 +452,7 @@ def prepare_out_dir(out_dir: Path, jobs: list[Job], *, resume: bool) -> list[dic
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     jsonl = out_dir / "episodes.jsonl"
-    done: list[dict[str, Any]] = []
+    done: list[EpisodeRecord] = []
     if resume:
         done = load_episodes(jsonl)
         wanted = {j.key for j in jobs}
@@ -521,8 +485,8 @@ def run_bench(
     out_dir: Path | None = None,
     resume: bool = False,
     progress: bool = True,
-    on_result: Callable[[dict[str, Any]], None] | None = None,
-    done: list[dict[str, Any]] | None = None,
+    on_result: Callable[[EpisodeRecord], None] | None = None,
+    done: list[EpisodeRecord] | None = None,
 ) -> BenchOutcome:
     """Run the jobs not done yet, streaming each result to ``out_dir/episodes.jsonl`` as it finishes.
 

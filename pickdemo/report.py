@@ -13,13 +13,16 @@ from pathlib import Path
 
 import numpy as np
 
+from pickdemo.bench import ScenarioSummary
 from pickdemo.result import (
     JOINT_LIMITS,
+    EpisodeRecord,
     EpisodeResult,
     EpisodeTrace,
     LimitExceedance,
     joint_derivatives,
     limit_exceedances,
+    summary_name,
 )
 
 
@@ -153,7 +156,7 @@ def image(path: Path) -> str:
     return _img(path)
 
 
-def _plain_number(v: float) -> str:
+def plain_number(v: float) -> str:
     """A tick label without exponents: 0.01, 0.1, 1, 10, 250."""
     return np.format_float_positional(float(v), precision=6, trim="-")
 
@@ -165,7 +168,7 @@ def _plain_log_axis(axis, values: list[float]) -> None:
     v = np.asarray([x for x in values if np.isfinite(x) and x > 0], dtype=float)
     decades = float(np.log10(v.max() / v.min())) if len(v) else 0.0
     axis.set_major_locator(LogLocator(base=10.0, subs=(1.0,) if decades > 2.5 else (1.0, 2.0, 5.0)))
-    axis.set_major_formatter(FuncFormatter(lambda x, _: _plain_number(x)))
+    axis.set_major_formatter(FuncFormatter(lambda x, _: plain_number(x)))
     axis.set_minor_formatter(NullFormatter())
 
 
@@ -177,15 +180,15 @@ def _boxplot_h(ax, data: list[list[float]], y: np.ndarray) -> None:
         ax.boxplot(data, vert=False, **kw)
 
 
-def write_bench_plots(summary: dict, results: list[dict], path: Path, title: str = "") -> Path:
+def write_bench_plots(
+    summary: dict[str, ScenarioSummary], results: list[EpisodeRecord], path: Path, title: str = ""
+) -> Path:
     """What a bench measured, one row per scenario across the panels: success rate with its Wilson
     95 % interval, failures by stage (only if any failed), the distributions of the pose, tracking
     and place errors (log mm axes in plain numbers), wall time per episode."""
     plt = _pyplot()
     names = list(summary)
-    by_name: dict[str, list[dict]] = {n: [] for n in names}
-    from pickdemo.bench import summary_name
-
+    by_name: dict[str, list[EpisodeRecord]] = {n: [] for n in names}
     for r in results:
         by_name.setdefault(summary_name(r), []).append(r)
     stages = sorted({s for n in names for s in summary[n]["failures_by_stage"]})
@@ -258,12 +261,10 @@ def _cell(st: dict | None, fmt: str = ".2f") -> str:
     return f"{st['median']:{fmt}} ({st['p95']:{fmt}})"
 
 
-def bench_table(summary: dict, results: list[dict] | None = None) -> str:
+def bench_table(summary: dict[str, ScenarioSummary], results: list[EpisodeRecord] | None = None) -> str:
     """The bench's per-scenario table (HTML): episodes, success with its Wilson 95 % interval,
     failures by stage, the pose, yaw, tracking and place errors and the wall time (median and p95),
     and how many episodes commanded a joint beyond its datasheet limits."""
-    from pickdemo.bench import summary_name
-
     over: dict[str, int] = {}
     for r in results or ():
         over[summary_name(r)] = over.get(summary_name(r), 0) + bool(r.get("limit_exceedances"))

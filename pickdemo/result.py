@@ -6,7 +6,7 @@ import enum
 import json
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeAlias
 
 import numpy as np
 
@@ -126,6 +126,34 @@ class PerceptionScore:
 #: Keys of ``result.json`` measured on the wall clock: the only ones that differ between two runs of a seed.
 WALL_CLOCK_KEYS = ("wall_time_s", "stage_wall_times_s", "control_tick_wall_ms")
 
+#: An episode's record: the ``result.json`` object, one line of ``episodes.jsonl``, what a bench worker
+#: returns and what the bench, its summary, the report and the CLI read. It is always made by
+#: :meth:`EpisodeResult.to_dict` (so its keys are :class:`EpisodeResult`'s fields but ``trace``, in that
+#: order, with JSON values: ``failure`` a ``{"stage", "reason"}`` object or null, ``perception`` a
+#: :meth:`PerceptionScore.to_dict` or null, ``phases`` and ``attempts`` lists of their ``to_dict``); the
+#: key list is written there once, not again here.
+EpisodeRecord: TypeAlias = dict[str, Any]
+
+
+def result_key(record: EpisodeRecord) -> tuple[str, int, bool, str]:
+    """Which job a record belongs to: scenario, seed, open or closed loop, perception method."""
+    return (
+        record["scenario"],
+        record["seed"],
+        bool(record.get("open_loop", False)),
+        record.get("perception_method", "paper"),
+    )
+
+
+def summary_name(record: EpisodeRecord) -> str:
+    """The scenario's name, marked when the episode ran open loop or with another perception."""
+    method = record.get("perception_method", "paper")
+    return (
+        record["scenario"]
+        + (" [open loop]" if record.get("open_loop") else "")
+        + (f" [{method}]" if method != "paper" else "")
+    )
+
 
 @dataclass(frozen=True)
 class EpisodeResult:
@@ -164,7 +192,38 @@ class EpisodeResult:
     limit_exceedances: tuple[dict[str, Any], ...] = ()  # commanded joint motion beyond the datasheet (see below)
     trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
-    def to_dict(self) -> dict[str, Any]:
+    @classmethod
+    def failed(
+        cls,
+        scenario: str,
+        seed: int,
+        stage: Stage,
+        reason: str,
+        *,
+        wall_time_s: float = 0.0,
+        open_loop: bool = False,
+        perception_method: str = "paper",
+        diagnosis: str | None = "not_committed",
+    ) -> EpisodeResult:
+        """The result of an episode that produced none of its own (its job raised, crashed or hung, or
+        it could not start): failed in ``stage``, nothing measured, no simulated time."""
+        return cls(
+            scenario=scenario,
+            seed=seed,
+            success=False,
+            failure=Failure(stage, reason),
+            perception=None,
+            place_error_mm=None,
+            lift_height_mm=None,
+            grasp_width_mm=None,
+            sim_time_s=0.0,
+            wall_time_s=wall_time_s,
+            open_loop=open_loop,
+            diagnosis=diagnosis,
+            perception_method=perception_method,
+        )
+
+    def to_dict(self) -> EpisodeRecord:
         return _clean(
             {
                 "scenario": self.scenario,

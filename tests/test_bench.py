@@ -378,3 +378,17 @@ def test_ray_executor_gives_the_same_results() -> None:
         ray.shutdown()
     local = run_bench(jobs, LocalExecutor(2), progress=False).results
     assert _strip(on_ray) == _strip(local)
+
+
+def test_a_failed_job_is_an_episode_result() -> None:
+    """A job that produced no result becomes :meth:`EpisodeResult.failed`, serialised by its ``to_dict``:
+    the keys of every other result, in their order, nothing measured."""
+    from pickdemo.bench import Job, failed_result
+    from pickdemo.result import EpisodeResult, Stage
+
+    made = failed_result(Job("x.toml", "ghost", 3, open_loop=True, perception="icp"), Stage.TIMEOUT, "hung", 300.0)
+    real = EpisodeResult("ghost", 3, False, None, None, None, None, None, 0.0, 1.0).to_dict()
+    assert list(made) == list(real)
+    assert made["failure"] == {"stage": "timeout", "reason": "hung"} and made["wall_time_s"] == 300.0
+    assert made["open_loop"] is True and made["perception_method"] == "icp" and made["diagnosis"] == "not_committed"
+    assert made["sim_time_s"] == 0.0 and made["phases"] == [] and made["perception"] is None

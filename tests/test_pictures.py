@@ -374,7 +374,7 @@ def test_bench_table_and_plot_of_several_scenarios(tmp_path: Path) -> None:
     failures panel when nothing failed, and plain tick labels on its log axes."""
     pytest.importorskip("matplotlib")
     from pickdemo.bench import Job, failed_result, summarise
-    from pickdemo.report import _plain_number, bench_table, write_bench_plots
+    from pickdemo.report import bench_table, plain_number, write_bench_plots
     from pickdemo.result import Stage
 
     ok = {"success": True, "failure": None, "perception": {"position_error_mm": 0.5, "yaw_error_deg": 0.1},
@@ -386,7 +386,7 @@ def test_bench_table_and_plot_of_several_scenarios(tmp_path: Path) -> None:
     html = bench_table(summarise(results), results)
     rows = html.split("<tr>")[2:]
     assert len(rows) == 2 and "4/4 (100.0 %)" in rows[0] and "3/4 (75.0 %)" in rows[1] and "grasp 1" in rows[1]
-    assert [_plain_number(v) for v in (0.01, 0.1, 1.0, 10.0, 100.0)] == ["0.01", "0.1", "1", "10", "100"]
+    assert [plain_number(v) for v in (0.01, 0.1, 1.0, 10.0, 100.0)] == ["0.01", "0.1", "1", "10", "100"]
     _not_blank(write_bench_plots(summarise(results), results, tmp_path / "some_failed.png"), min_colours=20)
     all_ok = [r for r in results if r["success"]]
     _not_blank(write_bench_plots(summarise(all_ok), all_ok, tmp_path / "all_ok.png"), min_colours=20)
