@@ -145,10 +145,7 @@ class TargetBelief:
         """Whether the estimate saw the whole top face: its measured extents within
         ``face_size_tolerance`` of the model's. A partly hidden face (the hand over it while it
         descends) can mislead the fit consistently, so only a complete view may restart the track."""
-        if self.model.shape == "box":
-            expected = sorted(self.model.size[:2], reverse=True)
-        else:
-            expected = [self.model.size[0]] * 2
+        expected = self.model.geometry.top_extents_m
         measured = sorted(estimate.top_face_size_m, reverse=True)
         tol = self.gate.face_size_tolerance
         return all(abs(m - e) <= tol * e for m, e in zip(measured, expected, strict=True))

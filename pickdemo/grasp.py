@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo import robot_model as rm
+from pickdemo import wrist
 from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.perception import TargetModel
 
@@ -62,12 +63,6 @@ def top_down(position: np.ndarray, yaw_rad: float) -> Pose:
     return Pose.from_xyz_rpy(position, roll=np.pi, yaw=yaw_rad)
 
 
-def joint7_centre_yaw(*xy: tuple[float, float]) -> float:
-    """The hand angle (rad) that puts joint 7 mid-range, on average over the given TCP positions."""
-    q1 = np.mean([np.arctan2(y, x) for x, y in xy])
-    return float(np.pi / 4.0 + q1)
-
-
 def hand_yaw_for(pose: Pose, model: TargetModel, centre_rad: float = 0.0) -> tuple[float, float]:
     """Hand angle (rad) that closes across the narrower side, nearest ``centre_rad``; the width (m)."""
     shape = model.geometry
@@ -95,7 +90,7 @@ def plan_grasp(
     the hand's angle; a retry may ask for another); by default the one that keeps joint 7 mid-range.
     """
     params = params or GraspParams()
-    centre = joint7_centre_yaw(tuple(pose.position[:2]), tuple(place_xy))
+    centre = wrist.centre_yaw(tuple(pose.position[:2]), tuple(place_xy))
     if hand_yaw_near_rad is not None:
         centre = hand_yaw_near_rad
     psi, width = hand_yaw_for(pose, model, centre)

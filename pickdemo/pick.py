@@ -366,7 +366,7 @@ class PickMachine:
         self.attempt += 1
         if outcome == "missed":
             # Look again; a square box may be taken by its other pair of faces.
-            self._turn_hand = self.model.shape == "box" and self.symmetry < np.pi - 1e-9
+            self._turn_hand = 0.0 < self.symmetry < np.pi - 1e-9  # a square top (a cube)
         else:
             # It slipped out: hold harder, lift more gently.
             self.grip_force_n = min(self.grip_force_n * 2.0, self.p.max_grip_force_n)
@@ -541,7 +541,7 @@ class PickMachine:
         return self._roi_at(tp.position, self.p.roi_margin_m + 3.0 * tp.position_sigma_m)
 
     def _roi_at(self, centre: np.ndarray, margin_m: float) -> tuple[int, int, int, int] | None:
-        r = 0.5 * float(np.linalg.norm(self.model.size)) + margin_m
+        r = self.model.geometry.bounding_radius_m + margin_m
         corners = centre + r * UNIT_CUBE
         corners[:, 2] = np.maximum(corners[:, 2], self.p.roi_floor_z_m)
         return roi_around(corners, self.camera.intrinsics, self.camera.T_world_cam, pad_px=self.p.roi_pad_px)

@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 
 from pickdemo.geometry import wrap_angle
-from pickdemo.grasp import joint7_centre_yaw
 
 #: A turned hand (a retry's other grasp yaw) is taken only if joint 7 stays within this (its limit: 2.90 rad).
 WRIST_TURN_LIMIT_RAD = 2.4
@@ -20,7 +19,8 @@ WRIST_TURN_LIMIT_RAD = 2.4
 
 def centre_yaw(*xy: tuple[float, float]) -> float:
     """The hand angle (rad) that puts joint 7 mid-range, on average over the given TCP positions."""
-    return joint7_centre_yaw(*xy)
+    q1 = np.mean([np.arctan2(y, x) for x, y in xy])
+    return float(np.pi / 4.0 + q1)
 
 
 def has_room(q7_rad: float) -> bool:
