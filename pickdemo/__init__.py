@@ -8,14 +8,25 @@ One episode from Python::
     assert result.success, result.failure
     looked_once = run_episode(load_scenario("pick_cube"), seed=0, options=EpisodeOptions(open_loop=True))
 
+Or stepped, one control tick at a time (the same result)::
+
+    from pickdemo import Episode
+
+    episode = Episode(load_scenario("pick_cube"), seed=0)
+    episode.reset()  # the first observation
+    while not episode.step():
+        pass
+    result = episode.result()
+
 Importing the package stays light: the simulator and the kinematics load on the first episode (and
-``EpisodeOptions``, which lives beside them in :mod:`pickdemo.episode`, on first use).
+``EpisodeOptions`` and ``Episode``, which live beside them in :mod:`pickdemo.episode`, on first use).
 """
 
 from pickdemo.result import EpisodeResult, Failure, Stage
 from pickdemo.scenario import Scenario, ScenarioError, load_scenario
 
 __all__ = [
+    "Episode",
     "EpisodeOptions",
     "EpisodeResult",
     "Failure",
@@ -36,9 +47,10 @@ def run_episode(scenario: Scenario, seed: int, **kwargs):  # type: ignore[no-unt
 
 
 def __getattr__(name: str):  # type: ignore[no-untyped-def]
-    """``pickdemo.EpisodeOptions`` on first use (PEP 562), so that ``import pickdemo`` stays light."""
-    if name == "EpisodeOptions":
-        from pickdemo.episode import EpisodeOptions
+    """``pickdemo.EpisodeOptions`` and ``pickdemo.Episode`` on first use (PEP 562), so that
+    ``import pickdemo`` stays light."""
+    if name in ("EpisodeOptions", "Episode"):
+        from pickdemo import episode
 
-        return EpisodeOptions
+        return getattr(episode, name)
     raise AttributeError(f"module 'pickdemo' has no attribute {name!r}")

@@ -1,15 +1,21 @@
-"""One episode, wired: scenario -> scene -> the control loop -> metrics -> :class:`EpisodeResult`.
+"""One episode, wired: scenario -> world -> the control loop -> the referee -> :class:`EpisodeResult`.
 
-The control loop here (:meth:`_Episode.loop`) is the only place that advances simulated time, one
-control tick at a time. Each tick: observe (joint states, finger opening, finger contacts), hand over
-the estimates whose latency has passed, decide (:class:`pickdemo.pick.PickMachine`), command, take
-a camera frame when one is due (rendering only the region perception asked for), then step the
-physics. The step budget lives here: the scenario's simulated-time budget, counted in steps.
+:class:`Episode` is one seeded episode that can be stepped from outside: :meth:`Episode.reset` builds
+the world (:mod:`pickdemo.world`) and the controller and returns the first observation,
+:meth:`Episode.step` advances one control tick and says when the episode is over, and
+:meth:`Episode.result` scores it. :func:`run_episode` is that loop.
+
+The control loop is the only place that advances simulated time, one control tick at a time. Each
+tick: observe (joint states, finger opening, finger contacts), hand over the estimates whose latency
+has passed, decide (:class:`pickdemo.pick.PickMachine`), command, take a camera frame when one is due
+(rendering only the region perception asked for), then step the physics. The step budget lives here:
+the scenario's simulated-time budget, counted in steps.
 
 The controller acts only on the camera frames (RGB, depth, intrinsics, camera pose) and the joint
-states. The simulator's true poses are read here for scoring and the trace only. Every random draw
-comes from one generator per stage (:mod:`pickdemo.streams`), so one seed makes one episode, bit for
-bit.
+states. The simulator's true poses are read by the referee (:mod:`pickdemo.referee`, for scoring) and
+the observers (:mod:`pickdemo.observers`: the trace, the video, the debug drawing, the rerun
+recording; for viewers) only. Every random draw comes from one generator per stage
+(:mod:`pickdemo.streams`), so one seed makes one episode, bit for bit, observed or not.
 """
 
 from __future__ import annotations
@@ -20,39 +26,48 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pickdemo.camera import calibration_error, look_at_pose, rendered_intrinsics
-from pickdemo.geometry import Pose, wrap_angle
+from pickdemo.interfaces import Observation
 from pickdemo.kinematics import panda_kinematics
-from pickdemo.layout import LayoutError, Placement, camera_position, sample_layout
-from pickdemo.metrics import score_perception, score_place
+from pickdemo.layout import LayoutError
+from pickdemo.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX, Observer, TraceRecorder
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
 from pickdemo.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
+from pickdemo.referee import PERCEPTION_OFF_MM, Referee, diagnose
 from pickdemo.result import (
     EpisodeFailure,
     EpisodeResult,
-    EpisodeTrace,
     Failure,
-    PerceptionScore,
     PhaseRecord,
     Stage,
     limit_exceedances,
 )
 from pickdemo.scenario import Scenario
-from pickdemo.streams import spawn_rngs
 from pickdemo.task import target_model
+from pickdemo.world import World
+
+if TYPE_CHECKING:
+    from pickdemo.sim.controller import RobotInterface
+
+__all__ = [
+    "PERCEPTION_OFF_MM",
+    "THIRD_PERSON_K",
+    "THIRD_PERSON_POSE",
+    "VIDEO_CROP_PX",
+    "Episode",
+    "EpisodeOptions",
+    "diagnose",
+    "run_episode",
+    "yaw_symmetry",
+]
 
 PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each note), as it happens
 
 SETTLE_MAX_S = 2.0  # the objects come to rest before the first look, within this
 CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
-#: The video's third-person view: from the front left, above the table, far enough back that the whole
-#: arm stays in view (fitted to the link frames of several episodes, with 8 cm for the links' bulk).
-THIRD_PERSON_POSE = look_at_pose(np.array([1.22, -0.92, 0.82]), np.array([0.2, 0.08, 0.26]))
-THIRD_PERSON_K = rendered_intrinsics(256, 192, 60.0, 46.8)  # shown at 320x240: most of the cost is its rendering
-VIDEO_CROP_PX = (160, 120)  # the camera's view in the video: this much around the target, shown twice the size
 
 
 @dataclass(frozen=True)
@@ -66,6 +81,7 @@ class EpisodeOptions:
     video_path: str | None = None  # write the episode's video here (needs PyAV: the video extra)
     video_fps: int = 10
     debug_draw: bool = False  # draw the overlays as debug lines (always with gui)
+    rerun_path: str | None = None  # write a rerun recording (.rrd) here (needs rerun-sdk: the rerun extra)
 
 
 def run_episode(
@@ -84,7 +100,11 @@ def run_episode(
     options = options or EpisodeOptions()
     if open_loop is not None:
         options = dataclasses.replace(options, open_loop=open_loop)
-    return _Episode(scenario, seed, options, on_phase).run()
+    episode = Episode(scenario, seed, options, on_phase=on_phase)
+    episode.reset()
+    while not episode.step():
+        pass
+    return episode.result()
 
 
 class _Timer:
@@ -107,127 +127,212 @@ def yaw_symmetry(shape: str, size: tuple[float, ...]) -> float:
     return np.pi / 2.0 if abs(size[0] - size[1]) < 1e-9 else np.pi
 
 
+_HOOKS = ("tick", "frame", "estimate", "phase", "end")
+
+
+def _overrides(observer: Observer, hook: str) -> bool:
+    """Whether the observer does something on this hook (the others are not called at all)."""
+    return getattr(type(observer), hook) is not getattr(Observer, hook)
+
+
+@dataclass(frozen=True)
+class _InFlight:
+    """A frame's result on its way to the controller (perception's latency)."""
+
+    arrival_s: float
+    taken_s: float
+    result: PoseEstimate | PerceptionError
+    error_mm: float | None  # against the truth when the frame was taken: for the referee only
+
+
 @dataclass
-class _Record:
-    """What the loop measures as it runs (typed; turned into the frozen result at the end)."""
+class _Counts:
+    """What the loop counts as it runs (the truth's view is the referee's)."""
 
     phases: list[PhaseRecord] = field(default_factory=list)
     frames: int = 0
     tracking_frames: int = 0  # frames taken while tracking (approach, descend, close, back off)
     tracking_ticks: int = 0
     tick_ms: list[float] = field(default_factory=list)
-    perception: PerceptionScore | None = None  # the first estimate against the truth
-    tracking_error_mm: float | None = None
-    tracking_yaw_deg: float | None = None
-    start_pose: Pose | None = None
-    max_z_m: float | None = None  # highest the target got while carried
-    place_error_mm: float | None = None
-    wrong_estimates: int = 0  # estimates more than 5 mm off the truth that reached the controller
-    wrong_estimates_accepted: int = 0  # of those, how many it acted on (fused into its belief)
-    wrong_estimates_self_rejected: int = 0  # of those, how many perception's own fit check rejected
-    off_table: bool | None = None  # the target ended off the table (fell, or was knocked off)
-    trace_rows: list[tuple] = field(default_factory=list)
     commanded: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (t, joint command) per tick
 
 
-class _Episode:
-    """One episode's world, controller and loop."""
+class Episode:
+    """One seeded episode of a scenario, stepped one control tick at a time::
 
-    def __init__(self, scenario: Scenario, seed: int, options: EpisodeOptions, on_phase: PhaseCallback | None):
+        episode = Episode(load_scenario("pick_cube"), seed=0)
+        obs = episode.reset()  # the world built, the objects at rest: the robot's first observation
+        while not episode.step():  # one control tick
+            ...  # episode.time_s, episode.state, episode.observation, episode.machine ...
+        result = episode.result()  # the same EpisodeResult as run_episode's
+
+    ``reset`` returns ``None`` when the episode ends before its first tick (a scenario it cannot
+    build, an unknown perception method); ``step`` returns True from then on and ``result`` says why.
+    Never raises for an episode that goes wrong. ``observers``: more :class:`~pickdemo.observers.Observer`
+    to watch the loop (after the ones the options ask for).
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        seed: int,
+        options: EpisodeOptions | None = None,
+        *,
+        on_phase: PhaseCallback | None = None,
+        observers: tuple[Observer, ...] = (),
+    ) -> None:
         self.scenario = scenario
         self.seed = seed
-        self.options = options
+        self.options = options or EpisodeOptions()
         self.on_phase = on_phase
-        self.rngs = spawn_rngs(seed)
+        self.extra_observers = tuple(observers)
+        self._clear()
+
+    def _clear(self) -> None:
         self.timer = _Timer()
-        self.rec = _Record()
-        self.scene = None
+        self.world: World | None = None
+        self.robot: RobotInterface | None = None
         self.machine: PickMachine | None = None
-        self.pushes: list = []
+        self.model: TargetModel | None = None
+        self.target_name: str = ""
+        self.estimator: Callable[..., PoseEstimate] | None = None
+        self.referee: Referee | None = None
+        self.observers: list[Observer] = []
+        self.trace = TraceRecorder() if self.options.record_trace else None  # (an empty trace if it never ran)
+        self.pushes: list = []  # the disturbances, drawn at the first look
+        self.counts = _Counts()
+        self.substeps = 1  # physics steps per control tick
+        self.dt_ctl = 0.0  # one control tick (s)
+        self.max_steps = 0  # the simulated-time budget, in physics steps
+        self.frame_ticks = 1  # control ticks between frames
+        self.video_ticks = 1  # control ticks between video frames (and debug drawings)
+        self.tick = 0  # the control tick now (counted from 0)
+        self.observation: Observation | None = None  # the robot's newest observation
+        self._hooks: dict[str, list[tuple[str | None, Callable[..., None]]]] = {}
+        self._pending: deque[_InFlight] = deque()
+        self._last_frame_tick = -(10**9)
         self._events_logged = 0
-        self.video = None
-        self.debug = None
-        self.last_estimate: PoseEstimate | None = None
-        self.last_estimate_s = -np.inf  # when the frame of the newest estimate was taken (the video's)
+        self._started = False
+        self._done = False
+        self._failure: Failure | None = None
+        self._sim_time_s = 0.0
+        self._wall_s = 0.0
+        self._result: EpisodeResult | None = None
 
-    # ========================================================================================= run
-    def run(self) -> EpisodeResult:
-        wall0 = time.perf_counter()
-        failure: Failure | None = None
+    # ================================================================================ stepping
+    @property
+    def done(self) -> bool:
+        return self._done
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time now."""
+        return self._sim_time_s if self._done else (self.world.sim_time_s if self.world is not None else 0.0)
+
+    @property
+    def state(self) -> State | None:
+        """The pick's state (``None`` before the controller exists)."""
+        return self.machine.state if self.machine is not None else None
+
+    def reset(self) -> Observation | None:
+        """Build the world and the controller (again, from the seed, if it was stepped before) and
+        let the objects come to rest; the robot's first observation (``None``: it ended already)."""
+        if self._started:
+            self._close()
+            self._clear()
+        self._started = True
+        t0 = time.perf_counter()
+        failure, over = None, False
         try:
-            self.build()
-            self.loop()
-            self.score()
+            self._build()
         except EpisodeFailure as exc:
-            failure = exc.failure
+            failure, over = exc.failure, True
         except Exception as exc:  # noqa: BLE001 - one bad episode must not take a batch down
-            failure = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0])
-        finally:
-            sim_time = self.scene.sim_time_s if self.scene is not None else 0.0
-            if self.scene is not None and self.rec.start_pose is not None:
-                self.rec.off_table = self._off_table()
-            if self.video is not None:
-                with self.timer("video"):
-                    self.video.close()
-            if self.scene is not None:
-                self.scene.close()
-        if failure is not None and not (self.rec.phases and self.rec.phases[-1].phase == State.FAILED.value):
-            self._phase(PhaseRecord(State.FAILED.value, round(sim_time, 6), f"{failure.stage.value}: {failure.reason}"))
-        return self.result(failure, sim_time, time.perf_counter() - wall0)
+            failure, over = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0]), True
+        if over:
+            self._finish(failure)
+        self._wall_s += time.perf_counter() - t0
+        if over:
+            return None
+        self.observation = self.robot.observe()
+        return self.observation
 
-    # ======================================================================================= build
-    def build(self) -> None:
+    def step(self) -> bool:
+        """One control tick; True when the episode is over (then :meth:`result` has it)."""
+        if not self._started:
+            raise RuntimeError("Episode.step() before reset()")
+        if self._done:
+            return True
+        t0 = time.perf_counter()
+        failure, over = None, False
+        try:
+            if not self._tick():
+                over = True
+                self._end_loop()
+                self.referee.score()
+        except EpisodeFailure as exc:
+            failure, over = exc.failure, True
+        except Exception as exc:  # noqa: BLE001 - one bad episode must not take a batch down
+            failure, over = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0]), True
+        if over:
+            self._finish(failure)
+        self._wall_s += time.perf_counter() - t0
+        return self._done
+
+    def result(self) -> EpisodeResult:
+        """The scored episode (once :meth:`step` has said it is over)."""
+        if not self._done:
+            raise RuntimeError("the episode is not over: step() until it returns True")
+        if self._result is None:
+            self._result = self._make_result()
+        return self._result
+
+    def close(self) -> None:
+        """Stop an episode before its end: release the simulator and the observers' files."""
+        self._close()
+
+    # =================================================================================== build
+    def _build(self) -> None:
         from pickdemo.sim.controller import RobotInterface  # simulator side, imported late
-        from pickdemo.sim.render import Camera
-        from pickdemo.sim.scene import Scene
 
         sc = self.scenario
         if len(sc.targets) != 1:
             raise EpisodeFailure(Stage.ERROR, f"a pick needs exactly one target; the scenario has {len(sc.targets)}")
         try:
-            layout = sample_layout(sc, self.rngs["layout"])
+            world = World(sc, self.seed)  # the layout
         except LayoutError as exc:
             raise EpisodeFailure(Stage.ERROR, str(exc)) from None
+        self.world = world
         from pickdemo.estimators import EstimatorError, resolve_estimator
 
         method = self.options.perception_method
         if method == "paper":
             perception = self.options.perception
-            self.estimate = lambda frame, model: estimate_pose(frame, model, perception)
+            self.estimator = lambda frame, model: estimate_pose(frame, model, perception)
         else:
             try:
-                self.estimate = resolve_estimator(method)
+                self.estimator = resolve_estimator(method)
             except EstimatorError as exc:
                 raise EpisodeFailure(Stage.PERCEPTION, str(exc)) from None
         self.target_name = sc.target.name
-        self.placement: Placement = next(p for p in layout if p.name == self.target_name)
-        self.model: TargetModel = target_model(sc, self.placement)
+        self.model = target_model(sc, world.placement(self.target_name))
         with self.timer("scene"):
-            self.scene = Scene(sc, layout, gui=self.options.gui)
-            where = camera_position(sc.camera, self.rngs["camera_pose"])
-            error = calibration_error(*sc.camera.extrinsic_error, self.rngs["calibration"])
-            self.camera = Camera(sc.camera, self.rngs["camera"], position=where, calibration_error=error)
-            self.robot = RobotInterface(self.scene)
+            world.open(gui=self.options.gui)
+            self.robot = RobotInterface(world.scene)
             kin = panda_kinematics()
-        dt = self.scene.time_step_s
+        scene = world.scene
+        dt = scene.time_step_s
         self.substeps = max(1, round(1.0 / (sc.control.control_rate_hz * dt)))
         self.dt_ctl = self.substeps * dt
         self.max_steps = int(round(sc.sim.max_sim_time_s / dt))
         self.frame_ticks = max(1, round(1.0 / (sc.control.perception_rate_hz * self.dt_ctl)))
         self.video_ticks = max(1, round(1.0 / (self.options.video_fps * self.dt_ctl)))
-        if self.options.gui or self.options.debug_draw:
-            from pickdemo.sim.debug import DebugDraw
-
-            self.debug = DebugDraw(self.scene)
-        if self.options.video_path is not None:
-            from pickdemo.video import VideoWriter
-
-            self.video = VideoWriter(self.options.video_path, fps=round(1.0 / (self.video_ticks * self.dt_ctl)))
+        self.referee = Referee(sc, world, self.target_name)
+        self._add_observers()
         with self.timer("settle"):
-            self.scene.settle(int(SETTLE_MAX_S / dt))
-        self.scene.start_belt()  # a conveyor runs from the robot's first tick
-        self.rec.start_pose = self.scene.true_pose(self.target_name)  # truth: for scoring only
-        self.rec.max_z_m = float(self.rec.start_pose.position[2])
+            scene.settle(int(SETTLE_MAX_S / dt))
+        scene.start_belt()  # a conveyor runs from the robot's first tick
+        self.referee.started()  # truth: for scoring only
         params = self.options.machine
         if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
             params = params.on_a_belt()
@@ -237,280 +342,218 @@ class _Episode:
             params = dataclasses.replace(
                 params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales)
             )
+        camera = world.camera
         self.machine = PickMachine(
             kin=kin,
             model=self.model,
             symmetry_rad=yaw_symmetry(self.model.shape, self.model.size),
             place_xy=sc.place.position,
-            camera=CameraModel(self.camera.intrinsics, self.camera.T_world_cam),
+            camera=CameraModel(camera.intrinsics, camera.T_world_cam),
             q0=self.robot.observe().arm_q,
             dt_s=self.dt_ctl,
-            rng=self.rngs["ik"],
+            rng=world.rngs["ik"],
             max_attempts=sc.control.max_attempts,
             open_loop=self.options.open_loop,
             params=params,
             surface_z=sc.surface_z,
         )
 
-    # ======================================================================================== loop
-    def loop(self) -> None:
-        """The control loop: one tick at a time until the machine is done, failed or out of time."""
-        assert self.machine is not None and self.scene is not None
-        machine, scene = self.machine, self.scene
-        # (arrival, taken, result, its error against the truth then in mm: for scoring only)
-        pending: deque[tuple[float, float, PoseEstimate | PerceptionError, float | None]] = deque()
-        last_frame_tick = -(10**9)
-        tick = 0
-        while not machine.finished:
-            if scene.steps + self.substeps > self.max_steps:
-                budget = self.scenario.sim.max_sim_time_s
-                machine.abort(Stage.TIMEOUT, f"simulated-time budget of {budget:.1f} s spent in {machine.state.value}")
-                break
-            now = scene.sim_time_s
-            obs = self.robot.observe()
-            while pending and pending[0][0] <= now + 1e-9:
-                _, taken, result, error_mm = pending.popleft()
-                status = machine.on_estimate(result, taken)
-                if isinstance(result, PoseEstimate):
-                    self.last_estimate, self.last_estimate_s = result, taken
-                if error_mm is not None and error_mm > PERCEPTION_OFF_MM and status != "unused":
-                    self.rec.wrong_estimates += 1
-                    self.rec.wrong_estimates_accepted += status == "accepted"
-                    self.rec.wrong_estimates_self_rejected += isinstance(result, PerceptionError)
-            t0 = time.perf_counter()
-            cmd = machine.update(obs)
-            self.rec.tick_ms.append((time.perf_counter() - t0) * 1e3)
-            self._log_events(now)
-            if machine.finished:
-                break
-            self.robot.apply(cmd)
-            self.rec.commanded.append((now, cmd.arm_q))  # always: result.json's limit_exceedances
-            tracking = machine.state in TRACKING_STATES
-            self.rec.tracking_ticks += tracking
-            due = tick - last_frame_tick >= self.frame_ticks  # asked only then: a region costs a prediction
-            request = machine.frame_request(now) if due else None
-            if request is not None:
-                last_frame_tick = tick
-                result = self._look(request, now)
-                error_mm = None
-                # Truth: for scoring only (an estimate that perception's own checks rejected included).
-                scored = result.estimate if isinstance(result, PerceptionError) else result
-                if scored is not None:
-                    truth = scene.true_pose(self.target_name).position
-                    error_mm = float(np.linalg.norm(scored.pose.position - truth)) * 1e3
-                pending.append((now + self.scenario.control.perception_latency_s, now, result, error_mm))
-                self.rec.tracking_frames += tracking
-            if self.options.record_trace:
-                self._trace(now)
-            if self.video is not None and tick % self.video_ticks == 0:
-                with self.timer("video"):
-                    self._video_frame(now)
-            if self.debug is not None and tick % self.video_ticks == 0:
-                self.debug.draw(self._overlay(now))
-            with self.timer("physics"):
-                for _ in range(self.substeps):
-                    for push in self.pushes:
-                        push.step(scene)
-                    scene.step()
-            if machine.state in CARRY_STATES:  # truth: how high it was carried, for scoring
-                self.rec.max_z_m = max(self.rec.max_z_m, float(scene.true_pose(self.target_name).position[2]))
-            tick += 1
-        self._log_events(scene.sim_time_s)
-        if self.video is not None:  # the last frame: how it ended (and what the verifying look saw)
-            with self.timer("video"):
-                self._video_frame(scene.sim_time_s)
-        if machine.failure is not None:
-            raise EpisodeFailure(machine.failure.stage, machine.failure.reason)
+    def _add_observers(self) -> None:
+        """The observers the options ask for, in this order: the trace, the video, the debug
+        drawing, the rerun recording; then the caller's."""
+        from pickdemo.observers import DebugDrawer, VideoRecorder
 
-    def _look(self, request: FrameRequest, now: float) -> PoseEstimate | PerceptionError:
+        opts = self.options
+        if self.trace is not None:
+            self.observers.append(self.trace)
+        if opts.video_path is not None:
+            fps = round(1.0 / (self.video_ticks * self.dt_ctl))
+            self.observers.append(VideoRecorder(opts.video_path, self.video_ticks, fps))
+        if opts.gui or opts.debug_draw:
+            self.observers.append(DebugDrawer(self, self.video_ticks))
+        if opts.rerun_path is not None:
+            from pickdemo.recording import RerunRecorder
+
+            self.observers.append(RerunRecorder(self, opts.rerun_path))
+        self.observers.extend(self.extra_observers)
+        self._hooks = {
+            hook: [(ob.timer, getattr(ob, hook)) for ob in self.observers if _overrides(ob, hook)] for hook in _HOOKS
+        }
+
+    def _notify(self, hook: str, *args) -> None:
+        for timer, call in self._hooks.get(hook, ()):
+            if timer is None:
+                call(self, *args)
+            else:
+                with self.timer(timer):
+                    call(self, *args)
+
+    # ==================================================================================== loop
+    def _tick(self) -> bool:
+        """One control tick; False (nothing done) once the machine is done, failed or out of time."""
+        machine, scene, counts = self.machine, self.world.scene, self.counts
+        if machine.finished:
+            return False
+        if scene.steps + self.substeps > self.max_steps:
+            budget = self.scenario.sim.max_sim_time_s
+            machine.abort(Stage.TIMEOUT, f"simulated-time budget of {budget:.1f} s spent in {machine.state.value}")
+            return False
+        now = scene.sim_time_s
+        obs = self.observation = self.robot.observe()
+        while self._pending and self._pending[0].arrival_s <= now + 1e-9:
+            f = self._pending.popleft()
+            status = machine.on_estimate(f.result, f.taken_s)
+            self.referee.delivered(f.result, f.error_mm, status)
+            self._notify("estimate", now, f.taken_s, f.result, status)
+        t0 = time.perf_counter()
+        cmd = machine.update(obs)
+        counts.tick_ms.append((time.perf_counter() - t0) * 1e3)
+        self._log_events(now)
+        if machine.finished:
+            return False
+        self.robot.apply(cmd)
+        counts.commanded.append((now, cmd.arm_q))  # always: result.json's limit_exceedances
+        tracking = machine.state in TRACKING_STATES
+        counts.tracking_ticks += tracking
+        due = self.tick - self._last_frame_tick >= self.frame_ticks  # asked only then: a region costs a prediction
+        request = machine.frame_request(now) if due else None
+        if request is not None:
+            self._last_frame_tick = self.tick
+            self._look(request, now)
+            counts.tracking_frames += tracking
+        self._notify("tick", now)
+        with self.timer("physics"):
+            for _ in range(self.substeps):
+                for push in self.pushes:
+                    push.step(scene)
+                scene.step()
+        if machine.state in CARRY_STATES:  # truth: how high it was carried, for scoring
+            self.referee.carried()
+        self.tick += 1
+        return True
+
+    def _end_loop(self) -> None:
+        """After the last tick: the last events, the observers' end; the machine's failure raised."""
+        now = self.world.scene.sim_time_s
+        self._log_events(now)
+        self._notify("end", now)
+        if self.machine.failure is not None:
+            raise EpisodeFailure(self.machine.failure.stage, self.machine.failure.reason)
+
+    def _look(self, request: FrameRequest, now: float) -> None:
         """Render the requested frame and run perception on it (its result is delivered later)."""
         from pickdemo.sim.disturb import PushPlayer, draw_push
 
+        world = self.world
         with self.timer("render"):
-            frame = self.camera.capture(self.scene, request.roi)
+            frame = world.camera.capture(world.scene, request.roi)
         with self.timer("perceive"):
             try:
-                result: PoseEstimate | PerceptionError = self.estimate(frame, self.model)
+                result: PoseEstimate | PerceptionError = self.estimator(frame, self.model)
                 if not isinstance(result, PoseEstimate):
                     raise TypeError(f"the perception method returned {type(result).__name__}, not a PoseEstimate")
             except PerceptionError as exc:
                 result = exc
-        self.rec.frames += 1
-        if self.rec.perception is None and isinstance(result, PoseEstimate):
-            truth = self.scene.true_pose(self.target_name)  # truth: for scoring only
-            self.rec.perception = score_perception(result, truth)
-        if self.rec.frames == 1:  # the first look: disturbances are timed from here
+        self.counts.frames += 1
+        self.referee.first_estimate(result)  # truth: for scoring only
+        if self.counts.frames == 1:  # the first look: disturbances are timed from here
             self.pushes = [
-                PushPlayer(draw_push(d, now, self.rngs["disturbance"]), self.target_name)
+                PushPlayer(draw_push(d, now, world.rngs["disturbance"]), self.target_name)
                 for d in self.scenario.disturbances
             ]
-        return result
+        # Truth: for scoring only (an estimate that perception's own checks rejected included).
+        error_mm = self.referee.error_mm(result)
+        self._pending.append(_InFlight(now + self.scenario.control.perception_latency_s, now, result, error_mm))
+        self._notify("frame", now, frame, result)
 
     def _log_events(self, now: float) -> None:
-        assert self.machine is not None
-        for ev in self.machine.events[self._events_logged :]:
+        m = self.machine
+        for ev in m.events[self._events_logged :]:
             self._phase(PhaseRecord(ev.state.value, round(ev.time_s, 6), ev.message))
             if ev.state is State.CLOSE and not ev.note:  # committing: the tracker against the truth
-                truth = self.scene.true_pose(self.target_name)
-                tp = self.machine.tracker.predict(now)
-                self.rec.tracking_error_mm = float(np.linalg.norm(tp.position - truth.position)) * 1e3
-                if self.machine.symmetry > 0:
-                    dyaw = wrap_angle(tp.yaw_rad - float(truth.rpy[2]), self.machine.symmetry)
-                    self.rec.tracking_yaw_deg = float(abs(np.degrees(dyaw)))
-        self._events_logged = len(self.machine.events)
-
-    def _overlay(self, now: float):
-        """What the video and the GUI draw now: the estimate of the newest frame (none once
-        perception no longer looks), the truth (a label), the tracker's belief and path while it
-        tracks, the chosen grasp until the gripper closes, and a caption."""
-        from pickdemo.video import GRASP_STATES, TRACKER_STATES, Overlay
-
-        m = self.machine
-        tracked = path = None
-        # An estimate is current until a frame after it is due (the frame period, plus its latency).
-        max_age = self.scenario.control.perception_latency_s + 1.5 * self.frame_ticks * self.dt_ctl
-        fresh = now - self.last_estimate_s <= max_age
-        if m.tracker.initialised and m.state.value in TRACKER_STATES:
-            tp = m.tracker.predict(now)
-            tracked = tp.position
-            path = tp.position + np.linspace(0.0, 1.0, 11)[:, None] * tp.velocity
-        plan = m.plan
-        overlay = Overlay(
-            caption=f"{m.state.value}  |  t = {now:5.2f} s  |  attempt {m.attempt}"
-            + ("  |  open loop" if self.options.open_loop else ""),
-            estimate=self.last_estimate if fresh else None,
-            truth=self.scene.true_pose(self.target_name),  # a label for the viewer
-            tracked=tracked,
-            tracked_path=path,
-            grasp=None if plan is None or m.state.value not in GRASP_STATES else plan.grasp,
-            grasp_width_m=0.0 if plan is None else plan.object_width_m,
-        )
-        return overlay
-
-    def _video_frame(self, now: float) -> None:
-        """One frame of the video: a third-person view beside the camera's, perception drawn on it."""
-        from pickdemo.sim.render import render_rgb
-        from pickdemo.video import compose, draw_overlay, magnify, panel_centre
-
-        overlay = self._overlay(now)
-        m = self.machine
-        tracked = m.tracker.predict(now).position if m.tracker.initialised else None
-        hand = None if m.last_sample is None else np.asarray(m.last_sample.setpoint[:3], dtype=float)
-        place = np.array([*self.scenario.place.position, self.model.height_m / 2.0])
-        centre = panel_centre(m.state.value, tracked=tracked, hand=hand, place=place)
-        if centre is None:  # nothing to follow yet: the middle of the camera's image
-            centre = np.full(3, np.nan)
-        view, K = self.camera.preview_around(self.scene, centre, VIDEO_CROP_PX)
-        view, K = magnify(view, K, 2)
-        right = draw_overlay(view, K, self.camera.T_world_cam, overlay)
-        left = render_rgb(self.scene, THIRD_PERSON_POSE, THIRD_PERSON_K)
-        self.video.add(compose(left, right, overlay.caption))
+                self.referee.committed(m.tracker.predict(now), m.symmetry)
+        self._events_logged = len(m.events)
 
     def _phase(self, record: PhaseRecord) -> None:
-        self.rec.phases.append(record)
+        self.counts.phases.append(record)
         if self.on_phase is not None:
             self.on_phase(record)
+        self._notify("phase", record)
 
-    def _trace(self, now: float) -> None:
-        m = self.machine
-        s = m.last_sample
-        v, a, j = m.motion.limits.arrays()
-        tracked = None
-        if m.tracker.initialised:
-            tp = m.tracker.predict(now)
-            tracked = np.array([*tp.position, tp.yaw_rad])
-        tcp = self.scene.true_tcp_pose().position
-        self.rec.trace_rows.append(
-            (now, m.state.value, s.setpoint, s.velocity, s.acceleration, s.jerk, v, a, j, s.new_calculation, s.q,
-             tcp, tracked)
-        )  # fmt: skip
+    # ==================================================================================== end
+    def _finish(self, failure: Failure | None) -> None:
+        """The episode is over: where the target ended, the failure as the last phase, all closed."""
+        self._sim_time_s = self.world.sim_time_s if self.world is not None else 0.0
+        try:
+            if self.referee is not None:
+                self.referee.ended()
+            phases = self.counts.phases
+            if failure is not None and not (phases and phases[-1].phase == State.FAILED.value):
+                reason = f"{failure.stage.value}: {failure.reason}"
+                self._phase(PhaseRecord(State.FAILED.value, round(self._sim_time_s, 6), reason))
+        finally:
+            self._failure = failure
+            self._done = True
+            self._close()
 
-    # ===================================================================================== scoring
-    def _off_table(self) -> bool:
-        """Whether the target ended off the table: below its top, or beyond its edges (the truth)."""
-        final = self.scene.true_pose(self.target_name)
-        x, y, z = final.position
-        return bool(z < -0.005 or not self.scenario.table.holds(float(x), float(y)))
+    def _close(self) -> None:
+        observers, self.observers, self._hooks = self.observers, [], {}
+        try:
+            for ob in observers:
+                if ob.timer is None:
+                    ob.close()
+                else:
+                    with self.timer(ob.timer):
+                        ob.close()
+        finally:
+            if self.world is not None:
+                self.world.close()
 
-    def score(self) -> None:
-        """Success, scored on the truth: lifted high enough, put down where asked, upright and at rest."""
-        sc = self.scenario
-        final = self.scene.true_pose(self.target_name)  # truth: for scoring only
-        outcome = score_place(
-            start=self.rec.start_pose,
-            max_z_m=self.rec.max_z_m,
-            final=final,
-            final_speed_m_s=self.scene.true_speed(self.target_name),
-            place_xy=sc.place.position,
-            shape=self.placement.shape,
-            size=self.placement.size,
-            lift_height_m=sc.success.lift_height,
-            place_tolerance_m=sc.success.place_tolerance,
-        )
-        self.rec.place_error_mm = outcome.place_error_m * 1e3
-        if not outcome.success:
-            stage = Stage.LIFT if outcome.lifted_m < sc.success.lift_height else Stage.PLACE
-            raise EpisodeFailure(stage, outcome.reason)
-
-    def result(self, failure: Failure | None, sim_time_s: float, wall_time_s: float) -> EpisodeResult:
-        rec, m = self.rec, self.machine
-        ticks = np.array(rec.tick_ms) if rec.tick_ms else np.zeros(1)
-        lifted = None
-        if m is not None and m.attempts and rec.start_pose is not None:
-            lifted = (rec.max_z_m - float(rec.start_pose.position[2])) * 1e3
+    def _make_result(self) -> EpisodeResult:
+        counts, ref, m, failure = self.counts, self.referee, self.machine, self._failure
+        ticks = np.array(counts.tick_ms) if counts.tick_ms else np.zeros(1)
+        lifted = ref.lifted_mm() if ref is not None and m is not None and m.attempts else None
+        tracking_error_mm = ref.tracking_error_mm if ref is not None else None
         return EpisodeResult(
             scenario=self.scenario.name,
             seed=self.seed,
             success=failure is None,
             failure=failure,
-            perception=rec.perception,
-            place_error_mm=rec.place_error_mm,
+            perception=ref.perception if ref is not None else None,
+            place_error_mm=ref.place_error_mm if ref is not None else None,
             lift_height_mm=lifted,
             grasp_width_mm=None if m is None or m.grasp_width_m is None else m.grasp_width_m * 1e3,
-            sim_time_s=sim_time_s,
-            wall_time_s=wall_time_s,
+            sim_time_s=self._sim_time_s,
+            wall_time_s=self._wall_s,
             stage_wall_times_s={k: round(v, 6) for k, v in self.timer.times.items()},
-            phases=tuple(rec.phases),
+            phases=tuple(counts.phases),
             open_loop=self.options.open_loop,
             attempts=tuple(m.attempts) if m is not None else (),
-            perception_frames=rec.frames,
-            perception_rate_hz=rec.tracking_frames / (rec.tracking_ticks * self.dt_ctl) if rec.tracking_ticks else None,
+            perception_frames=counts.frames,
+            perception_rate_hz=(
+                counts.tracking_frames / (counts.tracking_ticks * self.dt_ctl) if counts.tracking_ticks else None
+            ),
             estimates_rejected=m.counters.rejected if m is not None else 0,
             perception_failures=m.counters.perception_errors if m is not None else 0,
             target_moves_detected=m.counters.jumps if m is not None else 0,
             retargets=m.counters.retargets if m is not None else 0,
-            tracking_error_mm=rec.tracking_error_mm,
-            tracking_yaw_error_deg=rec.tracking_yaw_deg,
-            diagnosis=diagnose(failure, rec.tracking_error_mm),
-            estimates_off=rec.wrong_estimates,
-            estimates_off_accepted=rec.wrong_estimates_accepted,
-            estimates_off_fit_rejected=rec.wrong_estimates_self_rejected,
-            target_off_table=rec.off_table,
+            tracking_error_mm=tracking_error_mm,
+            tracking_yaw_error_deg=ref.tracking_yaw_deg if ref is not None else None,
+            diagnosis=diagnose(failure, tracking_error_mm),
+            estimates_off=ref.wrong_estimates if ref is not None else 0,
+            estimates_off_accepted=ref.wrong_estimates_accepted if ref is not None else 0,
+            estimates_off_fit_rejected=ref.wrong_estimates_self_rejected if ref is not None else 0,
+            target_off_table=ref.off_table if ref is not None else None,
             perception_method=self.options.perception_method,
             disturbances=tuple(p.push.to_dict() for p in self.pushes),
             control_tick_wall_ms={
                 "median": float(np.median(ticks)),
                 "p95": float(np.percentile(ticks, 95)),
-                "ticks": len(rec.tick_ms),
+                "ticks": len(counts.tick_ms),
             },
-            limit_exceedances=tuple(e.to_dict() for e in _exceedances(rec.commanded)),
-            trace=_freeze_trace(rec.trace_rows) if self.options.record_trace else None,
+            limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded)),
+            trace=self.trace.freeze() if self.trace is not None else None,
         )
-
-
-#: Above this, the tracker's belief was off when the robot committed to the grasp (scored on the truth).
-PERCEPTION_OFF_MM = 5.0
-
-
-def diagnose(failure: Failure | None, tracking_error_mm: float | None) -> str | None:
-    """For a failed episode, from the truth (for reading, never for control): was perception off
-    when the robot committed to the grasp? ``perception_off``, ``perception_ok`` (the failure lies
-    elsewhere), or ``not_committed`` (it never closed the gripper)."""
-    if failure is None:
-        return None
-    if tracking_error_mm is None:
-        return "not_committed"
-    return "perception_off" if tracking_error_mm > PERCEPTION_OFF_MM else "perception_ok"
 
 
 def _exceedances(commanded: list[tuple[float, np.ndarray]]):
@@ -519,28 +562,3 @@ def _exceedances(commanded: list[tuple[float, np.ndarray]]):
         return []
     t, q = zip(*commanded, strict=True)
     return limit_exceedances(np.array(t, dtype=float), np.array(q, dtype=float).reshape(-1, 7))
-
-
-def _freeze_trace(rows: list[tuple]) -> EpisodeTrace:
-    """The per-tick rows as arrays."""
-    nan4 = np.full(4, np.nan)
-    cols = list(zip(*rows, strict=True)) if rows else [()] * 13
-
-    def arr(i: int, width: int) -> np.ndarray:
-        return np.array(cols[i], dtype=float).reshape(-1, width)
-
-    return EpisodeTrace(
-        time_s=np.array(cols[0], dtype=float),
-        state=tuple(cols[1]),
-        setpoint=arr(2, 4),
-        velocity=arr(3, 4),
-        acceleration=arr(4, 4),
-        jerk=arr(5, 4),
-        max_velocity=arr(6, 4),
-        max_acceleration=arr(7, 4),
-        max_jerk=arr(8, 4),
-        retarget=np.array(cols[9], dtype=bool),
-        q=arr(10, 7),
-        tcp_true=arr(11, 3),
-        tracked=np.array([nan4 if t is None else t for t in cols[12]], dtype=float).reshape(-1, 4),
-    )

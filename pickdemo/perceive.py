@@ -42,28 +42,19 @@ ERROR_KEYS = (
 def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: int = 1) -> list[dict[str, Any]]:
     """One sample per method and target for one seed. With ``repeat`` > 1 each method runs that many
     times on the frame and its time is the median (a steadier benchmark; the estimate is the same)."""
-    from pickdemo.camera import calibration_error
-    from pickdemo.layout import camera_position, sample_layout
-    from pickdemo.sim.render import Camera
-    from pickdemo.sim.scene import Scene
-    from pickdemo.streams import spawn_rngs
     from pickdemo.task import target_model
+    from pickdemo.world import World
 
-    rngs = spawn_rngs(seed)
-    layout = sample_layout(scenario, rngs["layout"])
-    with Scene(scenario, layout) as scene:
+    with World.build(scenario, seed) as world:  # the episode's world for this seed
         if any(not o.static for o in scenario.objects):
-            scene.step(120)  # let what is not held come to rest
-        where = camera_position(scenario.camera, rngs["camera_pose"])
-        error = calibration_error(*scenario.camera.extrinsic_error, rngs["calibration"])
-        camera = Camera(scenario.camera, rngs["camera"], position=where, calibration_error=error)
-        frame = camera.capture(scene)
-        truths = {t.name: scene.true_pose(t.name) for t in scenario.targets}  # truth: scoring only
+            world.scene.step(120)  # let what is not held come to rest
+        camera = world.camera
+        frame = camera.capture(world.scene)
+        truths = {t.name: world.true_pose(t.name) for t in scenario.targets}  # truth: scoring only
     distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))
     samples = []
     for spec in scenario.targets:
-        placement = next(p for p in layout if p.name == spec.name)
-        model = target_model(scenario, placement)
+        model = target_model(scenario, world.placement(spec.name))
         truth = truths[spec.name]
         for name in methods:
             times = []

@@ -1,0 +1,79 @@
+"""One world, built from (scenario, seed): the seed's random streams, the layout, the scene and the camera.
+
+Shared by an episode (:class:`pickdemo.episode.Episode`) and ``perceive`` (:mod:`pickdemo.perceive`),
+so that one seed lays out, renders and sees one world whoever builds it. Two steps: ``World(scenario,
+seed)`` samples the layout (cheap and pure: a :class:`~pickdemo.layout.LayoutError` when the objects do
+not fit), :meth:`World.open` builds the simulator's scene and places the camera (the simulator's
+side is imported then). :meth:`World.build` does both.
+
+The true poses (:meth:`true_pose`) are the simulator's: for scoring and viewers, never for control.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pickdemo.camera import calibration_error
+from pickdemo.layout import Placement, camera_position, sample_layout
+from pickdemo.scenario import Scenario
+from pickdemo.streams import spawn_rngs
+
+if TYPE_CHECKING:
+    from pickdemo.geometry import Pose
+    from pickdemo.sim.render import Camera
+    from pickdemo.sim.scene import Scene
+
+
+class World:
+    """The seed's world: its random streams (``rngs``), its ``layout``, and once opened its ``scene``
+    and ``camera``. Closing it closes the scene (also as a context manager)."""
+
+    def __init__(self, scenario: Scenario, seed: int) -> None:
+        self.scenario = scenario
+        self.seed = seed
+        self.rngs: dict[str, np.random.Generator] = spawn_rngs(seed)
+        self.layout: list[Placement] = sample_layout(scenario, self.rngs["layout"])
+        self.scene: Scene | None = None
+        self.camera: Camera | None = None
+
+    @classmethod
+    def build(cls, scenario: Scenario, seed: int, *, gui: bool = False) -> World:
+        """The world laid out and opened."""
+        return cls(scenario, seed).open(gui=gui)
+
+    def open(self, *, gui: bool = False) -> World:
+        """Build the scene (the laid-out objects, the robot at home) and place the camera: at the
+        position drawn for this seed, told its pose with the calibration error drawn for it."""
+        from pickdemo.sim.render import Camera  # the simulator's side, imported late
+        from pickdemo.sim.scene import Scene
+
+        sc = self.scenario
+        self.scene = Scene(sc, self.layout, gui=gui)
+        where = camera_position(sc.camera, self.rngs["camera_pose"])
+        error = calibration_error(*sc.camera.extrinsic_error, self.rngs["calibration"])
+        self.camera = Camera(sc.camera, self.rngs["camera"], position=where, calibration_error=error)
+        return self
+
+    def placement(self, name: str) -> Placement:
+        return next(p for p in self.layout if p.name == name)
+
+    def true_pose(self, name: str) -> Pose:
+        """An object's true pose (truth: for scoring and viewers only)."""
+        assert self.scene is not None, "the world is not open"
+        return self.scene.true_pose(name)
+
+    @property
+    def sim_time_s(self) -> float:
+        return self.scene.sim_time_s if self.scene is not None else 0.0
+
+    def close(self) -> None:
+        if self.scene is not None:
+            self.scene.close()
+
+    def __enter__(self) -> World:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
