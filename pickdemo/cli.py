@@ -1,8 +1,9 @@
 """Command line: ``python -m pickdemo COMMAND``.
 
-- ``run SCENARIO [--seed N] [--out DIR [--video]] [--gui] [--quiet] [--open-loop] [--perception METHOD]``:
-  one episode; ``--out DIR`` writes ``result.json``, ``motion.png`` and ``report.html`` there (and
-  ``episode.mp4`` with ``--video``).
+- ``run SCENARIO [--seed N] [--out DIR [--video]] [--rerun FILE.rrd] [--gui] [--quiet] [--open-loop]
+  [--perception METHOD]``: one episode; ``--out DIR`` writes ``result.json``, ``motion.png`` and
+  ``report.html`` there (and ``episode.mp4`` with ``--video``); ``--rerun`` a rerun recording
+  (``rerun FILE.rrd`` opens it).
 - ``bench [SCENARIO ...] [--seeds 0-19] [--min-success 0.95] [--out DIR [--resume]] [--junit FILE]``:
   many episodes in parallel, gated on the success rate; ``DIR`` gets ``episodes.jsonl``,
   ``summary.json``, ``bench.png`` and ``report.html``.
@@ -83,6 +84,13 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--perception", default="paper", metavar="METHOD", help=PERCEPTION_HELP)
     run.add_argument(
         "--video", action="store_true", help="with --out: write DIR/episode.mp4 (needs pip install 'pickdemo[video]')"
+    )
+    run.add_argument(
+        "--rerun",
+        type=Path,
+        metavar="FILE.rrd",
+        help="write a rerun recording of the episode (open it with `rerun FILE.rrd`; needs pip install "
+        "'pickdemo[rerun]')",
     )
     bench = sub.add_parser(
         "bench",
@@ -287,6 +295,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
             import av  # noqa: F401
         except ImportError:
             raise UsageError("--video needs PyAV: pip install 'pickdemo[video]'") from None
+    if args.rerun is not None:
+        try:
+            import rerun  # noqa: F401
+        except ImportError:
+            raise UsageError("--rerun needs rerun-sdk: pip install 'pickdemo[rerun]'") from None
+        _writable_dir(args.rerun.parent, "--rerun")
 
     t0 = time.perf_counter()
 
@@ -304,6 +318,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         perception_method=args.perception,
         record_trace=args.out is not None,
         video_path=str(args.out / "episode.mp4") if args.video else None,
+        rerun_path=str(args.rerun) if args.rerun is not None else None,
     )
     result = run_episode(scenario, args.seed, options=options, on_phase=on_phase)
     print(_summary(result, yaw_modulus_deg(scenario.target)), flush=True)
@@ -311,7 +326,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         path = _save_result(result, args.out)
         written = [path] + _run_pictures(result, args.out, video=args.video)
         if not args.quiet:
-            print("wrote " + ", ".join(str(p) for p in written))
+            print("wrote " + ", ".join(str(p) for p in [*written, *([args.rerun] if args.rerun else [])]))
+    if args.rerun is not None and args.out is None and not args.quiet:
+        print(f"wrote {args.rerun}")
     return EXIT_OK if result.success else EXIT_FAILED
 
 
