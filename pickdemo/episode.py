@@ -291,6 +291,12 @@ class Episode:
         """Stop an episode before its end: release the simulator and the observers' files."""
         self._close()
 
+    def __enter__(self) -> Episode:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     # =================================================================================== build
     def _build(self) -> None:
         from pickdemo.sim.controller import RobotInterface  # simulator side, imported late

@@ -104,16 +104,25 @@ def test_a_stepped_episode_is_run_episodes() -> None:
 
 
 def test_stepping_can_be_reset_and_closed_early() -> None:
-    """reset() again starts the same episode over; close() stops one before its end."""
+    """reset() again starts the same episode over; close() stops one before its end. Its world is
+    the one perceive builds for the seed (one layout, one camera)."""
+    from pickdemo.world import World
+
     scenario = load_scenario("pick_cube")
-    ep = Episode(scenario, 3)
-    a = ep.reset()
-    for _ in range(50):
-        assert not ep.step()
-    b = ep.reset()  # from the seed again
-    np.testing.assert_array_equal(a.arm_q, b.arm_q)
-    assert a.time_s == b.time_s == ep.time_s
-    ep.close()
+    with Episode(scenario, 3) as ep:
+        a = ep.reset()
+        for _ in range(50):
+            assert not ep.step()
+        b = ep.reset()  # from the seed again
+        np.testing.assert_array_equal(a.arm_q, b.arm_q)
+        assert a.time_s == b.time_s == ep.time_s
+        with World.build(scenario, 3) as world:
+            assert [p.name for p in world.layout] == [p.name for p in ep.world.layout]
+            for p, q in zip(world.layout, ep.world.layout, strict=True):
+                np.testing.assert_array_equal(p.pose.position, q.pose.position)
+            np.testing.assert_array_equal(world.camera.T_world_cam.position, ep.world.camera.T_world_cam.position)
+            np.testing.assert_array_equal(world.camera.T_world_cam.rotation, ep.world.camera.T_world_cam.rotation)
+    assert ep.world.scene.client is None  # closed
 
 
 def test_an_episode_that_cannot_start_is_over_at_reset() -> None:
