@@ -66,7 +66,7 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def _build_parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="pickdemo", description="A simulated Franka Panda picks an object it has only seen.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     run = sub.add_parser("run", help="run one episode of a scenario")
@@ -161,17 +161,17 @@ def _build_parser() -> argparse.ArgumentParser:
 def yaw_modulus_deg(target: ObjectSpec) -> float | None:
     """The turn (deg) after which the target looks the same, modulo which its yaw is estimated and
     scored (90 for a square box, 180 for another box); None for a cylinder, which has no yaw."""
-    if target.shape == "cylinder":
+    symmetry = target.largest_shape.yaw_symmetry_rad
+    if symmetry == 0.0:
         return None
-    if target.size is not None:
-        square = abs(target.size[0] - target.size[1]) < 1e-9
-    else:  # drawn per seed: square only if both sides are one fixed value
+    if target.size is None:  # drawn per seed: square only if both sides are one fixed value
         (a0, a1), (b0, b1) = target.size_range[:2]  # type: ignore[index]
-        square = a0 == a1 == b0 == b1
-    return 90.0 if square else 180.0
+        if not a0 == a1 == b0 == b1:
+            return 180.0  # a box's half turn
+    return math.degrees(symmetry)
 
 
-def _summary(result: EpisodeResult, yaw_modulus: float | None = None) -> str:
+def summary_line(result: EpisodeResult, yaw_modulus: float | None = None) -> str:
     head = "SUCCESS" if result.success else f"FAILED in {result.failure.stage.value}"  # type: ignore[union-attr]
     parts = [f"{head}: {result.scenario} seed {result.seed}"]
     if result.perception_method != "paper":
@@ -321,7 +321,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         rerun_path=str(args.rerun) if args.rerun is not None else None,
     )
     result = run_episode(scenario, args.seed, options=options, on_phase=on_phase)
-    print(_summary(result, yaw_modulus_deg(scenario.target)), flush=True)
+    print(summary_line(result, yaw_modulus_deg(scenario.target)), flush=True)
     if args.out is not None:
         path = _save_result(result, args.out)
         written = [path] + _run_pictures(result, args.out, video=args.video)
@@ -456,7 +456,7 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario, default_task="perceive")
     print(f"pickdemo perceive: {scenario.name}, {len(scenario.targets)} target(s) x {len(seeds)} seed(s), "
           f"methods {', '.join(methods)}", flush=True)  # fmt: skip
-    samples: list[dict] = []
+    samples: list[perceive.PerceptionSample] = []
     from tqdm import tqdm
 
     if not 1 <= args.repeat <= 100:
@@ -512,7 +512,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = _build_parser()
+    parser = build_parser()
     try:
         args = parser.parse_args(argv)
         if args.command == "run":

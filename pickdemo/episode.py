@@ -61,7 +61,6 @@ __all__ = [
     "EpisodeOptions",
     "diagnose",
     "run_episode",
-    "yaw_symmetry",
 ]
 
 PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each note), as it happens
@@ -118,13 +117,6 @@ class _Timer:
             yield
         finally:
             self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - t0
-
-
-def yaw_symmetry(shape: str, size: tuple[float, ...]) -> float:
-    """The turn (rad) after which the shape looks the same about its axis (0: any turn, a cylinder)."""
-    if shape == "cylinder":
-        return 0.0
-    return np.pi / 2.0 if abs(size[0] - size[1]) < 1e-9 else np.pi
 
 
 _HOOKS = ("tick", "frame", "estimate", "phase", "end")
@@ -352,7 +344,7 @@ class Episode:
         self.machine = PickMachine(
             kin=kin,
             model=self.model,
-            symmetry_rad=yaw_symmetry(self.model.shape, self.model.size),
+            symmetry_rad=self.model.geometry.yaw_symmetry_rad,
             place_xy=sc.place.position,
             camera=CameraModel(camera.intrinsics, camera.T_world_cam),
             q0=self.robot.observe().arm_q,

@@ -5,7 +5,6 @@ The simulator's true poses reach this module and the labels only, never the cont
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,7 +13,7 @@ from pickdemo.evaluation import pose_errors
 from pickdemo.geometry import Pose
 from pickdemo.perception import PoseEstimate
 from pickdemo.result import PerceptionScore
-from pickdemo.shapes import Shape, make_shape
+from pickdemo.shapes import Shape
 
 
 def position_nees(estimate: PoseEstimate, true: Pose) -> float:
@@ -51,8 +50,7 @@ def score_place(
     final: Pose,
     final_speed_m_s: float,
     place_xy: tuple[float, float],
-    shape: Shape | str,
-    size: Sequence[float] | None = None,
+    shape: Shape,
     lift_height_m: float,
     place_tolerance_m: float,
 ) -> PlaceOutcome:
@@ -60,12 +58,7 @@ def score_place(
     and at rest. Upright: on the face it stood on, or one the same height (a cube on any face) with
     that face within 10 deg of level; a cylinder on a cap.
 
-    ``shape``: the target's :class:`~pickdemo.shapes.Shape`. (A shape's name with its ``size`` is
-    taken as the shape they make: the form an episode passed before placements carried shapes.)"""
-    if isinstance(shape, str):
-        if size is None:
-            raise TypeError("score_place: a shape given by name needs its size")
-        shape = make_shape(shape, size)
+    ``shape``: the target's :class:`~pickdemo.shapes.Shape`."""
     height_m = float(shape.height_m)
     lifted = max_z_m - float(start.position[2])
     err = float(np.hypot(final.position[0] - place_xy[0], final.position[1] - place_xy[1]))

@@ -12,7 +12,7 @@ import json
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 import numpy as np
 
@@ -27,6 +27,14 @@ MethodFn = Callable[..., PoseEstimate]
 METHODS: dict[str, MethodFn] = dict(BUILTIN)
 ORIENTED = {"paper", "centroid", "icp"}  # pixel gives a position only
 
+#: One method on one target of one seed's frame, as perception.json holds it: ``method``, ``seed``,
+#: ``target``, ``time_ms``, ``camera_distance_m``, ``failure`` (None or perception's reason), the
+#: errors of :data:`ERROR_KEYS` (None when it failed), ``feature_point_error_mm``, ``nees``,
+#: ``estimated_pose``, ``true_pose``, and ``reference`` (the paper's row) where the target has one.
+PerceptionSample: TypeAlias = dict[str, Any]
+#: Per method: ``n``, ``failures``, the statistics of each error and ``nees``, the time per frame.
+MethodSummary: TypeAlias = dict[str, Any]
+
 ERROR_KEYS = (
     "position_error_mm",
     "x_error_mm",
@@ -39,7 +47,7 @@ ERROR_KEYS = (
 )
 
 
-def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: int = 1) -> list[dict[str, Any]]:
+def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: int = 1) -> list[PerceptionSample]:
     """One sample per method and target for one seed. With ``repeat`` > 1 each method runs that many
     times on the frame and its time is the median (a steadier benchmark; the estimate is the same)."""
     from pickdemo.task import target_model
@@ -67,7 +75,7 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
                     est, error = None, str(exc)
                 times.append((time.perf_counter() - t0) * 1e3)
             elapsed_ms = float(np.median(times))
-            sample: dict[str, Any] = {"method": name, "seed": seed, "target": spec.name, "time_ms": elapsed_ms,
+            sample: PerceptionSample = {"method": name, "seed": seed, "target": spec.name, "time_ms": elapsed_ms,
                                       "camera_distance_m": distance, "failure": error}  # fmt: skip
             if est is None:
                 sample.update({k: None for k in ERROR_KEYS}, nees=None)
@@ -97,13 +105,13 @@ def _score(est: PoseEstimate, truth, model: TargetModel, *, oriented: bool) -> d
 
 def iter_samples(
     scenario: Scenario, seeds: list[int], methods: list[str], *, repeat: int = 1
-) -> Iterator[list[dict[str, Any]]]:
+) -> Iterator[list[PerceptionSample]]:
     for seed in seeds:
         yield perceive_seed(scenario, seed, methods, repeat=repeat)
 
 
-def summarise(samples: list[dict[str, Any]]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
+def summarise(samples: list[PerceptionSample]) -> dict[str, MethodSummary]:
+    out: dict[str, MethodSummary] = {}
     for method in dict.fromkeys(s["method"] for s in samples):
         ms = [s for s in samples if s["method"] == method]
         nees = [s["nees"] for s in ms if s["nees"] is not None]
@@ -124,7 +132,7 @@ def _fmt(st: dict[str, float] | None, digits: int = 2) -> str:
     return f"{st['median']:.{digits}f} / {st['p95']:.{digits}f} / {st['max']:.{digits}f}"
 
 
-def format_summary(summary: dict[str, Any]) -> str:
+def format_summary(summary: dict[str, MethodSummary]) -> str:
     head = (f"{'method':<9} {'3-D mm (med/p95/max)':<22} {'x / y / z mm (median)':<22} {'yaw deg':<20} "
             f"{'pitch deg':<20} {'roll deg':<20} {'NEES':>6} {'ms':>6} fail")  # fmt: skip
     lines = [head, "-" * len(head)]
@@ -145,12 +153,12 @@ def format_summary(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def format_reference_rows(samples: list[dict[str, Any]], method: str = "paper") -> str | None:
+def format_reference_rows(samples: list[PerceptionSample], method: str = "paper") -> str | None:
     """Row by row, the reference's errors (the paper's) beside ours, for targets that carry one."""
     rows = [s for s in samples if s["method"] == method and s.get("reference")]
     if not rows:
         return None
-    by_target: dict[str, list[dict[str, Any]]] = {}
+    by_target: dict[str, list[PerceptionSample]] = {}
     for s in rows:
         by_target.setdefault(s["target"], []).append(s)
     lines = [f"{'target':<10} {'reference':<24} {'3-D mm: ref / ours (median over seeds)':<40} "
@@ -158,7 +166,7 @@ def format_reference_rows(samples: list[dict[str, Any]], method: str = "paper") 
     for target, ss in by_target.items():
         ref = ss[0]["reference"]
 
-        def med(key: str, ss: list[dict[str, Any]] = ss) -> float:
+        def med(key: str, ss: list[PerceptionSample] = ss) -> float:
             return float(np.median([s[key] for s in ss if s[key] is not None]))
 
         lines.append(
@@ -171,7 +179,7 @@ def format_reference_rows(samples: list[dict[str, Any]], method: str = "paper") 
     return "\n".join(lines)
 
 
-def write_plot(samples: list[dict[str, Any]], path: Path, title: str) -> bool:
+def write_plot(samples: list[PerceptionSample], path: Path, title: str) -> bool:
     """Error per method (like the paper's Fig. 2): 3-D position error and yaw error. False without matplotlib."""
     try:
         import matplotlib
@@ -215,7 +223,9 @@ def write_plot(samples: list[dict[str, Any]], path: Path, title: str) -> bool:
     return True
 
 
-def write_outputs(out_dir: Path, samples: list[dict[str, Any]], summary: dict[str, Any], title: str) -> list[Path]:
+def write_outputs(
+    out_dir: Path, samples: list[PerceptionSample], summary: dict[str, MethodSummary], title: str
+) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / "perception.json"]
     written[0].write_text(json.dumps({"samples": samples, "summary": summary}, indent=1, allow_nan=False) + "\n")

@@ -28,6 +28,7 @@ import numpy as np
 from pickdemo.camera import RGBDFrame
 from pickdemo.observers import Observer
 from pickdemo.perception import PerceptionError, PoseEstimate
+from pickdemo.shapes import Box
 
 if TYPE_CHECKING:
     from pickdemo.episode import Episode
@@ -91,11 +92,10 @@ class RerunRecorder(Observer):
         self.commands: list[tuple[float, np.ndarray]] = []
         self.tracked: list[tuple[float, Pose]] = []
         model = ep.model
-        if model.shape == "box":
-            shape = rr.Boxes3D(half_sizes=[np.asarray(model.size, dtype=float) / 2.0])
+        if isinstance(model.geometry, Box):
+            shape = rr.Boxes3D(half_sizes=[np.asarray(model.geometry.size_m, dtype=float) / 2.0])
         else:
-            d, h = model.size
-            shape = rr.Cylinders3D(lengths=[h], radii=[d / 2.0])
+            shape = rr.Cylinders3D(lengths=[model.geometry.height_m], radii=[model.geometry.diameter_m / 2.0])
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         for entity in ("world/truth", "world/tracker", "world/estimate", "world/estimate/rejected"):
             self.rec.log(entity, shape, rr.TransformAxes3D(0.05), static=True)

@@ -108,8 +108,7 @@ class Referee:
             final=self._truth(),
             final_speed_m_s=self.world.scene.true_speed(self.target),
             place_xy=sc.place.position,
-            shape=placement.shape,
-            size=placement.size,
+            shape=placement.geometry,
             lift_height_m=sc.success.lift_height,
             place_tolerance_m=sc.success.place_tolerance,
         )

@@ -269,9 +269,9 @@ def test_cli_bench_refuses_to_resume_on_part_of_a_run(tmp_path: Path) -> None:
 
 def test_bench_gate_has_a_real_default() -> None:
     from pickdemo.bench import DEFAULT_MIN_SUCCESS
-    from pickdemo.cli import _build_parser
+    from pickdemo.cli import build_parser
 
-    assert _build_parser().parse_args(["bench"]).min_success == DEFAULT_MIN_SUCCESS == 0.95
+    assert build_parser().parse_args(["bench"]).min_success == DEFAULT_MIN_SUCCESS == 0.95
     help_text = " ".join(_cli("bench", "--help").stdout.split())
     assert "exit 1 if a scenario's success rate is below RATE (default 0.95; 0: no gate)" in help_text
 

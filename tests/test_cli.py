@@ -135,7 +135,7 @@ def test_episode_options_from_the_package_and_import_stays_light() -> None:
 
 
 def test_yaw_is_said_modulo_the_targets_symmetry() -> None:
-    from pickdemo.cli import _summary, yaw_modulus_deg
+    from pickdemo.cli import summary_line, yaw_modulus_deg
     from pickdemo.result import EpisodeResult, PerceptionScore
     from pickdemo.scenario import load_scenario
 
@@ -144,9 +144,9 @@ def test_yaw_is_said_modulo_the_targets_symmetry() -> None:
     assert yaw_modulus_deg(load_scenario("pick_cylinder", check=False).target) is None
     score = PerceptionScore({}, {}, position_error_mm=0.5, yaw_error_deg=0.07)
     r = EpisodeResult("s", 0, True, None, score, 1.0, 50.0, 50.0, 10.0, 1.0)
-    assert "pose error 0.50 mm, yaw error 0.07 deg modulo 90 deg |" in _summary(r, 90.0)
+    assert "pose error 0.50 mm, yaw error 0.07 deg modulo 90 deg |" in summary_line(r, 90.0)
     no_yaw = EpisodeResult("s", 0, True, None, PerceptionScore({}, {}, 0.5, None), 1.0, 50.0, 50.0, 10.0, 1.0)
-    assert "yaw" not in _summary(no_yaw, None)  # a cylinder has no yaw
+    assert "yaw" not in summary_line(no_yaw, None)  # a cylinder has no yaw
 
 
 @pytest.mark.sim

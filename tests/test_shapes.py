@@ -11,7 +11,6 @@ import pytest
 import pickdemo
 from pickdemo.geometry import Pose
 from pickdemo.layout import sample_layout
-from pickdemo.metrics import score_place
 from pickdemo.scenario import load_scenario, parse_scenario
 from pickdemo.schema import ScenarioError
 from pickdemo.shapes import SHAPES, Box, Cylinder, make_shape
@@ -99,17 +98,6 @@ def test_placement_and_target_model_carry_one_shape(name: str) -> None:
     model = target_model(sc, placement)
     assert model.geometry is placement.geometry
     assert (model.shape, model.size, model.height_m) == (placement.shape, placement.size, placement.height_m)
-
-
-def test_score_place_takes_a_shape_or_its_name_and_size() -> None:
-    common = dict(start=Pose.from_xyz_rpy(np.array([0.5, 0.0, 0.025])), max_z_m=0.2, final_speed_m_s=0.0,
-                  place_xy=(0.5, 0.2), lift_height_m=0.05, place_tolerance_m=0.02)  # fmt: skip
-    final = Pose.from_xyz_rpy(np.array([0.5, 0.2, 0.025]))
-    typed = score_place(final=final, shape=Box((0.05, 0.05, 0.05)), **common)
-    named = score_place(final=final, shape="box", size=(0.05, 0.05, 0.05), **common)
-    assert typed == named and typed.success
-    with pytest.raises(TypeError):
-        score_place(final=final, shape="box", **common)
 
 
 def _imports() -> dict[str, set[str]]:
