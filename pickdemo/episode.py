@@ -234,13 +234,12 @@ class Episode:
             self._clear()
         self._started = True
         t0 = time.perf_counter()
-        failure, over = None, False
-        try:
+
+        def build() -> bool:
             self._build()
-        except EpisodeFailure as exc:
-            failure, over = exc.failure, True
-        except Exception as exc:  # noqa: BLE001 - one bad episode must not take a batch down
-            failure, over = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0]), True
+            return False
+
+        failure, over = self._guarded(build)
         if over:
             self._finish(failure)
         self._wall_s += time.perf_counter() - t0
@@ -249,6 +248,17 @@ class Episode:
         self.observation = self.robot.observe()
         return self.observation
 
+    @staticmethod
+    def _guarded(part: Callable[[], bool]) -> tuple[Failure | None, bool]:
+        """Run a part of the episode: (None, whether it ended the episode), or a failure that ends it
+        (a typed one, or any error as ``error``: one bad episode must not take a batch down)."""
+        try:
+            return None, part()
+        except EpisodeFailure as exc:
+            return exc.failure, True
+        except Exception as exc:  # noqa: BLE001
+            return Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0]), True
+
     def step(self) -> bool:
         """One control tick; True when the episode is over (then :meth:`result` has it)."""
         if not self._started:
@@ -256,16 +266,15 @@ class Episode:
         if self._done:
             return True
         t0 = time.perf_counter()
-        failure, over = None, False
-        try:
-            if not self._tick():
-                over = True
-                self._end_loop()
-                self.referee.score()
-        except EpisodeFailure as exc:
-            failure, over = exc.failure, True
-        except Exception as exc:  # noqa: BLE001 - one bad episode must not take a batch down
-            failure, over = Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0]), True
+
+        def tick() -> bool:
+            if self._tick():
+                return False
+            self._end_loop()
+            self.referee.score()
+            return True
+
+        failure, over = self._guarded(tick)
         if over:
             self._finish(failure)
         self._wall_s += time.perf_counter() - t0
