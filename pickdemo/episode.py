@@ -44,6 +44,7 @@ from pickdemo.result import (
     PhaseRecord,
     Stage,
     limit_exceedances,
+    peak_limit_ratios,
 )
 from pickdemo.scenario import Scenario
 from pickdemo.task import target_model
@@ -559,13 +560,21 @@ class Episode:
                 "ticks": len(counts.tick_ms),
             },
             limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded)),
+            peak_joint_limit_ratio=_peak_ratios(counts.commanded),
             trace=self.trace.freeze() if self.trace is not None else None,
         )
 
 
+def _commanded_arrays(commanded: list[tuple[float, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    t, q = zip(*commanded, strict=True)
+    return np.array(t, dtype=float), np.array(q, dtype=float).reshape(-1, 7)
+
+
+def _peak_ratios(commanded: list[tuple[float, np.ndarray]]) -> dict[str, float] | None:
+    """The commanded joint motion's largest ratios to the datasheet limits (``peak_joint_limit_ratio``)."""
+    return None if len(commanded) < 4 else peak_limit_ratios(*_commanded_arrays(commanded))
+
+
 def _exceedances(commanded: list[tuple[float, np.ndarray]]):
     """The joint command's excursions beyond the datasheet limits (as the motion plot marks them)."""
-    if len(commanded) < 4:
-        return []
-    t, q = zip(*commanded, strict=True)
-    return limit_exceedances(np.array(t, dtype=float), np.array(q, dtype=float).reshape(-1, 7))
+    return [] if len(commanded) < 4 else limit_exceedances(*_commanded_arrays(commanded))

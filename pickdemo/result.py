@@ -190,6 +190,9 @@ class EpisodeResult:
     estimates_off_fit_rejected: int = 0  # of those, the ones perception's own fit check rejected
     target_off_table: bool | None = None  # at the end the target had fallen off the table (scored on the truth)
     limit_exceedances: tuple[dict[str, Any], ...] = ()  # commanded joint motion beyond the datasheet (see below)
+    #: the largest ratio of a commanded joint velocity, acceleration, jerk to its datasheet limit, over all
+    #: joints and ticks (at most 1.0: within); None when nothing was commanded
+    peak_joint_limit_ratio: dict[str, float] | None = None
     trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
     @classmethod
@@ -257,6 +260,9 @@ class EpisodeResult:
                 "estimates_off_fit_rejected": self.estimates_off_fit_rejected,
                 "target_off_table": self.target_off_table,
                 "limit_exceedances": [dict(e) for e in self.limit_exceedances],
+                "peak_joint_limit_ratio": None
+                if self.peak_joint_limit_ratio is None
+                else dict(self.peak_joint_limit_ratio),
             }
         )
 
@@ -319,6 +325,21 @@ class LimitExceedance:
         ticks = f"{self.samples} tick{'s' if self.samples != 1 else ''}"
         value = f"{self.peak:.3g} {self.unit} > {self.limit:.3g}"
         return f"joint {self.joint}: {value} at {self.peak_time_s:.2f} s ({ticks})"
+
+
+def peak_limit_ratios(
+    time_s: np.ndarray, q: np.ndarray, limits: dict[str, tuple[np.ndarray, str]] | None = None
+) -> dict[str, float] | None:
+    """Per quantity (velocity, acceleration, jerk), the largest ratio of the commanded joint motion
+    (the finite differences of :func:`joint_derivatives`) to its datasheet limit, over all joints and
+    ticks: at most 1.0 means within the limits. None when the command is too short to differentiate."""
+    if len(time_s) < 4:
+        return None
+    motion = joint_derivatives(time_s, q)
+    return {
+        key: float(np.max(np.abs(motion[key]) / np.asarray(lim, dtype=float)[None, :]))
+        for key, (lim, _unit) in (limits or JOINT_LIMITS).items()
+    }
 
 
 def limit_exceedances(
