@@ -13,8 +13,8 @@ import numpy as np
 from pickdemo import robot_model as rm
 from pickdemo.camera import look_at_pose, project, rendered_intrinsics
 from pickdemo.grasp import GraspParams, top_down
-from pickdemo.layout import LayoutError, sample_layout
-from pickdemo.schema import ConveyorSpec, ObjectSpec, Scenario, ScenarioError
+from pickdemo.layout import LayoutError, sample_layout, sample_place
+from pickdemo.schema import ConveyorSpec, ObjectSpec, PlaceSpec, Scenario, ScenarioError
 from pickdemo.streams import spawn_rngs
 
 #: The robot's base on the table: nothing may stand within this radius of the origin (m).
@@ -83,9 +83,17 @@ def _check_objects(sc: Scenario) -> None:
                 if area > 1.0:  # mm^2
                     raise ScenarioError(f"{key}: overlaps objects.{other} on the table ({area:.0f} mm^2 in common)")
             fixed.append((obj.name, mine))
-    px, py = sc.place.position
-    if not table.holds(px, py):
-        raise ScenarioError(f"place.position: ({px:.3f}, {py:.3f}) m is off the table")
+    for px, py in place_points(sc.place):
+        if not table.holds(px, py):
+            raise ScenarioError(f"{sc.place.key}: ({px:.3f}, {py:.3f}) m is off the table")
+
+
+def place_points(place: PlaceSpec, n: int = 5) -> list[tuple[float, float]]:
+    """The place spot, or an n x n grid over its region (corners included): where the target may be put."""
+    if place.position is not None:
+        return [(float(place.position[0]), float(place.position[1]))]
+    (x0, x1), (y0, y1) = place.position_range  # type: ignore[misc]
+    return [(float(x), float(y)) for x in np.linspace(x0, x1, n) for y in np.linspace(y0, y1, n)]
 
 
 def belt_sweep_mm(belt: ConveyorSpec) -> np.ndarray:
@@ -164,18 +172,18 @@ def _check_conveyor(sc: Scenario) -> None:
     if sc.task == "pick":
         target = sc.target
         r = target.largest_shape.footprint_radius_m
-        px, py = sc.place.position
-        if belt.touches(px, py, r):
-            raise ScenarioError(
-                f"place.position: ({px:.3f}, {py:.3f}) m is on the belt (the target would ride away); place it "
-                f"at least {r * 1e3:.0f} mm off the strip"
-            )
-        if _sweep_distance_mm(sweep, px, py) < r * 1e3:
-            raise ScenarioError(
-                f"place.position: ({px:.3f}, {py:.3f}) m is on the belt's overhang ({overhang}): the target would "
-                + ("ride away" if moves else "rest on it, not on the table")
-                + f"; place it at least {r * 1e3:.0f} mm off that"
-            )
+        for px, py in place_points(sc.place):
+            if belt.touches(px, py, r):
+                raise ScenarioError(
+                    f"{sc.place.key}: ({px:.3f}, {py:.3f}) m is on the belt (the target would ride away); place it "
+                    f"at least {r * 1e3:.0f} mm off the strip"
+                )
+            if _sweep_distance_mm(sweep, px, py) < r * 1e3:
+                raise ScenarioError(
+                    f"{sc.place.key}: ({px:.3f}, {py:.3f}) m is on the belt's overhang ({overhang}): the target "
+                    + ("would ride away" if moves else "would rest on it, not on the table")
+                    + f"; place it at least {r * 1e3:.0f} mm off that"
+                )
 
 
 def _check_camera(sc: Scenario) -> None:
@@ -235,7 +243,8 @@ def _check_pick(sc: Scenario) -> None:
     kin = panda_kinematics()
     rng = np.random.default_rng(0)
     spots = [(f"{key} at ({x:.2f}, {y:.2f})", x, y) for x, y in _region(target)]
-    spots.append(("place.position", *sc.place.position))
+    spots += [(f"{sc.place.key} at ({x:.2f}, {y:.2f})" if sc.place.position is None else sc.place.key, x, y)
+              for x, y in sc.place.spots]  # fmt: skip
     for what, x, y in spots:
         z = max(target.largest_shape.height_m / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y)
         for dz in (0.0, grasp.pregrasp_height_m):
@@ -247,7 +256,10 @@ def _check_pick(sc: Scenario) -> None:
 def _check_layout(sc: Scenario) -> None:
     for seed in LAYOUT_SEEDS:
         try:
-            sample_layout(sc, spawn_rngs(seed)["layout"])
+            rngs = spawn_rngs(seed)
+            layout = sample_layout(sc, rngs["layout"])
+            if sc.task == "pick":
+                sample_place(sc, layout, rngs["place"])
         except LayoutError as exc:
             hint = "widen the position ranges or lower clearance_m"
             raise ScenarioError(f"layout (seed {seed}): {exc}; {hint}") from None

@@ -355,7 +355,7 @@ class Episode:
             kin=kin,
             model=self.model,
             symmetry_rad=self.model.geometry.yaw_symmetry_rad,
-            place_xy=sc.place.position,
+            place_xy=world.place_xy,
             camera=CameraModel(camera.intrinsics, camera.T_world_cam),
             q0=self.robot.observe().arm_q,
             dt_s=self.dt_ctl,
@@ -561,6 +561,7 @@ class Episode:
             },
             limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded)),
             peak_joint_limit_ratio=_peak_ratios(counts.commanded),
+            place_position_m=None if self.world is None else self.world.place_xy,
             trace=self.trace.freeze() if self.trace is not None else None,
         )
 

@@ -98,6 +98,29 @@ def sample_layout(scenario: Scenario, rng: np.random.Generator) -> tuple[Placeme
     return tuple(out)
 
 
+def sample_place(
+    scenario: Scenario, layout: tuple[Placement, ...] | list[Placement], rng: np.random.Generator
+) -> tuple[float, float]:
+    """Where the target is to be put down: the scenario's spot, or one drawn from its region clear of
+    where every object starts, the target included (by the layout's clearance and the target's own
+    footprint): somewhere else."""
+    place = scenario.place
+    if place.position is not None:
+        return (float(place.position[0]), float(place.position[1]))
+    (x0, x1), (y0, y1) = place.position_range  # type: ignore[misc]
+    targets = [p for p in layout if p.name in {t.name for t in scenario.targets}]
+    r = max((p.geometry.footprint_radius_m for p in targets), default=0.0)
+    for _ in range(MAX_DRAWS):
+        xy = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
+        clear = all(
+            np.linalg.norm(xy - p.pose.position[:2]) >= r + p.geometry.footprint_radius_m + scenario.layout.clearance_m
+            for p in layout
+        )
+        if clear:
+            return (float(xy[0]), float(xy[1]))
+    raise LayoutError(f"place.position_range: no spot clear of the other objects in {MAX_DRAWS} draws")
+
+
 def camera_position(spec: CameraSpec, rng: np.random.Generator) -> np.ndarray:
     """Where the camera stands: the scenario's position, or one drawn around ``look_at``."""
     if not spec.sampled:

@@ -192,7 +192,7 @@ class VideoRecorder(_OverlayObserver):
         m = ep.machine
         tracked = m.tracker.predict(now).position if m.tracker.initialised else None
         hand = None if m.last_sample is None else np.asarray(m.last_sample.setpoint[:3], dtype=float)
-        place = np.array([*ep.scenario.place.position, ep.model.height_m / 2.0])
+        place = np.array([*ep.world.place_xy, ep.model.height_m / 2.0])
         centre = panel_centre(m.state.value, tracked=tracked, hand=hand, place=place)
         if centre is None:  # nothing to follow yet: the middle of the camera's image
             centre = np.full(3, np.nan)

@@ -100,7 +100,7 @@ class RerunRecorder(Observer):
         for entity in ("world/truth", "world/tracker", "world/estimate", "world/estimate/rejected"):
             self.rec.log(entity, shape, rr.TransformAxes3D(0.05), static=True)
         self.rec.log("world/camera", rr.TransformAxes3D(0.05), static=True)
-        place = [*ep.scenario.place.position, 0.0]
+        place = [*ep.world.place_xy, 0.0]
         self.rec.log("world/place", rr.Points3D([place], radii=0.01, labels=["place"]), static=True)
 
     # ------------------------------------------------------------------------------------- helpers

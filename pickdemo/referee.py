@@ -107,7 +107,7 @@ class Referee:
             max_z_m=self.max_z_m,
             final=self._truth(),
             final_speed_m_s=self.world.scene.true_speed(self.target),
-            place_xy=sc.place.position,
+            place_xy=self.world.place_xy,
             shape=placement.geometry,
             lift_height_m=sc.success.lift_height,
             place_tolerance_m=sc.success.place_tolerance,

@@ -193,6 +193,7 @@ class EpisodeResult:
     #: the largest ratio of a commanded joint velocity, acceleration, jerk to its datasheet limit, over all
     #: joints and ticks (at most 1.0: within); None when nothing was commanded
     peak_joint_limit_ratio: dict[str, float] | None = None
+    place_position_m: tuple[float, float] | None = None  # where it was to be put down (drawn per seed from a range)
     trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
     @classmethod
@@ -260,6 +261,7 @@ class EpisodeResult:
                 "estimates_off_fit_rejected": self.estimates_off_fit_rejected,
                 "target_off_table": self.target_off_table,
                 "limit_exceedances": [dict(e) for e in self.limit_exceedances],
+                "place_position_m": None if self.place_position_m is None else list(self.place_position_m),
                 "peak_joint_limit_ratio": None
                 if self.peak_joint_limit_ratio is None
                 else dict(self.peak_joint_limit_ratio),

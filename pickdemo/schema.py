@@ -232,7 +232,31 @@ class ObjectSpec(_Model):
 
 
 class PlaceSpec(_Model):
-    position: Vec2  # m, x, y on the table where the target is to be put down
+    """Where the target is to be put down: a fixed spot, or one drawn per seed from a region (the
+    seed's ``place`` stream), clear of where the objects start."""
+
+    position: Vec2 | None = None  # m, x, y on the table
+    position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
+
+    @model_validator(mode="after")
+    def _one_of(self) -> PlaceSpec:
+        if (self.position is None) == (self.position_range is None):
+            raise ValueError("give exactly one of position, position_range")
+        if self.position_range is not None and any(lo > hi for lo, hi in self.position_range):
+            raise ValueError("position_range bounds must be [min, max]")
+        return self
+
+    @property
+    def key(self) -> str:
+        return "place.position" if self.position is not None else "place.position_range"
+
+    @property
+    def spots(self) -> tuple[tuple[float, float], ...]:
+        """The spot, or the region's corners and centre: what must be reachable and on the table."""
+        if self.position is not None:
+            return (tuple(self.position),)
+        (x0, x1), (y0, y1) = self.position_range  # type: ignore[misc]
+        return ((x0, y0), (x0, y1), (x1, y0), (x1, y1), (0.5 * (x0 + x1), 0.5 * (y0 + y1)))
 
 
 class SuccessSpec(_Model):

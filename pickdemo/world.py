@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pickdemo.camera import calibration_error
-from pickdemo.layout import Placement, camera_position, sample_layout
+from pickdemo.layout import Placement, camera_position, sample_layout, sample_place
 from pickdemo.scenario import Scenario
 from pickdemo.streams import spawn_rngs
 
@@ -35,6 +35,8 @@ class World:
         self.seed = seed
         self.rngs: dict[str, np.random.Generator] = spawn_rngs(seed)
         self.layout: list[Placement] = sample_layout(scenario, self.rngs["layout"])
+        #: where the target is to be put down (the scenario's spot, or drawn for this seed)
+        self.place_xy: tuple[float, float] = sample_place(scenario, self.layout, self.rngs["place"])
         self.scene: Scene | None = None
         self.camera: Camera | None = None
 

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pickdemo.scenario import ScenarioError, list_scenarios, load_scenario
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
 GOOD = """
 name = "t"
@@ -53,7 +56,10 @@ def test_load_by_path(tmp_path: Path) -> None:
         (lambda s: s.replace("target = true", "target = false"), "target = true"),
         (lambda s: s + "\n[camera]\nfov_deg = [57.0, 200.0]\n", "camera.fov_deg"),
         (lambda s: s + '\n[camera]\ndepht_noise = "kinect"\n', "camera.depht_noise"),
-        (lambda s: s.replace("[place]\nposition = [0.45, 0.3]", "[place]"), "place.position"),
+        (
+            lambda s: s.replace("[place]\nposition = [0.45, 0.3]", "[place]"),
+            "place: give exactly one of position, position_range",
+        ),
         (lambda s: s.replace('name = "t"', 'name = "t'), "invalid TOML"),
         (lambda s: s.replace("position = [0.5, 0.0]", ""), "position"),
     ],
@@ -137,3 +143,45 @@ def test_layout_samples_sizes_tilts_and_camera() -> None:
     pos = camera_position(sc.camera, np.random.default_rng(1))
     d = np.linalg.norm(pos - np.array(sc.camera.look_at))
     assert 0.5 <= d <= 1.0
+
+
+def test_a_place_region_is_drawn_per_seed_clear_of_the_objects() -> None:
+    from pickdemo.layout import sample_layout, sample_place
+    from pickdemo.streams import spawn_rngs
+
+    sc = load_scenario("pick_anywhere")
+    (x0, x1), (y0, y1) = sc.place.position_range
+    spots = []
+    for seed in range(20):
+        rngs = spawn_rngs(seed)
+        layout = sample_layout(sc, rngs["layout"])
+        xy = sample_place(sc, layout, rngs["place"])
+        assert x0 <= xy[0] <= x1 and y0 <= xy[1] <= y1
+        target = next(p for p in layout if p.name == sc.target.name)
+        for p in layout:  # somewhere else: clear of every object's start, the target's own included
+            gap = target.geometry.footprint_radius_m + p.geometry.footprint_radius_m + sc.layout.clearance_m
+            assert np.linalg.norm(np.array(xy) - p.pose.position[:2]) >= gap - 1e-12
+        again = spawn_rngs(seed)
+        assert sample_place(sc, sample_layout(sc, again["layout"]), again["place"]) == xy  # one seed, one spot
+        spots.append(xy)
+    assert len(set(spots)) == 20
+    fixed = load_scenario("pick_cube")
+    rngs = spawn_rngs(0)
+    assert sample_place(fixed, sample_layout(fixed, rngs["layout"]), rngs["place"]) == tuple(fixed.place.position)
+
+
+@pytest.mark.parametrize(
+    ("place", "message"),
+    [
+        ("position_range = [[0.35, 0.6], [0.2, 0.9]]", "place.position_range: (0.350, 0.725) m is off the table"),
+        ("position = [0.45, 0.3]\nposition_range = [[0.3, 0.4], [0.2, 0.3]]", "give exactly one of position"),
+        ("position_range = [[0.6, 0.3], [0.2, 0.3]]", "position_range bounds must be [min, max]"),
+    ],
+)
+def test_a_bad_place_region_is_one_line_naming_the_key(tmp_path, place: str, message: str) -> None:
+    text = (SCENARIOS / "pick_cube.toml").read_text().replace("position = [0.45, 0.3]", place)
+    f = tmp_path / "bad.toml"
+    f.write_text(text)
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(f)
+    assert message in str(err.value) and "\n" not in str(err.value)
