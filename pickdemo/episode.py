@@ -350,6 +350,8 @@ class Episode:
             params = dataclasses.replace(
                 params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales)
             )
+        if m.transfers == "joint":
+            params = dataclasses.replace(params, joint_transfers=True)
         camera = world.camera
         self.machine = PickMachine(
             kin=kin,

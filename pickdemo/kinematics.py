@@ -69,6 +69,16 @@ class PandaKinematics:
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return Pose.from_se3(self.data.oMf[self.tcp_id])
 
+    def manipulability(self, q: np.ndarray) -> float:
+        """Yoshikawa's measure sqrt(det(J J^T)) of the TCP's Jacobian: near 0 close to a singularity."""
+        J = pin.computeFrameJacobian(self.model, self.data, np.asarray(q, dtype=float), self.tcp_id, pin.LOCAL)
+        return float(np.sqrt(max(np.linalg.det(J @ J.T), 0.0)))
+
+    def limit_margin(self, q: np.ndarray) -> float:
+        """How far (rad) the nearest joint is from its limit."""
+        q = np.asarray(q, dtype=float)
+        return float(np.min(np.minimum(q - self.lower, self.upper - q)))
+
     def within_limits(self, q: np.ndarray) -> bool:
         return bool(np.all(q >= self.lower - 1e-9) and np.all(q <= self.upper + 1e-9))
 

@@ -271,6 +271,18 @@ class OnlineMotion:
                 lo = mid
         return hi
 
+    def reset_at(self, q: np.ndarray) -> None:
+        """Re-seat the motion at rest where a joint-space transfer left the arm (its TCP at ``q``)."""
+        self.q = np.asarray(q, dtype=float).copy()
+        x0 = pose_to_x4(self.kin.forward(self.q))
+        self._inp.current_position = x0.tolist()
+        self._inp.current_velocity = [0.0] * 4
+        self._inp.current_acceleration = [0.0] * 4
+        self._inp.target_position = x0.tolist()
+        self._inp.target_velocity = [0.0] * 4
+        self._inp.minimum_duration = None
+        self._finished = True
+
     # ------------------------------------------------------------------------------------- tick
     def step(self) -> MotionSample:
         """Advance the motion by one tick and solve the joints for the new setpoint."""
@@ -318,3 +330,86 @@ class OnlineMotion:
             raise MotionError(f"joint {j + 1} would move at {abs(dq[j]):.2f} rad/s, beyond its limit (a singularity?)")
         self.q = res.q
         return res.q.copy(), dq
+
+
+#: A transfer plans within this share of the datasheet's joint velocity, acceleration and jerk: the
+#: command sampled at the control rate and differenced (as ``peak_joint_limit_ratio`` measures it) then
+#: stays within the datasheet.
+JOINT_LIMIT_SHARE = 0.9
+
+
+class JointMotion:
+    """A transfer in joint space: Ruckig with 7 DoF and the Franka's datasheet limits (a share of
+    them, scaled down further for a held payload), time-optimal and jerk-limited, re-targetable every
+    tick. It starts from rest where the Cartesian motion left the arm and ends at rest."""
+
+    def __init__(self, kin: PandaKinematics, q0: np.ndarray, dt_s: float) -> None:
+        self.kin = kin
+        self.dt_s = dt_s
+        self.q = np.asarray(q0, dtype=float).copy()
+        self._otg = Ruckig(7, dt_s)
+        self._inp = InputParameter(7)
+        self._out = OutputParameter(7)
+        self._inp.synchronization = Synchronization.Phase
+        self._finished = True
+        self.scale = 1.0
+        self.retargets = 0
+
+    def start(self, q_now: np.ndarray, q_goal: np.ndarray, *, scale: float = 1.0) -> None:
+        """From rest at ``q_now`` to rest at ``q_goal``; ``scale`` (0-1] slows velocity, acceleration
+        and jerk alike (a held payload)."""
+        if not (np.all(np.isfinite(q_goal)) and self.kin.within_limits(np.asarray(q_goal))):
+            raise MotionError(f"joint goal out of the arm's range: {np.round(q_goal, 3).tolist()}")
+        self.q = np.asarray(q_now, dtype=float).copy()
+        self._inp.current_position = self.q.tolist()
+        self._inp.current_velocity = [0.0] * 7
+        self._inp.current_acceleration = [0.0] * 7
+        self._write(q_goal, scale)
+        self._finished = False
+
+    def retarget(self, q_goal: np.ndarray) -> None:
+        """A new goal while moving (the plan changed): Ruckig goes on from where the motion is."""
+        if np.max(np.abs(np.asarray(q_goal) - np.array(self._inp.target_position))) < 1e-4:
+            return
+        if not self._finished:
+            self.retargets += 1
+        self._write(q_goal, self.scale)
+        self._finished = False
+
+    def _write(self, q_goal: np.ndarray, scale: float) -> None:
+        self.scale = scale
+        share = JOINT_LIMIT_SHARE * scale
+        self._inp.target_position = np.asarray(q_goal, dtype=float).tolist()
+        self._inp.target_velocity = [0.0] * 7
+        self._inp.max_velocity = (rm.MAX_VELOCITY_RAD_S * share).tolist()
+        self._inp.max_acceleration = (rm.MAX_ACCELERATION_RAD_S2 * share).tolist()
+        self._inp.max_jerk = (rm.MAX_JERK_RAD_S3 * share).tolist()
+
+    @property
+    def finished(self) -> bool:
+        return self._finished
+
+    @property
+    def target(self) -> np.ndarray:
+        return np.array(self._inp.target_position)
+
+    def step(self) -> MotionSample:
+        """Advance one tick: the joint command, and the TCP it puts there (as the setpoint)."""
+        if self._finished:
+            zero = np.zeros(4)
+            return MotionSample(self.q.copy(), np.zeros(7), pose_to_x4(self.kin.forward(self.q)), zero, zero, zero,
+                                True, False)  # fmt: skip
+        try:
+            result = self._otg.update(self._inp, self._out)
+        except RuckigError as exc:
+            raise MotionError(f"Ruckig rejected joint goal {np.round(self.target, 3).tolist()}: {exc}") from None
+        if result not in (Result.Working, Result.Finished):
+            raise MotionError(f"Ruckig returned {result.name} for joint goal {np.round(self.target, 3).tolist()}")
+        out = self._out
+        new_calc = bool(out.new_calculation)
+        out.pass_to_input(self._inp)
+        self._finished = result == Result.Finished
+        self.q = np.array(out.new_position)
+        zero = np.zeros(4)
+        x4 = pose_to_x4(self.kin.forward(self.q))
+        return MotionSample(self.q.copy(), np.array(out.new_velocity), x4, zero, zero, zero, self._finished, new_calc)

@@ -89,7 +89,7 @@ class TraceRecorder(Observer):
     def tick(self, ep: Episode, now: float) -> None:
         m = ep.machine
         s = m.last_sample
-        v, a, j = m.motion.limits.arrays()
+        v, a, j = m.cartesian_limits()
         tracked = None
         if m.tracker.initialised:
             tp = m.tracker.predict(now)

@@ -51,11 +51,12 @@ from pickdemo.actions import Grip, GripParams, Move
 from pickdemo.belief import Counters, GateParams, TargetBelief, Verdict
 from pickdemo.camera import Intrinsics, roi_around
 from pickdemo.geometry import Pose
-from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError
+from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, top_down
 from pickdemo.grasp_selection import GraspRequest, GraspSelector, TopDownFaceGrasps
+from pickdemo.ik_goals import GoalParams, choose_goal, goal_candidates, line_trackable
 from pickdemo.interfaces import Command, Observation
 from pickdemo.kinematics import IKParams, PandaKinematics
-from pickdemo.motion import CartesianLimits, MotionSample, OnlineMotion, pose_to_x4
+from pickdemo.motion import CartesianLimits, JointMotion, MotionError, MotionSample, OnlineMotion, pose_to_x4
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.result import AttemptRecord, Failure, Stage
 from pickdemo.tracker import TargetTracker, TrackerParams
@@ -129,6 +130,12 @@ class MachineParams:
     arrive_tolerance_rad: float = float(np.radians(1.0))
     arrive_speed_tolerance_m_s: float = 0.005
     tracker: TrackerParams = TrackerParams()
+    #: transfers (home to above the target, above the target to above the place, back home) in joint
+    #: space to IK goals chosen well; else straight Cartesian lines (as before; the default for now)
+    joint_transfers: bool = False
+    goals: GoalParams = GoalParams()  # how a transfer's IK goal is chosen
+    transfer_scale: float = 0.5  # transfers in joint space, the hand empty: this share of the datasheet's limits
+    carry_scale: float = 0.25  # ... carrying the target (a retry after a drop slows it further)
 
     def on_a_belt(self) -> MachineParams:
         """For a cell with a conveyor: a target may move at any speed the belt runs (up to 0.5 m/s),
@@ -203,6 +210,9 @@ class PickMachine:
         self.motion = OnlineMotion(kin, q0, dt_s, self.p.free)
         self.move = Move(self.motion, chase_fraction=self.p.chase_fraction, meet_horizon_s=self.p.meet_horizon_s)
         self.grip = Grip(self.p.grip, dt_s)
+        self.joints = JointMotion(kin, q0, dt_s)  # transfers in joint space
+        self._joint = False  # the joint-space transfer drives the arm (else the Cartesian motion)
+        self._sample: MotionSample | None = None
         self.counters = Counters()
         self.belief = TargetBelief(
             model,
@@ -252,12 +262,20 @@ class PickMachine:
 
     @property
     def last_sample(self) -> MotionSample | None:
-        return self.move.last_sample
+        return self._sample
+
+    def cartesian_limits(self) -> tuple[list[float], list[float], list[float]]:
+        """The Cartesian limits the hand moves within now (infinite during a joint-space transfer,
+        which keeps the joints' limits instead)."""
+        if self._joint:
+            inf = [float("inf")] * 4
+            return inf, inf, inf
+        return self.motion.limits.arrays()
 
     def frame_request(self, now_s: float) -> FrameRequest | None:
         """Whether perception should look now, and at what (the loop applies the frame rate)."""
         if self.state is State.LOOK:  # the whole image, then around the first estimate
-            if not (self._entered and self.motion.finished):
+            if not (self._entered and self._motion_finished):
                 return None
             return FrameRequest(self._roi(now_s) if self.belief.initialised else None)
         if self.state is State.VERIFY:  # around where it was put down
@@ -314,11 +332,19 @@ class PickMachine:
             self._go(*nxt)
         if self.finished:
             return self._command_hold()
-        sample = self.move.step()
-        if sample is None:
-            self._fail(Stage.TRAJECTORY, str(self.move.failure))
-            return self._command_hold()
-        self.counters.retargets = self.motion.retargets
+        if self._joint:
+            try:
+                sample = self.joints.step()
+            except MotionError as exc:
+                self._fail(Stage.TRAJECTORY, str(exc))
+                return self._command_hold()
+        else:
+            sample = self.move.step()
+            if sample is None:
+                self._fail(Stage.TRAJECTORY, str(self.move.failure))
+                return self._command_hold()
+        self._sample = sample
+        self.counters.retargets = self.motion.retargets + self.joints.retargets
         return Command(sample.q, sample.dq, self.grip.target_m, self.grip.force_n)
 
     def abort(self, stage: Stage, reason: str) -> None:
@@ -340,7 +366,7 @@ class PickMachine:
         self.events.append(Event(State.FAILED, self._now_s, f"{stage.value}: {reason}"))
 
     def _command_hold(self) -> Command:
-        q = self.motion.q
+        q = self.joints.q if self._joint else self.motion.q
         return Command(q.copy(), np.zeros(7), self.grip.target_m, self.grip.force_n)
 
     def _end_attempt(self, outcome: str, reason: str) -> None:
@@ -478,6 +504,45 @@ class PickMachine:
             return None
         return self.belief.moving_velocity(self._now_s, self.p.moving_speed_m_s)
 
+    # ------------------------------------------------------------------- joint-space transfers
+    @property
+    def _motion_finished(self) -> bool:
+        return self.joints.finished if self._joint else self.move.finished
+
+    @property
+    def _q(self) -> np.ndarray:
+        """The arm's commanded configuration now."""
+        return self.joints.q if self._joint else self.motion.q
+
+    def _transfer_to(self, q_goal: np.ndarray, scale: float) -> None:
+        """A transfer in joint space to ``q_goal`` (from rest where the Cartesian motion is, or a new
+        goal for the transfer under way)."""
+        if self._joint:
+            self.joints.retarget(q_goal)
+        else:
+            self.joints.start(self.motion.q, q_goal, scale=scale)
+            self._joint = True
+
+    def _cartesian(self) -> None:
+        """The Cartesian motion takes over, at rest where a transfer left the arm."""
+        if self._joint:
+            self.motion.reset_at(self.joints.q)
+            self._joint = False
+
+    def _goal(self, pose: Pose, line_to: Pose, *, seeded: np.ndarray | None = None):
+        """The IK goal for a top-down TCP pose or the same pose turned half a turn (a parallel gripper
+        closes the same way): the best of several solutions (:mod:`pickdemo.ik_goals`). ``seeded``: a
+        re-plan keeps to the solution near the goal it had, if there is one."""
+        if seeded is not None:
+            res = self.kin.solve(pose, seeded, self.rng, self.p.goals.ik)
+            if res.success and self.kin.limit_margin(res.q) >= self.p.goals.min_margin_rad:
+                if line_trackable(self.kin, res.q, pose, line_to, self.p.goals):
+                    return res.q, 0
+        poses, ends = [pose, _half_turn(pose)], [line_to, _half_turn(line_to)]
+        found = goal_candidates(self.kin, poses, self._q, self.rng, self.p.goals, lines_to=ends)
+        goal = choose_goal(found, self.p.goals)
+        return (None, 0) if goal is None else (goal.q, goal.index)
+
     def _go_to(self, pose: Pose | np.ndarray, limits: CartesianLimits | None = None) -> None:
         """Send the hand to a pose of the plan (or an x4). For a moving target: to where they meet,
         arriving then with its velocity, and following it."""
@@ -567,7 +632,10 @@ class PickMachine:
         self.belief.restart()
         self._look_frames = 0
         self._fresh_estimate = False
-        self.move.to(self.home_x4, limits=self.p.free)
+        if self.p.joint_transfers:
+            self._transfer_to(rm.HOME_Q, self.p.transfer_scale)
+        else:
+            self.move.to(self.home_x4, limits=self.p.free)
 
     def _tick_look(self, obs: Observation) -> Transition:
         needed = 1 if self.open_loop else self.p.look_min_estimates
@@ -596,7 +664,18 @@ class PickMachine:
     # ---- APPROACH: to above the target, re-targeted as estimates arrive.
     def _enter_approach(self, obs: Observation) -> None:
         assert self.plan is not None
-        self._go_to(self.plan.pregrasp, limits=self.p.free)
+        if not self.p.joint_transfers or self._target_velocity() is not None:
+            # Cartesian (a moving target is met so, moving with it)
+            self._cartesian()
+            self._go_to(self.plan.pregrasp, limits=self.p.free)
+            return
+        q, turned = self._goal(self.plan.pregrasp, self.plan.grasp)
+        if q is None:
+            self._fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
+            return
+        if turned:
+            self.plan = _turned_plan(self.plan, pick=True, place=True)
+        self._transfer_to(q, self.p.transfer_scale)
 
     def _tick_approach(self, obs: Observation) -> Transition:
         if not self.open_loop and self.belief.lost(obs.time_s):
@@ -610,8 +689,17 @@ class PickMachine:
         plan = self._track_plan()
         if plan is not None:
             self.plan = plan
-            self._go_to(plan.pregrasp)
-        if (self.move.finished or self._with_target(self.plan.pregrasp)) and not self.finished:
+            if self._joint:  # the transfer goes on to the new plan's goal, on the same branch
+                q, turned = self._goal(plan.pregrasp, plan.grasp, seeded=self.joints.target)
+                if q is None:
+                    self._fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
+                    return None
+                if turned:
+                    self.plan = _turned_plan(plan, pick=True, place=True)
+                self.joints.retarget(q)
+            else:
+                self._go_to(plan.pregrasp)
+        if (self._motion_finished or self._with_target(self.plan.pregrasp)) and not self.finished:
             return State.DESCEND, "above the target" + (
                 ", moving with it" if self._target_velocity() is not None else ""
             )
@@ -623,6 +711,7 @@ class PickMachine:
         self._descent_plan = self.plan
         v = self._target_velocity()
         self._descent_ref = (self.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, self._planned_at_s)
+        self._cartesian()
         self._go_to(self.plan.grasp, limits=self._near_limits())
 
     def _tick_descend(self, obs: Observation) -> Transition:
@@ -640,7 +729,7 @@ class PickMachine:
                     "backing off to approach again"
                 )
             self._go_to(plan.grasp)
-        if (self.move.finished or self._with_target(self.plan.grasp)) and not self.finished:
+        if (self._motion_finished or self._with_target(self.plan.grasp)) and not self.finished:
             return State.CLOSE, "at the grasp pose"
         return None
 
@@ -678,29 +767,39 @@ class PickMachine:
     def _tick_lift(self, obs: Observation) -> Transition:
         if self._dropped(obs):
             return self._retry(Stage.LIFT, "dropped while lifting", f"fingers at {obs.opening_m * 1e3:.1f} mm")
-        if self.move.finished:
+        if self._motion_finished:
             return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
         return None
 
     def _enter_transport(self, obs: Observation) -> None:
         assert self.plan is not None
-        self.move.to(self.plan.place_above, limits=self.p.free.scaled(self.lift_scale))
+        if not self.p.joint_transfers:
+            self.move.to(self.plan.place_above, limits=self.p.free.scaled(self.lift_scale))
+            return
+        q, turned = self._goal(self.plan.place_above, self.plan.place)
+        if q is None:
+            self._fail(Stage.IK, "place pose out of reach: no IK solution for either hand angle")
+            return
+        if turned:  # put down with the hand turned half a turn: the same for the place, not the grasp
+            self.plan = _turned_plan(self.plan, pick=False, place=True)
+        self._transfer_to(q, self.p.carry_scale * self.lift_scale)
 
     def _tick_transport(self, obs: Observation) -> Transition:
         if self._dropped(obs):
             return self._retry(Stage.TRANSPORT, "dropped in transit", f"fingers at {obs.opening_m * 1e3:.1f} mm")
-        if self.move.finished:
+        if self._motion_finished:
             return State.LOWER, "above the place position"
         return None
 
     def _enter_lower(self, obs: Observation) -> None:
         assert self.plan is not None
+        self._cartesian()
         self.move.to(self.plan.place, limits=self.p.near)
 
     def _tick_lower(self, obs: Observation) -> Transition:
         if self._dropped(obs):
             return self._retry(Stage.TRANSPORT, "dropped in transit", f"fingers at {obs.opening_m * 1e3:.1f} mm")
-        if self.move.finished:
+        if self._motion_finished:
             return State.RELEASE, "lowered onto the table"
         return None
 
@@ -723,13 +822,16 @@ class PickMachine:
         self.move.to(self.plan.retreat, limits=self.p.near)
 
     def _tick_retreat(self, obs: Observation) -> Transition:
-        return (State.HOME, "clear of the object") if self.move.finished else None
+        return (State.HOME, "clear of the object") if self._motion_finished else None
 
     def _enter_home(self, obs: Observation) -> None:
-        self.move.to(self.home_x4, limits=self.p.free)
+        if self.p.joint_transfers:
+            self._transfer_to(rm.HOME_Q, self.p.transfer_scale)
+        else:
+            self.move.to(self.home_x4, limits=self.p.free)
 
     def _tick_home(self, obs: Observation) -> Transition:
-        return (State.VERIFY, "arm home") if self.move.finished else None
+        return (State.VERIFY, "arm home") if self._motion_finished else None
 
     def _enter_verify(self, obs: Observation) -> None:
         self._verify_asked = False
@@ -754,6 +856,9 @@ class PickMachine:
     def _enter_back_off(self, obs: Observation) -> None:
         if self._after_back_off is State.LOOK:
             self.grip.open()
+        if self._joint:  # in free space, mid-transfer: on to home from where it is
+            self.joints.retarget(rm.HOME_Q)
+            return
         grasp_z = self.plan.grasp.position[2] if self.plan is not None else self.p.back_off_grasp_z_m
         safe_z = self.p.grasp.pregrasp_height_m + grasp_z
         x4 = self.motion.setpoint.copy()
@@ -770,7 +875,7 @@ class PickMachine:
             plan = self._track_plan()  # keep following the target while rising
             if plan is not None:
                 self.plan = plan
-        if self.move.finished:
+        if self._motion_finished:
             nxt = self._after_back_off
             return nxt, "clear above the table: " + ("look again" if nxt is State.LOOK else "approach again")
         return None
@@ -800,3 +905,21 @@ STATES: dict[State, StateHandlers] = {
     State.BACK_OFF: StateHandlers(PickMachine._enter_back_off, PickMachine._tick_back_off),
     State.DONE: StateHandlers(PickMachine._enter_done, PickMachine._tick_done),
 }
+
+
+def _half_turn(pose: Pose) -> Pose:
+    """A top-down TCP pose turned half a turn about the vertical: a parallel gripper's equivalent."""
+    return top_down(pose.position, float(pose.rpy[2]) + np.pi)
+
+
+def _turned_plan(plan: GraspPlan, *, pick: bool, place: bool) -> GraspPlan:
+    """The plan with the hand turned half a turn for the pick's poses, the place's, or both."""
+    turn = {}
+    if pick:
+        turn.update(pregrasp=_half_turn(plan.pregrasp), grasp=_half_turn(plan.grasp), lift=_half_turn(plan.lift))
+    if place:
+        turn.update(
+            place_above=_half_turn(plan.place_above), place=_half_turn(plan.place), retreat=_half_turn(plan.retreat)
+        )
+    hand = plan.hand_yaw_rad + np.pi if pick else plan.hand_yaw_rad
+    return dataclasses.replace(plan, hand_yaw_rad=float(hand), **turn)

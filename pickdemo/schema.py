@@ -270,6 +270,9 @@ class MotionSpec(_Model):
     velocity_scale: Annotated[float, Field(ge=0.05, le=1.0)] = 1.0
     acceleration_scale: Annotated[float, Field(ge=0.05, le=1.0)] = 1.0
     jerk_scale: Annotated[float, Field(ge=0.05, le=1.0)] = 1.0
+    #: "joint": transfers (home to above the target, to above the place, back home) in joint space to IK
+    #: goals chosen well, straight lines only near the object; "cartesian": every move a straight line
+    transfers: Literal["cartesian", "joint"] = "cartesian"
 
 
 class LayoutSpec(_Model):

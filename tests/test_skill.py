@@ -233,3 +233,31 @@ def test_the_skill_and_its_parts_import_no_simulator() -> None:
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_a_pick_with_joint_space_transfers_keeps_the_franka_within_its_limits() -> None:
+    import dataclasses as dc
+
+    from pickdemo.pick import MachineParams
+    from pickdemo.result import peak_limit_ratios
+
+    cell = Cell(xy=(0.36, -0.25), yaw_deg=75.0)
+    m = cell.machine(params=dc.replace(MachineParams(), joint_transfers=True))
+    commands: list[tuple[float, np.ndarray]] = []
+    in_joint_space: set[str] = set()
+    apply = cell.apply
+
+    def record(cmd: Command, t: float) -> None:
+        commands.append((t, cmd.arm_q.copy()))
+        if m._joint:
+            in_joint_space.add(m.state.value)
+        apply(cmd, t)
+
+    cell.apply = record  # type: ignore[method-assign]
+    assert run(cell, m) == FULL_PICK
+    assert np.linalg.norm(cell.obj[:2] - np.array(PLACE)) < 0.005
+    assert {"approach", "transport", "home"} <= in_joint_space  # the transfers
+    assert not in_joint_space & {"descend", "close", "lift", "lower", "release"}  # straight lines near it
+    t, q = map(np.array, zip(*commands, strict=True))
+    ratio = peak_limit_ratios(t, q.reshape(-1, 7))
+    assert max(ratio.values()) <= 1.0, ratio

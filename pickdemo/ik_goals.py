@@ -1,0 +1,103 @@
+"""IK goals chosen, not taken: for a TCP pose (and its equivalents: a parallel gripper turned by
+half a turn), several IK solutions, and of them the one a transfer should go to.
+
+Pure: no simulator. A solution is kept if its nearest joint stays :attr:`GoalParams.min_margin_rad`
+from its limit and the arm is not near a singularity there (manipulability above a floor); of those
+(first those from which the straight line that follows, a descent or a lowering, can be tracked),
+the one reached soonest from where the arm is (the largest joint travel over that joint's speed
+limit: the time a synchronised transfer needs at its cruise). Without any kept, the one with the
+most joint margin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo import robot_model as rm
+from pickdemo.geometry import Pose
+from pickdemo.kinematics import IKParams, PandaKinematics
+
+
+@dataclass(frozen=True)
+class GoalParams:
+    min_margin_rad: float = 0.15  # a goal this far from every joint limit, at least
+    min_manipulability: float = 0.02  # ... and this far from a singularity (sqrt(det(J J^T)))
+    starts: int = 4  # IK starts a pose: the arm's configuration, home, and random ones
+    ik: IKParams = IKParams(restarts=0)
+    line_steps: int = 24  # a straight line that follows the goal is checked at this many points
+    line_speed_m_s: float = 0.1  # ... as the hand moves along it (the near-object limits)
+    line_velocity_share: float = 0.8  # ... the joints it needs within this share of their speed limits
+
+
+@dataclass(frozen=True)
+class Goal:
+    q: np.ndarray  # (7,) rad
+    pose: Pose  # the TCP pose it reaches (one of the equivalents asked for)
+    index: int  # which of the equivalent poses
+    margin_rad: float
+    manipulability: float
+    travel_s: float  # max |dq| / v_max over the joints: the transfer's length in time, roughly
+    line_ok: bool = True  # the straight line that follows (a descent, a lowering) can be tracked from here
+
+
+def line_trackable(
+    kin: PandaKinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()
+) -> bool:
+    """Whether the per-tick IK can follow the straight line from ``start`` (where the arm is at ``q``)
+    to ``end`` (same orientation): converging at every point, away from singularities, with joint
+    speeds within a share of their limits at the line's speed."""
+    n = params.line_steps
+    dt = float(np.linalg.norm(end.position - start.position)) / params.line_speed_m_s / n
+    q_prev = np.asarray(q, dtype=float)
+    for k in range(1, n + 1):
+        p = start.position + (end.position - start.position) * (k / n)
+        res = kin.track(Pose(p, end.rotation), q_prev, max_iterations=8)
+        if not res.success or kin.manipulability(res.q) < params.min_manipulability:
+            return False
+        if dt > 0 and np.any(np.abs(res.q - q_prev) / dt > params.line_velocity_share * rm.MAX_VELOCITY_RAD_S):
+            return False
+        q_prev = res.q
+    return kin.limit_margin(q_prev) > 0.0
+
+
+def goal_candidates(
+    kin: PandaKinematics,
+    poses: Sequence[Pose],
+    q_from: np.ndarray,
+    rng: np.random.Generator,
+    params: GoalParams = GoalParams(),
+    *,
+    lines_to: Sequence[Pose] | None = None,
+) -> list[Goal]:
+    """Every distinct IK solution found for each of ``poses`` (equivalent TCP poses), from the arm's
+    configuration, home, and random starts. ``lines_to``: for each pose, where the straight line that
+    follows it ends (a descent's grasp, a lowering's place): a goal from which it cannot be tracked is
+    marked so."""
+    out: list[Goal] = []
+    for i, pose in enumerate(poses):
+        seeds = [np.asarray(q_from, dtype=float), rm.HOME_Q]
+        seeds += [rng.uniform(kin.lower, kin.upper) for _ in range(max(params.starts - 2, 0))]
+        found: list[np.ndarray] = []
+        for seed in seeds:
+            res = kin.solve(pose, seed, rng, params.ik)
+            if not res.success or any(np.max(np.abs(res.q - q)) < 1e-2 for q in found):
+                continue
+            found.append(res.q)
+            travel = float(np.max(np.abs(res.q - q_from) / rm.MAX_VELOCITY_RAD_S))
+            line_ok = lines_to is None or line_trackable(kin, res.q, pose, lines_to[i], params)
+            out.append(Goal(res.q, pose, i, kin.limit_margin(res.q), kin.manipulability(res.q), travel, line_ok))
+    return out
+
+
+def choose_goal(goals: Sequence[Goal], params: GoalParams = GoalParams()) -> Goal | None:
+    """The goal a transfer should go to (None: no solution at all)."""
+    if not goals:
+        return None
+    goals = [g for g in goals if g.line_ok] or list(goals)  # the line that follows first
+    kept = [g for g in goals if g.margin_rad >= params.min_margin_rad and g.manipulability >= params.min_manipulability]
+    if kept:
+        return min(kept, key=lambda g: (g.travel_s, -g.margin_rad))
+    return max(goals, key=lambda g: g.margin_rad)

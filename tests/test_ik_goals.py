@@ -1,0 +1,60 @@
+"""IK goals chosen, not taken: several solutions for a pose and its half-turn equivalent, the one a
+transfer should go to, and a joint-space transfer within the Franka's limits."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pickdemo import robot_model as rm
+from pickdemo.grasp import top_down
+from pickdemo.ik_goals import Goal, GoalParams, choose_goal, goal_candidates, line_trackable
+from pickdemo.kinematics import panda_kinematics
+from pickdemo.motion import JointMotion
+from pickdemo.pick import _half_turn
+from pickdemo.result import peak_limit_ratios
+
+
+def test_a_pose_whose_hand_angle_is_out_of_reach_is_reached_turned_half_a_turn() -> None:
+    kin = panda_kinematics()
+    rng = np.random.default_rng(0)
+    pose = top_down(np.array([0.40, -0.30, 0.15]), np.radians(-150.0))  # joint 7 would pass its stop
+    goals = goal_candidates(kin, [pose, _half_turn(pose)], rm.HOME_Q, rng)
+    best = choose_goal(goals)
+    assert best is not None and kin.within_limits(best.q)
+    assert np.allclose(kin.forward(best.q).position, best.pose.position, atol=1e-3)
+    assert best.margin_rad >= GoalParams().min_margin_rad
+
+
+def test_choose_goal_prefers_the_nearest_of_the_safe_ones() -> None:
+    q = rm.HOME_Q
+    pose = top_down(np.zeros(3), 0.0)
+    near = Goal(q, pose, 0, margin_rad=0.3, manipulability=0.1, travel_s=0.5)
+    far = Goal(q, pose, 1, margin_rad=0.6, manipulability=0.1, travel_s=1.5)
+    at_the_stop = Goal(q, pose, 0, margin_rad=0.01, manipulability=0.1, travel_s=0.1)
+    no_line = Goal(q, pose, 0, margin_rad=0.5, manipulability=0.1, travel_s=0.2, line_ok=False)
+    assert choose_goal([far, near, at_the_stop, no_line]) is near
+    assert choose_goal([at_the_stop]) is at_the_stop  # nothing safer: the most margin there is
+    assert choose_goal([]) is None
+
+
+def test_a_descent_straight_down_is_trackable_from_a_good_goal() -> None:
+    kin = panda_kinematics()
+    start = top_down(np.array([0.5, 0.0, 0.15]), 0.0)
+    res = kin.solve(start, rm.HOME_Q, np.random.default_rng(1))
+    assert line_trackable(kin, res.q, start, top_down(np.array([0.5, 0.0, 0.05]), 0.0))
+
+
+def test_a_joint_space_transfer_ends_at_its_goal_within_the_datasheet() -> None:
+    kin = panda_kinematics()
+    goal = kin.solve(top_down(np.array([0.35, 0.35, 0.2]), 1.0), rm.HOME_Q, np.random.default_rng(2)).q
+    motion = JointMotion(kin, rm.HOME_Q, 1.0 / 120.0)
+    motion.start(rm.HOME_Q, goal, scale=1.0)
+    qs = [rm.HOME_Q]
+    for _ in range(2000):
+        qs.append(motion.step().q)
+        if motion.finished:
+            break
+    assert motion.finished and np.allclose(qs[-1], goal, atol=1e-6)
+    t = np.arange(len(qs)) / 120.0
+    ratio = peak_limit_ratios(t, np.array(qs))
+    assert max(ratio.values()) <= 1.0, ratio
