@@ -133,6 +133,10 @@ class MachineParams:
     #: transfers (home to above the target, above the target to above the place, back home) in joint
     #: space to IK goals chosen well; else straight Cartesian lines (as before; the default for now)
     joint_transfers: bool = False
+    #: the carry to above the place in joint space too (with joint_transfers); off: a straight top-down
+    #: line. Measured: carried in joint space, the fingers of a PyBullet Panda that had turned and tilted
+    #: the held box sometimes did not open at the release (2 of 40 pick_anywhere seeds)
+    carry_in_joint_space: bool = False
     goals: GoalParams = GoalParams()  # how a transfer's IK goal is chosen
     transfer_scale: float = 0.5  # transfers in joint space, the hand empty: this share of the datasheet's limits
     carry_scale: float = 0.25  # ... carrying the target (a retry after a drop slows it further)
@@ -773,7 +777,7 @@ class PickMachine:
 
     def _enter_transport(self, obs: Observation) -> None:
         assert self.plan is not None
-        if not self.p.joint_transfers:
+        if not (self.p.joint_transfers and self.p.carry_in_joint_space):
             self.move.to(self.plan.place_above, limits=self.p.free.scaled(self.lift_scale))
             return
         q, turned = self._goal(self.plan.place_above, self.plan.place)
