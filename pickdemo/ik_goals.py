@@ -89,6 +89,13 @@ def goal_candidates(
             travel = float(np.max(np.abs(res.q - q_from) / rm.MAX_VELOCITY_RAD_S))
             line_ok = lines_to is None or line_trackable(kin, res.q, pose, lines_to[i], params)
             out.append(Goal(res.q, pose, i, kin.limit_margin(res.q), kin.manipulability(res.q), travel, line_ok))
+    if not out:  # none from those starts: the solver's own random restarts, before saying there is none
+        for i, pose in enumerate(poses):
+            res = kin.solve(pose, q_from, rng, IKParams())
+            if res.success:
+                travel = float(np.max(np.abs(res.q - q_from) / rm.MAX_VELOCITY_RAD_S))
+                line_ok = lines_to is None or line_trackable(kin, res.q, pose, lines_to[i], params)
+                out.append(Goal(res.q, pose, i, kin.limit_margin(res.q), kin.manipulability(res.q), travel, line_ok))
     return out
 
 
