@@ -211,7 +211,9 @@ class RayExecutor:
         try:
             import ray
         except ImportError:
-            raise BenchError("--executor ray needs Ray: pip install 'pickdemo[ray]'") from None
+            raise BenchError(
+                "--executor ray needs Ray: pip install -c .ci/constraints.txt '.[ray]' in the checkout"
+            ) from None
         self.ray = ray
         if not ray.is_initialized():
             kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
@@ -461,9 +463,17 @@ def prepare_out_dir(out_dir: Path, jobs: list[Job], *, resume: bool) -> list[Epi
             r = outside[0]
             held = summarise(done)
             what = "; ".join(f"{name} seeds {_seed_ranges(s['seeds'])}" for name, s in held.items())
+            asked: dict[str, list[int]] = {}
+            for j in jobs:
+                name = summary_name(
+                    {"scenario": j.scenario_name, "open_loop": j.open_loop, "perception_method": j.perception}
+                )
+                asked.setdefault(name, []).append(j.seed)
+            this = "; ".join(f"{name} seeds {_seed_ranges(sorted(seeds))}" for name, seeds in asked.items())
             raise BenchError(
                 f"{jsonl}: holds {len(outside)} episode(s) this run does not ask for (e.g. {summary_name(r)} seed "
-                f"{r['seed']}); it holds {_short(what, 160)}: ask for all of them, or use another --out"
+                f"{r['seed']}); it holds {_short(what, 160)}, this run asks for {_short(this, 160)}: ask for all of "
+                "them, or use another --out"
             )
     elif jsonl.exists() and jsonl.stat().st_size > 0:
         raise BenchError(f"{jsonl} exists: pass --resume to continue that run, or remove it")

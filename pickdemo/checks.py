@@ -85,7 +85,8 @@ def _check_objects(sc: Scenario) -> None:
             fixed.append((obj.name, mine))
     for px, py in place_points(sc.place):
         if not table.holds(px, py):
-            raise ScenarioError(f"{sc.place.key}: ({px:.3f}, {py:.3f}) m is off the table")
+            where = "" if sc.place.position is not None else "the region reaches off the table: "
+            raise ScenarioError(f"{sc.place.key}: {where}({px:.3f}, {py:.3f}) m is off the table")
 
 
 def place_points(place: PlaceSpec, n: int = 5) -> list[tuple[float, float]]:

@@ -83,14 +83,16 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
     run.add_argument("--perception", default="paper", metavar="METHOD", help=PERCEPTION_HELP)
     run.add_argument(
-        "--video", action="store_true", help="with --out: write DIR/episode.mp4 (needs pip install 'pickdemo[video]')"
+        "--video",
+        action="store_true",
+        help="with --out: write DIR/episode.mp4 (needs pip install -c .ci/constraints.txt '.[video]' in the checkout)",
     )
     run.add_argument(
         "--rerun",
         type=Path,
         metavar="FILE.rrd",
-        help="write a rerun recording of the episode (open it with `rerun FILE.rrd`; needs pip install "
-        "'pickdemo[rerun]')",
+        help="write a rerun recording of the episode (open it with `rerun FILE.rrd`; needs the rerun extra: "
+        "pip install -c .ci/constraints.txt '.[rerun]')",
     )
     bench = sub.add_parser(
         "bench",
@@ -294,12 +296,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         try:
             import av  # noqa: F401
         except ImportError:
-            raise UsageError("--video needs PyAV: pip install 'pickdemo[video]'") from None
+            raise UsageError(
+                "--video needs PyAV: pip install -c .ci/constraints.txt '.[video]' in the checkout"
+            ) from None
     if args.rerun is not None:
         try:
             import rerun  # noqa: F401
         except ImportError:
-            raise UsageError("--rerun needs rerun-sdk: pip install 'pickdemo[rerun]'") from None
+            raise UsageError(
+                "--rerun needs rerun-sdk: pip install -c .ci/constraints.txt '.[rerun]' in the checkout"
+            ) from None
         _writable_dir(args.rerun.parent, "--rerun")
 
     t0 = time.perf_counter()
@@ -479,7 +485,7 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
         written.append(report.write_page(args.out, f"pickdemo perceive: {scenario.name}, seeds {args.seeds}", sections))
         print("wrote " + ", ".join(str(p) for p in written))
         if len(written) == 1:
-            print("(no plot: install the plots extra, pip install 'pickdemo[plots]')")
+            print("(no plot: matplotlib is missing; it is a dependency of pickdemo: pip install matplotlib)")
     return EXIT_OK
 
 

@@ -14,7 +14,8 @@ An observer (:class:`~pickdemo.observers.Observer`) that logs to its own ``rerun
 - ``world/tcp``: the TCP's true position each tick, and its path at the end; ``tcp/setpoint/*``,
   ``tcp/true/*`` and ``joints/command/q1..q7``: time series; ``phases``: the pick's states as text.
 
-rerun-sdk is an optional extra (``pip install "pickdemo[rerun]"``), imported only when recording.
+rerun-sdk is an optional extra (the ``rerun`` extra: ``pip install -c .ci/constraints.txt ".[rerun]"`` in
+the checkout), imported only when recording.
 Recording never changes the episode: no random draw, no render, nothing the controller reads.
 """
 
@@ -65,9 +66,11 @@ class RecordingUnavailable(RuntimeError):
 
 def import_rerun() -> Any:
     try:
-        import rerun  # optional: pip install "pickdemo[rerun]"
+        import rerun  # optional: pip install -c .ci/constraints.txt ".[rerun]" (in the checkout)
     except ImportError as exc:
-        raise RecordingUnavailable('a rerun recording needs rerun-sdk: pip install "pickdemo[rerun]"') from exc
+        raise RecordingUnavailable(
+            'a rerun recording needs rerun-sdk: pip install -c .ci/constraints.txt ".[rerun]" (in the checkout)'
+        ) from exc
     return rerun
 
 

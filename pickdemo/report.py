@@ -37,7 +37,7 @@ def _pyplot():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError as exc:
-        raise PlotsUnavailable('plots need matplotlib: pip install "pickdemo[plots]"') from exc
+        raise PlotsUnavailable("plots need matplotlib, a dependency of pickdemo: pip install matplotlib") from exc
     return plt
 
 

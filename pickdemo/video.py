@@ -1,7 +1,7 @@
 """Episode video: perception drawn on the camera's view, beside a third-person view, as H.264 MP4.
 
 Pure: images (arrays) in, an MP4 file out. Drawing is OpenCV's; encoding is PyAV's (FFmpeg with
-libx264 inside its wheel, nothing downloaded), an optional extra: ``pip install "pickdemo[video]"``.
+libx264 inside its wheel, nothing downloaded), an optional extra: the ``video`` extra.
 What is drawn on the camera's view:
 
 - the Shi-Tomasi feature points of the current estimate (from the newest frame, while perception
@@ -215,9 +215,11 @@ class VideoWriter:
 
     def __init__(self, path: str | Path, fps: int) -> None:
         try:
-            import av  # optional: pip install "pickdemo[video]"
+            import av  # optional: pip install -c .ci/constraints.txt ".[video]" (in the checkout)
         except ImportError as exc:
-            raise VideoUnavailable('video needs PyAV: pip install "pickdemo[video]"') from exc
+            raise VideoUnavailable(
+                'video needs PyAV: pip install -c .ci/constraints.txt ".[video]" (in the checkout)'
+            ) from exc
         self._av = av
         self.path = Path(path)
         self.fps = fps

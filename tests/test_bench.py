@@ -392,3 +392,12 @@ def test_a_failed_job_is_an_episode_result() -> None:
     assert made["failure"] == {"stage": "timeout", "reason": "hung"} and made["wall_time_s"] == 300.0
     assert made["open_loop"] is True and made["perception_method"] == "icp" and made["diagnosis"] == "not_committed"
     assert made["sim_time_s"] == 0.0 and made["phases"] == [] and made["perception"] is None
+
+
+def test_resuming_in_another_mode_says_which_mode_it_asks_for(tmp_path: Path) -> None:
+    out = tmp_path / "gate"
+    out.mkdir()
+    (out / "episodes.jsonl").write_text(json.dumps(_result("pick_cube", 0, True)) + "\n")
+    proc = _cli("bench", "pick_cube", "--seeds", "0", "--open-loop", "--out", str(out), "--resume", "--no-progress")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "this run asks for pick_cube [open loop] seeds 0" in proc.stderr

@@ -82,5 +82,5 @@ def test_rerun_without_rerun_sdk_is_a_usage_error(
     code = main(["run", "pick_cube", "--rerun", str(tmp_path / "x.rrd")])
     assert code == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "pickdemo[rerun]" in err and "--rerun" in err
+    assert len(err.splitlines()) == 1 and ".[rerun]" in err and "--rerun" in err
     assert not (tmp_path / "x.rrd").exists()

@@ -173,7 +173,10 @@ def test_a_place_region_is_drawn_per_seed_clear_of_the_objects() -> None:
 @pytest.mark.parametrize(
     ("place", "message"),
     [
-        ("position_range = [[0.35, 0.6], [0.2, 0.9]]", "place.position_range: (0.350, 0.725) m is off the table"),
+        (
+            "position_range = [[0.35, 0.6], [0.2, 0.9]]",
+            "place.position_range: the region reaches off the table: (0.350, 0.725) m is off the table",
+        ),
         ("position = [0.45, 0.3]\nposition_range = [[0.3, 0.4], [0.2, 0.3]]", "give exactly one of position"),
         ("position_range = [[0.6, 0.3], [0.2, 0.3]]", "position_range bounds must be [min, max]"),
     ],
