@@ -197,6 +197,28 @@ class LocalExecutor:
                 pool.stop()
 
 
+#: How long to wait for a Ray cluster's address to answer before saying it does not.
+RAY_CONNECT_TIMEOUT_S = 5.0
+
+
+def _reachable(address: str) -> None:
+    """A ``host:port`` (or ``ray://host:port``) Ray address must answer, before Ray waits for it at
+    length; ``auto`` and other forms are left to Ray."""
+    rest = address.removeprefix("ray://")
+    host, sep, port = rest.rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        return
+    import socket
+
+    try:
+        socket.create_connection((host, int(port)), timeout=RAY_CONNECT_TIMEOUT_S).close()
+    except OSError as exc:
+        raise BenchError(
+            f"--address {address}: no Ray cluster answers there ({exc.strerror or exc}); start one with "
+            "`ray start --head`, or leave --address out for a local Ray instance"
+        ) from None
+
+
 class RayExecutor:
     """Ray tasks on an existing cluster (``address``) or a local Ray instance.
 
@@ -218,10 +240,15 @@ class RayExecutor:
         if not ray.is_initialized():
             kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
             if address is not None:
+                _reachable(address)
                 kwargs["address"] = address
             elif num_cpus is not None:
                 kwargs["num_cpus"] = num_cpus
-            ray.init(**kwargs)
+            try:
+                ray.init(**kwargs)
+            except (ConnectionError, RuntimeError, ValueError) as exc:
+                where = f" at {address}" if address else ""
+                raise BenchError(f"--executor ray: Ray did not start{where}: {str(exc).splitlines()[0]}") from None
         self.guard_s = guard_s
         self.remote_fn = ray.remote(num_cpus=1, max_retries=0)(fn)
 

@@ -391,7 +391,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             raise UsageError(f"--junit {args.junit}: cannot replace it ({exc.strerror or exc})") from None
 
     if args.executor == "ray":
-        executor = bench.RayExecutor(args.address, args.episode_timeout, num_cpus=args.workers)
+        try:
+            executor = bench.RayExecutor(args.address, args.episode_timeout, num_cpus=args.workers)
+        except bench.BenchError as exc:
+            raise UsageError(str(exc)) from None
     else:
         executor = bench.LocalExecutor(min(args.workers, len(jobs)), args.episode_timeout)
 

@@ -401,3 +401,11 @@ def test_resuming_in_another_mode_says_which_mode_it_asks_for(tmp_path: Path) ->
     proc = _cli("bench", "pick_cube", "--seeds", "0", "--open-loop", "--out", str(out), "--resume", "--no-progress")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert "this run asks for pick_cube [open loop] seeds 0" in proc.stderr
+
+
+def test_a_ray_address_nobody_answers_is_a_one_line_error_not_a_hang() -> None:
+    pytest.importorskip("ray")
+    # (a hang would end in _cli's own subprocess timeout)
+    proc = _cli("bench", "pick_cube", "--seeds", "0", "--executor", "ray", "--address", "127.0.0.1:1", "--no-progress")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "no Ray cluster answers" in proc.stderr and "Traceback" not in proc.stderr
