@@ -629,7 +629,10 @@ def _message(err: dict, data: object, listed: set[tuple[int | str, ...]] | None 
     if err["type"] in ("float_type", "int_type", "bool_type", "string_type", "tuple_type"):
         got = err.get("input")
         shown = printable(repr(got), 40)
-        msg = f'{msg}, got {type(got).__name__} {shown} (values are not converted: write 0.1, not "0.1")'
+        hint = ' (values are not converted: write 0.1, not "0.1")' if isinstance(got, str) else ""
+        if err["type"] == "int_type" and isinstance(got, float):
+            hint = " (a whole number: write 640, not 640.5)"
+        msg = f"{msg}, got {type(got).__name__} {shown}{hint}"
     return f"{where}: {msg}"
 
 

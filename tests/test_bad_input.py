@@ -64,7 +64,11 @@ FILE_CASES: list[tuple[str, str, str]] = [
     ("boolean mass", _edit("mass = 0.1", "mass = true"), "mass: Input should be a valid number, got bool True"),
     ("integer target", _edit("target = true", "target = 1"), "target: Input should be a valid boolean, got int 1"),
     ("string width", _edit("width = 640", 'width = "640"'), "camera.width: Input should be a valid integer, got str"),
-    ("float width", _edit("width = 640", "width = 640.5"), "camera.width: Input should be a valid integer"),
+    (
+        "float width",
+        _edit("width = 640", "width = 640.5"),
+        "camera.width: Input should be a valid integer, got float 640.5 (a whole number: write 640, not 640.5)",
+    ),
     (
         "tiny time step",
         _edit("time_step_s = 0.004166666666666667", "time_step_s = 1e-7"),
