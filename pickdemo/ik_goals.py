@@ -76,6 +76,12 @@ def goal_candidates(
     configuration, home, and random starts. ``lines_to``: for each pose, where the straight line that
     follows it ends (a descent's grasp, a lowering's place): a goal from which it cannot be tracked is
     marked so."""
+
+    def goal(q: np.ndarray, i: int) -> Goal:
+        travel = float(np.max(np.abs(q - q_from) / rm.MAX_VELOCITY_RAD_S))
+        line_ok = lines_to is None or line_trackable(kin, q, poses[i], lines_to[i], params)
+        return Goal(q, poses[i], i, kin.limit_margin(q), kin.manipulability(q), travel, line_ok)
+
     out: list[Goal] = []
     for i, pose in enumerate(poses):
         seeds = [np.asarray(q_from, dtype=float), rm.HOME_Q]
@@ -83,19 +89,14 @@ def goal_candidates(
         found: list[np.ndarray] = []
         for seed in seeds:
             res = kin.solve(pose, seed, rng, params.ik)
-            if not res.success or any(np.max(np.abs(res.q - q)) < 1e-2 for q in found):
-                continue
-            found.append(res.q)
-            travel = float(np.max(np.abs(res.q - q_from) / rm.MAX_VELOCITY_RAD_S))
-            line_ok = lines_to is None or line_trackable(kin, res.q, pose, lines_to[i], params)
-            out.append(Goal(res.q, pose, i, kin.limit_margin(res.q), kin.manipulability(res.q), travel, line_ok))
+            if res.success and not any(np.max(np.abs(res.q - q)) < 1e-2 for q in found):
+                found.append(res.q)
+                out.append(goal(res.q, i))
     if not out:  # none from those starts: the solver's own random restarts, before saying there is none
         for i, pose in enumerate(poses):
             res = kin.solve(pose, q_from, rng, IKParams())
             if res.success:
-                travel = float(np.max(np.abs(res.q - q_from) / rm.MAX_VELOCITY_RAD_S))
-                line_ok = lines_to is None or line_trackable(kin, res.q, pose, lines_to[i], params)
-                out.append(Goal(res.q, pose, i, kin.limit_margin(res.q), kin.manipulability(res.q), travel, line_ok))
+                out.append(goal(res.q, i))
     return out
 
 

@@ -130,6 +130,20 @@ def pose_to_x4(pose: Pose) -> np.ndarray:
     return np.array([*pose.position, float(np.arctan2(r[0, 1], r[0, 0]))])
 
 
+def _advance(otg: Ruckig, inp: InputParameter, out: OutputParameter, what: str) -> tuple[bool, bool]:
+    """One tick of an online Ruckig trajectory, its output passed back to its input: (finished, whether
+    Ruckig recomputed). A rejected input is a :class:`MotionError` naming ``what`` it was asked for."""
+    try:
+        result = otg.update(inp, out)
+    except RuckigError as exc:  # raised (not returned) for some invalid inputs
+        raise MotionError(f"Ruckig rejected {what}: {exc or 'invalid input'}") from None
+    if result not in (Result.Working, Result.Finished):
+        raise MotionError(f"Ruckig returned {result.name} for {what}")
+    new_calc = bool(out.new_calculation)
+    out.pass_to_input(inp)
+    return result == Result.Finished, new_calc
+
+
 class OnlineMotion:
     """The arm's motion, re-targetable every tick. Call :meth:`step` once per control tick."""
 
@@ -295,18 +309,10 @@ class OnlineMotion:
                 self._inp.target_position = (np.array(self._inp.target_position) + vel * self.dt_s).tolist()
             q, dq = self._joints(out_pos)
             return MotionSample(q, dq, out_pos, vel, zero, zero, True, False)
-        try:
-            result = self._otg.update(self._inp, self._out)
-        except RuckigError as exc:  # raised (not returned) for some invalid inputs
-            raise MotionError(
-                f"Ruckig rejected target {np.round(self.target, 4).tolist()}: {exc or 'invalid input'}"
-            ) from None
-        if result not in (Result.Working, Result.Finished):
-            raise MotionError(f"Ruckig returned {result.name} for target {np.round(self.target, 4).tolist()}")
+        self._finished, new_calc = _advance(
+            self._otg, self._inp, self._out, f"target {np.round(self.target, 4).tolist()}"
+        )
         out = self._out
-        new_calc = bool(out.new_calculation)
-        out.pass_to_input(self._inp)
-        self._finished = result == Result.Finished
         pos = np.array(out.new_position)
         q, dq = self._joints(pos)
         return MotionSample(
@@ -399,16 +405,10 @@ class JointMotion:
             zero = np.zeros(4)
             return MotionSample(self.q.copy(), np.zeros(7), pose_to_x4(self.kin.forward(self.q)), zero, zero, zero,
                                 True, False)  # fmt: skip
-        try:
-            result = self._otg.update(self._inp, self._out)
-        except RuckigError as exc:
-            raise MotionError(f"Ruckig rejected joint goal {np.round(self.target, 3).tolist()}: {exc}") from None
-        if result not in (Result.Working, Result.Finished):
-            raise MotionError(f"Ruckig returned {result.name} for joint goal {np.round(self.target, 3).tolist()}")
+        self._finished, new_calc = _advance(
+            self._otg, self._inp, self._out, f"joint goal {np.round(self.target, 3).tolist()}"
+        )
         out = self._out
-        new_calc = bool(out.new_calculation)
-        out.pass_to_input(self._inp)
-        self._finished = result == Result.Finished
         self.q = np.array(out.new_position)
         zero = np.zeros(4)
         x4 = pose_to_x4(self.kin.forward(self.q))
