@@ -363,6 +363,7 @@ class Episode:
             dt_s=self.dt_ctl,
             rng=world.rngs["ik"],
             max_attempts=sc.control.max_attempts,
+            place_tolerance_m=sc.success.place_tolerance,
             open_loop=self.options.open_loop,
             params=params,
             surface_z=sc.surface_z,

@@ -33,7 +33,7 @@ class GraspParams:
 
     pregrasp_height_m: float = 0.10  # above the grasp, for a straight vertical approach
     transport_height_m: float = 0.12  # lift above the grasp height before moving sideways
-    max_grasp_depth_m: float = 0.025  # how far below the top face the pads' centre goes
+    palm_clearance_m: float = 0.005  # the palm stays this far above the top face
     min_tcp_height_m: float = 0.012  # keeps the finger tips off the table
     place_clearance_m: float = 0.004  # release this far above the table
     retreat_height_m: float = 0.10
@@ -102,7 +102,9 @@ def plan_grasp(
         )
     center = pose.position
     top_z = center[2] + model.height_m / 2.0
-    depth = min(params.max_grasp_depth_m, model.height_m / 2.0)
+    # The pads close through the centre of mass (a held payload has no lever to turn on about the
+    # finger axis), or as deep as the palm allows on a taller object.
+    depth = min(model.height_m / 2.0, rm.PALM_ABOVE_TCP_M - params.palm_clearance_m)
     grasp_z = max(top_z - depth, params.min_tcp_height_m)
     bottom_z = center[2] - model.height_m / 2.0
     grasp_above_bottom = grasp_z - bottom_z

@@ -1,14 +1,14 @@
 """What crosses between the robot and its controller once per control tick, as frozen dataclasses.
 
 :class:`Observation` is what the robot's own sensors report (encoders, finger openings, finger
-contacts); :class:`Command` is what the controller sends back (arm joint targets with velocity
+contacts, the wrist's force); :class:`Command` is what the controller sends back (arm joint targets with velocity
 feed-forward, and the gripper's target opening and force). Camera frames travel separately, at
 their own rate (:class:`pickdemo.camera.RGBDFrame`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -22,6 +22,9 @@ class Observation:
     arm_dq: np.ndarray  # (7,) rad/s
     fingers_m: np.ndarray  # (2,) m, each finger's opening from the centre
     finger_contacts: tuple[int, int]  # contact points on each finger with anything but the robot
+    #: (3,) N: the force the hand (and what it holds) puts on the wrist flange, in the hand's frame,
+    #: as a wrist force sensor reads it (the Franka estimates it from its joint torques)
+    wrist_force_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def opening_m(self) -> float:

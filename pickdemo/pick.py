@@ -15,6 +15,7 @@ States, in the order of a pick::
     DESCEND --(the target moved)--> BACK_OFF -> APPROACH
     CLOSE --(nothing held)--> BACK_OFF -> LOOK          (a retry, up to ``max_attempts``)
     LIFT / TRANSPORT --(dropped)--> BACK_OFF -> LOOK    (a retry with more grip force, a slower lift)
+    VERIFY --(seen put down off the place)--> LOOK      (picked up again, within ``max_attempts``)
 
 While it approaches, descends and closes it keeps looking (closed loop): the tracker fuses every
 estimate, and the motion is re-targeted to where the tracker says the target is. With
@@ -47,7 +48,7 @@ import numpy as np
 
 from pickdemo import robot_model as rm
 from pickdemo import wrist
-from pickdemo.actions import Grip, GripParams, Move
+from pickdemo.actions import Grip, GripParams, Move, PayloadParams, Scale
 from pickdemo.belief import Counters, GateParams, TargetBelief, Verdict
 from pickdemo.camera import Intrinsics, roi_around
 from pickdemo.geometry import Pose
@@ -108,6 +109,7 @@ class MachineParams:
     grip: GripParams = GripParams()  # the fingers: forces, when they have stopped, held, dropped
     gate: GateParams = GateParams()  # when an estimate is no use, whatever the tracker says
     grip_force_n: float = 20.0  # per finger; measured: holds a 5 cm cube with ~1 mm slip
+    payload: PayloadParams = PayloadParams()  # weighed at the wrist while lifting: a heavier hold grips harder
     max_grip_force_n: float = 70.0  # the Franka Hand's continuous grip force
     look_min_estimates: int = 2  # accepted estimates before the first plan (1 when open loop)
     look_max_frames: int = 10  # frames in LOOK without an accepted estimate: the episode fails
@@ -191,6 +193,7 @@ class PickMachine:
         dt_s: float,
         rng: np.random.Generator,
         max_attempts: int = 3,
+        place_tolerance_m: float | None = None,
         open_loop: bool = False,
         params: MachineParams | None = None,
         surface_z: Callable[[float, float], float] | None = None,
@@ -198,7 +201,9 @@ class PickMachine:
     ) -> None:
         """``surface_z(x, y)``: the height of what a target at (x, y) rests on, as the cell's layout
         says (a belt's top, or the table at 0). ``selector``: where grasps come from (default: a
-        top-down grasp across the target's narrower side)."""
+        top-down grasp across the target's narrower side). ``place_tolerance_m``: the task's; a target
+        the camera sees put down farther than this from the place position is picked up again (within
+        ``max_attempts``)."""
         self.p = params or MachineParams()
         self.kin = kin
         self.model = model
@@ -207,6 +212,7 @@ class PickMachine:
         self.camera = camera
         self.rng = rng  # the IK's restarts
         self.max_attempts = max_attempts
+        self.place_tolerance_m = place_tolerance_m
         self.open_loop = open_loop
         self.dt_s = dt_s
         self.selector: GraspSelector = selector or TopDownFaceGrasps(self.p.grasp)
@@ -214,6 +220,7 @@ class PickMachine:
         self.motion = OnlineMotion(kin, q0, dt_s, self.p.free)
         self.move = Move(self.motion, chase_fraction=self.p.chase_fraction, meet_horizon_s=self.p.meet_horizon_s)
         self.grip = Grip(self.p.grip, dt_s)
+        self.scale = Scale(self.p.payload)
         self.joints = JointMotion(kin, q0, dt_s)  # transfers in joint space
         self._joint = False  # the joint-space transfer drives the arm (else the Cartesian motion)
         self._sample: MotionSample | None = None
@@ -240,6 +247,7 @@ class PickMachine:
         self.grip_force_n = self.p.grip_force_n
         self.lift_scale = 1.0
         self._turn_hand = False  # after a miss: try a square box by its other pair of faces
+        self._weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
         self._attempt_start_s = 0.0
         # Per state.
         self._entered = False
@@ -381,9 +389,10 @@ class PickMachine:
                 reason=reason,
                 start_s=self._attempt_start_s,
                 end_s=self._now_s,
-                grip_force_n=self.grip_force_n,
+                grip_force_n=max(self.grip_force_n, self._weighed_force_n),
                 hand_yaw_deg=None if self.plan is None else float(np.degrees(self.plan.hand_yaw_rad)),
                 lift_speed_scale=self.lift_scale,
+                payload_kg=self.scale.payload_kg,
             )
         )
 
@@ -412,6 +421,29 @@ class PickMachine:
     def _dropped(self, obs: Observation) -> bool:
         assert self.plan is not None
         return self.grip.dropped(obs, self.plan.object_width_m)
+
+    def _wrist_load(self, obs: Observation, hand: Pose | None = None) -> float:
+        """The wrist's load along world z (N)."""
+        hand = hand or self.kin.forward(obs.arm_q)
+        return self.scale.vertical(obs, hand.rotation)
+
+    def _weigh(self, obs: Observation) -> bool:
+        """Lifted, at rest: weigh what hangs in the fingers (a few ticks), and grip as hard as it
+        needs; True once weighed. (Readings on the move are no use: the simulated sensor, like the
+        Franka's estimate, misses the motors' share then.)"""
+        if self.scale.payload_kg is not None:
+            return True
+        payload = self.scale.read(self._wrist_load(obs), 0.0)
+        if payload is None:
+            return False
+        force = min(max(self.grip_force_n, self.scale.grip_force_n(payload)), self.p.max_grip_force_n)
+        self._weighed_force_n = force
+        note = f"weighed {payload:.2f} kg at the wrist"
+        if force > self.grip.force_n:
+            self.grip.close(force)
+            note += f": gripping with {force:.0f} N"
+        self.events.append(Event(self.state, self._now_s, note, note=True))
+        return True
 
     def _tracked_pose(self) -> Pose:
         tp = self.belief.predict(self._now_s)
@@ -634,6 +666,8 @@ class PickMachine:
         self.grip.open()
         self._attempt_start_s = obs.time_s
         self.belief.restart()
+        self.scale.start()
+        self._weighed_force_n = 0.0
         self._look_frames = 0
         self._fresh_estimate = False
         if self.p.joint_transfers:
@@ -642,6 +676,8 @@ class PickMachine:
             self.move.to(self.home_x4, limits=self.p.free)
 
     def _tick_look(self, obs: Observation) -> Transition:
+        if self._motion_finished:  # at rest with the hand empty: what the wrist reads is the hand
+            self.scale.tare(self._wrist_load(obs))
         needed = 1 if self.open_loop else self.p.look_min_estimates
         if self.belief.accepted >= needed:
             plan = self._replan(first=True)
@@ -767,11 +803,12 @@ class PickMachine:
         if np.any(v != 0.0):  # held on the move: carry on along its way a little while rising
             lift[:2] = self.motion.setpoint[:2] + v * self.p.lift_lead_s
         self.motion.set_target(lift, limits=self._near_limits().scaled(self.lift_scale))
+        self.scale.start()
 
     def _tick_lift(self, obs: Observation) -> Transition:
         if self._dropped(obs):
             return self._retry(Stage.LIFT, "dropped while lifting", f"fingers at {obs.opening_m * 1e3:.1f} mm")
-        if self._motion_finished:
+        if self._motion_finished and self._weigh(obs):
             return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
         return None
 
@@ -848,7 +885,16 @@ class PickMachine:
             return State.DONE, "the camera does not find the target at the end"
         seen = self.verify_estimate.pose.position
         err = float(np.hypot(seen[0] - self.place_xy[0], seen[1] - self.place_xy[1]))
-        return State.DONE, f"the camera sees the target {err * 1e3:.1f} mm from the place position"
+        said = f"the camera sees the target {err * 1e3:.1f} mm from the place position"
+        if self.place_tolerance_m is None or err <= self.place_tolerance_m:
+            return State.DONE, said
+        said += f" (tolerance {self.place_tolerance_m * 1e3:.0f} mm)"
+        if self.attempt >= self.max_attempts:
+            return State.DONE, f"{said}; no attempt left to place it again"
+        # Placed off: this attempt's record says so, and the next picks it up from where it lies.
+        self.attempts[-1] = dataclasses.replace(self.attempts[-1], outcome="placed off", reason=said)
+        self.attempt += 1
+        return State.LOOK, f"{said}: picking it up again; attempt {self.attempt} of {self.max_attempts} follows"
 
     def _enter_done(self, obs: Observation) -> None:
         pass

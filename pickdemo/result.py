@@ -52,6 +52,7 @@ class AttemptRecord:
     grip_force_n: float
     hand_yaw_deg: float | None
     lift_speed_scale: float
+    payload_kg: float | None = None  # what the wrist's force sensor weighed while lifting
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -63,6 +64,7 @@ class AttemptRecord:
             "grip_force_n": self.grip_force_n,
             "hand_yaw_deg": self.hand_yaw_deg,
             "lift_speed_scale": self.lift_speed_scale,
+            "payload_kg": self.payload_kg,
         }
 
 

@@ -23,6 +23,7 @@ import numpy as np
 ARM_JOINTS: tuple[str, ...] = tuple(f"panda_joint{i}" for i in range(1, 8))
 FINGER_JOINTS: tuple[str, str] = ("panda_finger_joint1", "panda_finger_joint2")
 TCP_FRAME = "panda_hand_tcp"
+WRIST_JOINT = "panda_hand_joint"  # flange to hand: where a wrist force sensor sits
 HAND_FRAME = "panda_hand"
 FINGER_LINKS: tuple[str, str] = ("panda_leftfinger", "panda_rightfinger")
 
@@ -30,6 +31,7 @@ FINGER_LINKS: tuple[str, str] = ("panda_leftfinger", "panda_rightfinger")
 HOME_Q = np.array([0.0, -0.785398, 0.0, -2.356194, 0.0, 1.570796, 0.785398])
 #: Each finger travels 0 .. 0.04 m; the gripper opens to 0.08 m in all.
 FINGER_MAX_M = 0.04
+PALM_ABOVE_TCP_M = 0.034  # the hand's palm (between the fingers) is this far above the TCP
 
 #: Datasheet limits of the seven arm joints (Franka Emika Panda).
 MAX_VELOCITY_RAD_S = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])

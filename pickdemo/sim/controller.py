@@ -40,6 +40,7 @@ class RobotInterface:
             arm_dq=js.arm_dq,
             fingers_m=js.fingers_m,
             finger_contacts=self.scene.finger_contacts(),
+            wrist_force_n=self.scene.wrist_force(),
         )
 
     def apply(self, cmd: Command) -> None:

@@ -129,6 +129,9 @@ class Scene:
         self.finger_joints = [self.joint_index[n] for n in rm.FINGER_JOINTS]
         self.finger_links = [self.link_index[n] for n in rm.FINGER_LINKS]
         self.tcp_link = self.link_index[rm.TCP_FRAME]
+        # The wrist's force sensor: the reaction of the flange-to-hand joint, in the hand's frame.
+        self.wrist_joint = self.joint_index[rm.WRIST_JOINT]
+        c.enableJointForceTorqueSensor(robot, self.wrist_joint, True)
         for j, q in zip(self.arm_joints, rm.HOME_Q, strict=True):
             c.resetJointState(robot, j, float(q))
         for j in self.finger_joints:
@@ -205,6 +208,10 @@ class Scene:
             arm_dq=np.array([s[1] for s in arm]),
             fingers_m=np.array([s[0] for s in fingers]),
         )
+
+    def wrist_force(self) -> np.ndarray:
+        """(3,) N: the force the hand puts on the wrist flange, in the hand's frame (a wrist sensor)."""
+        return np.array(self.client.getJointState(self.bodies["robot"], self.wrist_joint)[2][:3])
 
     def finger_contacts(self) -> tuple[int, int]:
         """Number of contact points on each finger with anything but the robot (a tactile sense)."""
