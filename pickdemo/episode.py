@@ -36,6 +36,7 @@ from pickdemo.layout import LayoutError
 from pickdemo.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX, Observer, TraceRecorder
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
 from pickdemo.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
+from pickdemo.rate_limit import ReflexError
 from pickdemo.referee import PERCEPTION_OFF_MM, Referee, diagnose
 from pickdemo.result import (
     EpisodeFailure,
@@ -326,12 +327,12 @@ class Episode:
         self.model = target_model(sc, world.placement(self.target_name))
         with self.timer("scene"):
             world.open(gui=self.options.gui)
-            self.robot = RobotInterface(world.scene)
             kin = panda_kinematics()
         scene = world.scene
         dt = scene.time_step_s
         self.substeps = max(1, round(1.0 / (sc.control.control_rate_hz * dt)))
         self.dt_ctl = self.substeps * dt
+        self.robot = RobotInterface(scene, self.dt_ctl)
         self.max_steps = int(round(sc.sim.max_sim_time_s / dt))
         self.frame_ticks = max(1, round(1.0 / (sc.control.perception_rate_hz * self.dt_ctl)))
         self.video_ticks = max(1, round(1.0 / (self.options.video_fps * self.dt_ctl)))
@@ -350,8 +351,7 @@ class Episode:
             params = dataclasses.replace(
                 params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales)
             )
-        if m.transfers == "joint":
-            params = dataclasses.replace(params, joint_transfers=True)
+        params = dataclasses.replace(params, joint_transfers=m.transfers == "joint")
         camera = world.camera
         self.machine = PickMachine(
             kin=kin,
@@ -422,7 +422,12 @@ class Episode:
         self._log_events(now)
         if machine.finished:
             return False
-        self.robot.apply(cmd)
+        try:
+            self.robot.apply(cmd)
+        except ReflexError as exc:  # the robot stopped: nothing was sent
+            machine.abort(Stage.REFLEX, str(exc))
+            self._log_events(now)
+            return False
         counts.commanded.append((now, cmd.arm_q))  # always: result.json's limit_exceedances
         tracking = machine.state in TRACKING_STATES
         counts.tracking_ticks += tracking

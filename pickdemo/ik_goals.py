@@ -30,6 +30,7 @@ class GoalParams:
     line_steps: int = 24  # a straight line that follows the goal is checked at this many points
     line_speed_m_s: float = 0.1  # ... as the hand moves along it (the near-object limits)
     line_velocity_share: float = 0.8  # ... the joints it needs within this share of their speed limits
+    min_line_speed_scale: float = 0.1  # a line slower than this share of the speed (near a singular posture): refused
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,32 @@ def line_trackable(
             return False
         q_prev = res.q
     return kin.limit_margin(q_prev) > 0.0
+
+
+def line_speed_scale(
+    kin: PandaKinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()
+) -> float:
+    """The share of the near-object speed (``params.line_speed_m_s``) at which the per-tick IK can
+    follow the straight line from ``start`` (the arm at ``q``) to ``end`` with every joint within
+    ``line_velocity_share`` of its speed limit: 1.0 when the full speed will do, less near a singular
+    posture (where the joints turn fast for a small move of the hand), 0.0 when the IK does not converge
+    along it or it ends beyond a joint limit."""
+    n = params.line_steps
+    length = float(np.linalg.norm(end.position - start.position))
+    q_prev = np.asarray(q, dtype=float)
+    worst = 0.0  # the largest joint rate per metre of the line, as a share of its speed limit
+    for k in range(1, n + 1):
+        p = start.position + (end.position - start.position) * (k / n)
+        res = kin.track(Pose(p, end.rotation), q_prev, max_iterations=8)
+        if not res.success:
+            return 0.0
+        if length > 0:
+            rate = np.abs(res.q - q_prev) / (length / n) / (params.line_velocity_share * rm.MAX_VELOCITY_RAD_S)
+            worst = max(worst, float(np.max(rate)))
+        q_prev = res.q
+    if kin.limit_margin(q_prev) <= 0.0:
+        return 0.0
+    return 1.0 if worst * params.line_speed_m_s <= 1.0 else 1.0 / (worst * params.line_speed_m_s)
 
 
 def goal_candidates(

@@ -54,11 +54,12 @@ from pickdemo.camera import Intrinsics, roi_around
 from pickdemo.geometry import Pose
 from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, top_down
 from pickdemo.grasp_selection import GraspRequest, GraspSelector, TopDownFaceGrasps
-from pickdemo.ik_goals import GoalParams, choose_goal, goal_candidates, line_trackable
+from pickdemo.ik_goals import GoalParams, choose_goal, goal_candidates, line_speed_scale, line_trackable
 from pickdemo.interfaces import Command, Observation
 from pickdemo.kinematics import IKParams, PandaKinematics
 from pickdemo.motion import CartesianLimits, JointMotion, MotionError, MotionSample, OnlineMotion, pose_to_x4
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
+from pickdemo.rate_limit import RateLimiter
 from pickdemo.result import AttemptRecord, Failure, Stage
 from pickdemo.tracker import TargetTracker, TrackerParams
 
@@ -133,8 +134,8 @@ class MachineParams:
     arrive_speed_tolerance_m_s: float = 0.005
     tracker: TrackerParams = TrackerParams()
     #: transfers (home to above the target, above the target to above the place, back home) in joint
-    #: space to IK goals chosen well; else straight Cartesian lines (as before; the default for now)
-    joint_transfers: bool = False
+    #: space to IK goals chosen well; else straight Cartesian lines (as before)
+    joint_transfers: bool = True
     #: the carry to above the place in joint space too (with joint_transfers); off: a straight top-down
     #: line. Measured: carried in joint space, the fingers of a PyBullet Panda that had turned and tilted
     #: the held box sometimes did not open at the release (2 of 40 pick_anywhere seeds)
@@ -222,6 +223,7 @@ class PickMachine:
         self.grip = Grip(self.p.grip, dt_s)
         self.scale = Scale(self.p.payload)
         self.joints = JointMotion(kin, q0, dt_s)  # transfers in joint space
+        self.limiter = RateLimiter(q0, dt_s)  # every joint command within the datasheet, as libfranka's
         self._joint = False  # the joint-space transfer drives the arm (else the Cartesian motion)
         self._sample: MotionSample | None = None
         self.counters = Counters()
@@ -357,7 +359,8 @@ class PickMachine:
                 return self._command_hold()
         self._sample = sample
         self.counters.retargets = self.motion.retargets + self.joints.retargets
-        return Command(sample.q, sample.dq, self.grip.target_m, self.grip.force_n)
+        q, limited = self.limiter(sample.q)
+        return Command(q, self.limiter.dq.copy() if limited else sample.dq, self.grip.target_m, self.grip.force_n)
 
     def abort(self, stage: Stage, reason: str) -> None:
         """End the episode from outside (the step budget is spent)."""
@@ -498,9 +501,18 @@ class PickMachine:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
                 return None
             hand_yaws.insert(0, wrist.quarter_turn(usual, centre))
+        elif v is None and self.symmetry > 0.0:
+            # At rest: if the usual hand angle cannot do it, the same grasp with the hand turned half
+            # a turn (a parallel gripper's equivalent; the place then turned with it).
+            try:
+                usual = self._grasp(pose, None).hand_yaw_rad
+            except GraspPlanningError as exc:
+                self._fail(Stage.GRASP_PLANNING, str(exc))
+                return None
+            hand_yaws.append(usual + np.pi)
         self._turn_hand = False
         candidates = iter(self.selector.candidates(GraspRequest(pose, self.model, self.place_xy, tuple(hand_yaws))))
-        reason = ""
+        first = ""  # the usual hand angle's reason, if no angle will do
         for near in hand_yaws:
             try:
                 plan = next(candidates)
@@ -513,7 +525,8 @@ class PickMachine:
                 return None
             if not reason:
                 return plan
-        self._fail(Stage.IK, reason)
+            first = first or reason
+        self._fail(Stage.IK, first)
         return None
 
     def _unreachable(self, plan: GraspPlan, *, turned: bool) -> str | tuple[Stage, str]:
@@ -530,6 +543,14 @@ class PickMachine:
                 return f"{name} pose out of reach: {res.reason}"
             if turned and not wrist.has_room(float(res.q[6])):  # a turned hand: keep wrist room
                 return f"{name} pose turns joint 7 to {res.q[6]:.2f} rad"
+        above = self.kin.solve(plan.place_above, self.motion.q, self.rng, IKParams())
+        if not above.success:
+            return f"the pose above the place is out of reach: {above.reason}"
+        if (
+            line_speed_scale(self.kin, above.q, plan.place_above, plan.place, self.p.goals)
+            < self.p.goals.min_line_speed_scale
+        ):
+            return "the straight lowering onto the place passes too near a singular posture"
         return ""
 
     # ------------------------------------------------------------------------- moving targets
@@ -578,6 +599,15 @@ class PickMachine:
         found = goal_candidates(self.kin, poses, self._q, self.rng, self.p.goals, lines_to=ends)
         goal = choose_goal(found, self.p.goals)
         return (None, 0) if goal is None else (goal.q, goal.index)
+
+    def _line_limits(self, end: Pose) -> CartesianLimits:
+        """The near-object limits for a straight line from where the hand is to ``end``, slowed as the
+        joints need near a singular posture (:func:`~pickdemo.ik_goals.line_speed_scale`)."""
+        here = self.kin.forward(self.motion.q)
+        scale = line_speed_scale(self.kin, self.motion.q, here, end, self.p.goals)
+        if scale >= 1.0:
+            return self.p.near
+        return self.p.near.scaled(max(scale, self.p.goals.min_line_speed_scale))
 
     def _go_to(self, pose: Pose | np.ndarray, limits: CartesianLimits | None = None) -> None:
         """Send the hand to a pose of the plan (or an x4). For a moving target: to where they meet,
@@ -835,7 +865,7 @@ class PickMachine:
     def _enter_lower(self, obs: Observation) -> None:
         assert self.plan is not None
         self._cartesian()
-        self.move.to(self.plan.place, limits=self.p.near)
+        self.move.to(self.plan.place, limits=self._line_limits(self.plan.place))
 
     def _tick_lower(self, obs: Observation) -> Transition:
         if self._dropped(obs):
@@ -860,7 +890,7 @@ class PickMachine:
 
     def _enter_retreat(self, obs: Observation) -> None:
         assert self.plan is not None
-        self.move.to(self.plan.retreat, limits=self.p.near)
+        self.move.to(self.plan.retreat, limits=self._line_limits(self.plan.retreat))
 
     def _tick_retreat(self, obs: Observation) -> Transition:
         return (State.HOME, "clear of the object") if self._motion_finished else None

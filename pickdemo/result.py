@@ -20,6 +20,7 @@ class Stage(str, enum.Enum):
     GRASP_PLANNING = "grasp_planning"
     IK = "ik"
     TRAJECTORY = "trajectory"
+    REFLEX = "reflex"  # a command beyond the Franka's limits: the robot stopped
     GRASP = "grasp"
     LIFT = "lift"
     TRANSPORT = "transport"

@@ -34,6 +34,8 @@ FINGER_MAX_M = 0.04
 PALM_ABOVE_TCP_M = 0.034  # the hand's palm (between the fingers) is this far above the TCP
 
 #: Datasheet limits of the seven arm joints (Franka Emika Panda).
+MIN_POSITION_RAD = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
+MAX_POSITION_RAD = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
 MAX_VELOCITY_RAD_S = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 MAX_ACCELERATION_RAD_S2 = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
 MAX_JERK_RAD_S3 = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0])

@@ -272,7 +272,8 @@ class MotionSpec(_Model):
     jerk_scale: Annotated[float, Field(ge=0.05, le=1.0)] = 1.0
     #: "joint": transfers (home to above the target, to above the place, back home) in joint space to IK
     #: goals chosen well, straight lines only near the object; "cartesian": every move a straight line
-    transfers: Literal["cartesian", "joint"] = "cartesian"
+    #: (as every move was before joint transfers; for comparison)
+    transfers: Literal["cartesian", "joint"] = "joint"
 
 
 class LayoutSpec(_Model):

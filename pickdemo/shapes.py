@@ -24,6 +24,10 @@ import numpy as np
 ShapeName = Literal["box", "cylinder"]
 
 
+#: A box whose top sides differ by less than this is square (for its symmetry).
+SQUARE_TOLERANCE_M = 0.002
+
+
 class Shape(Protocol):
     """What a shape of the task answers: its size and what follows from it."""
 
@@ -114,8 +118,10 @@ class Box:
 
     @property
     def yaw_symmetry_rad(self) -> float:
-        """A quarter turn for a square top, else a half turn."""
-        return np.pi / 2.0 if abs(self.size_m[0] - self.size_m[1]) < 1e-9 else np.pi
+        """A quarter turn for a square top, else a half turn. Sides within :data:`SQUARE_TOLERANCE_M`
+        of each other make a square top: no camera tells them apart, and either pair fits the fingers
+        (taken as a half turn, a 59.7 x 59.8 mm box had the tracker see its yaw flip by 90 deg)."""
+        return np.pi / 2.0 if abs(self.size_m[0] - self.size_m[1]) < SQUARE_TOLERANCE_M else np.pi
 
     @property
     def grasp_width_m(self) -> float:

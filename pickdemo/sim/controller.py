@@ -13,6 +13,7 @@ import pybullet as p
 
 from pickdemo import robot_model as rm
 from pickdemo.interfaces import Command, Observation
+from pickdemo.rate_limit import Reflex
 from pickdemo.sim.scene import Scene
 
 ARM_EFFORT_NM = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
@@ -26,11 +27,17 @@ _VELOCITY_GAINS = [VELOCITY_GAIN] * 7
 
 
 class RobotInterface:
-    """The Panda's encoders, finger contacts and motors inside a :class:`Scene`."""
+    """The Panda's encoders, finger contacts, wrist force and motors inside a :class:`Scene`.
 
-    def __init__(self, scene: Scene) -> None:
+    Like the Franka's controller, it checks each arm command against the datasheet before it sends
+    it (:class:`~pickdemo.rate_limit.Reflex`, one check per control tick of ``dt_s``): a command beyond
+    raises :class:`~pickdemo.rate_limit.ReflexError` and is not sent.
+    """
+
+    def __init__(self, scene: Scene, dt_s: float) -> None:
         self.scene = scene
         self._fingers: tuple[float, float] | None = None
+        self.reflex = Reflex(scene.joint_state().arm_q, dt_s)
 
     def observe(self) -> Observation:
         js = self.scene.joint_state()
@@ -45,6 +52,7 @@ class RobotInterface:
 
     def apply(self, cmd: Command) -> None:
         s = self.scene
+        self.reflex.check(cmd.arm_q, s.sim_time_s)
         s.client.setJointMotorControlArray(
             s.bodies["robot"],
             s.arm_joints,
