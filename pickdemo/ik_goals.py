@@ -11,7 +11,7 @@ most joint margin.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +44,21 @@ class Goal:
     line_ok: bool = True  # the straight line that follows (a descent, a lowering) can be tracked from here
 
 
+def _along_line(kin: PandaKinematics, q: np.ndarray, start: Pose, end: Pose, n: int) -> Iterator[np.ndarray | None]:
+    """The per-tick IK's joints at ``n`` points of the straight line from ``start`` (the arm at ``q``)
+    to ``end`` (its orientation), each warm-started from the last; ``None`` where it does not converge
+    (and nothing after)."""
+    q_prev = np.asarray(q, dtype=float)
+    for k in range(1, n + 1):
+        p = start.position + (end.position - start.position) * (k / n)
+        res = kin.track(Pose(p, end.rotation), q_prev, max_iterations=8)
+        if not res.success:
+            yield None
+            return
+        yield res.q
+        q_prev = res.q
+
+
 def line_trackable(
     kin: PandaKinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()
 ) -> bool:
@@ -53,14 +68,12 @@ def line_trackable(
     n = params.line_steps
     dt = float(np.linalg.norm(end.position - start.position)) / params.line_speed_m_s / n
     q_prev = np.asarray(q, dtype=float)
-    for k in range(1, n + 1):
-        p = start.position + (end.position - start.position) * (k / n)
-        res = kin.track(Pose(p, end.rotation), q_prev, max_iterations=8)
-        if not res.success or kin.manipulability(res.q) < params.min_manipulability:
+    for q_k in _along_line(kin, q, start, end, n):
+        if q_k is None or kin.manipulability(q_k) < params.min_manipulability:
             return False
-        if dt > 0 and np.any(np.abs(res.q - q_prev) / dt > params.line_velocity_share * rm.MAX_VELOCITY_RAD_S):
+        if dt > 0 and np.any(np.abs(q_k - q_prev) / dt > params.line_velocity_share * rm.MAX_VELOCITY_RAD_S):
             return False
-        q_prev = res.q
+        q_prev = q_k
     return kin.limit_margin(q_prev) > 0.0
 
 
@@ -76,15 +89,13 @@ def line_speed_scale(
     length = float(np.linalg.norm(end.position - start.position))
     q_prev = np.asarray(q, dtype=float)
     worst = 0.0  # the largest joint rate per metre of the line, as a share of its speed limit
-    for k in range(1, n + 1):
-        p = start.position + (end.position - start.position) * (k / n)
-        res = kin.track(Pose(p, end.rotation), q_prev, max_iterations=8)
-        if not res.success:
+    for q_k in _along_line(kin, q, start, end, n):
+        if q_k is None:
             return 0.0
         if length > 0:
-            rate = np.abs(res.q - q_prev) / (length / n) / (params.line_velocity_share * rm.MAX_VELOCITY_RAD_S)
+            rate = np.abs(q_k - q_prev) / (length / n) / (params.line_velocity_share * rm.MAX_VELOCITY_RAD_S)
             worst = max(worst, float(np.max(rate)))
-        q_prev = res.q
+        q_prev = q_k
     if kin.limit_margin(q_prev) <= 0.0:
         return 0.0
     return 1.0 if worst * params.line_speed_m_s <= 1.0 else 1.0 / (worst * params.line_speed_m_s)

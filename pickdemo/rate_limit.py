@@ -48,22 +48,25 @@ class RateLimiter:
         self.dq = np.zeros(7)
         self.ddq = np.zeros(7)
         self.limited_ticks = 0  # ticks on which any joint's command was changed
+        self._ratio = self.lim.jerk / self.lim.acceleration
 
     def __call__(self, q_cmd: np.ndarray) -> tuple[np.ndarray, bool]:
         """The position to send for the commanded ``q_cmd``; True when it had to be changed."""
         dt, lim = self.dt, self.lim
         q_cmd = np.asarray(q_cmd, dtype=float)
         v_cmd = (q_cmd - self.q) / dt
-        jerk = np.clip(((v_cmd - self.dq) / dt - self.ddq) / dt, -lim.jerk, lim.jerk)
-        acc = self.ddq + jerk * dt
-        # the acceleration that can still be braked (at the jerk limit) before the velocity limit
-        ratio = lim.jerk / lim.acceleration
-        acc_max = np.minimum(ratio * (lim.velocity - self.dq), lim.acceleration)
-        acc_min = np.maximum(ratio * (-lim.velocity - self.dq), -lim.acceleration)
+        acc_cmd = (v_cmd - self.dq) / dt
+        jerk_cmd = (acc_cmd - self.ddq) / dt
+        # the acceleration that can still be braked (at the jerk limit) before the velocity limit,
         # and, ticks being longer than the Franka's 1 ms, no tick's step past the velocity limit
-        acc_min = np.maximum(acc_min, (-lim.velocity - self.dq) / dt)
-        acc_max = np.minimum(acc_max, (lim.velocity - self.dq) / dt)
-        acc = np.clip(acc, acc_min, acc_max)
+        room_up, room_down = lim.velocity - self.dq, -lim.velocity - self.dq
+        acc_max = np.minimum(np.minimum(self._ratio * room_up, lim.acceleration), room_up / dt)
+        acc_min = np.maximum(np.maximum(self._ratio * room_down, -lim.acceleration), room_down / dt)
+        if np.all(np.abs(jerk_cmd) <= lim.jerk) and np.all(acc_cmd <= acc_max) and np.all(acc_cmd >= acc_min):
+            self.q, self.dq, self.ddq = q_cmd.copy(), v_cmd, acc_cmd  # within every limit: as commanded
+            return q_cmd.copy(), False
+        jerk = np.clip(jerk_cmd, -lim.jerk, lim.jerk)
+        acc = np.clip(self.ddq + jerk * dt, acc_min, acc_max)
         v = self.dq + acc * dt
         q = self.q + v * dt
         # joints whose command was within every limit keep it exactly
