@@ -49,6 +49,13 @@ class RateLimiter:
         self.ddq = np.zeros(7)
         self.limited_ticks = 0  # ticks on which any joint's command was changed
         self._ratio = self.lim.jerk / self.lim.acceleration
+        # A short path for the usual tick: a joint whose last velocity is at least one tick of full
+        # acceleration inside its limit may accelerate at the full limit (when a tick is long enough
+        # for the jerk limit to reach it: dt >= A / J), so within |a| <= A and |j| <= J nothing clamps.
+        inner = self.lim.velocity - self.lim.acceleration * self.dt
+        self._short = bool(np.all(self.lim.jerk * self.dt >= self.lim.acceleration) and np.all(inner > 0))
+        self._bounds = np.concatenate([inner, self.lim.acceleration, self.lim.jerk])
+        self._buf = np.empty(21)
 
     def __call__(self, q_cmd: np.ndarray) -> tuple[np.ndarray, bool]:
         """The position to send for the commanded ``q_cmd``; True when it had to be changed."""
@@ -57,6 +64,12 @@ class RateLimiter:
         v_cmd = (q_cmd - self.q) / dt
         acc_cmd = (v_cmd - self.dq) / dt
         jerk_cmd = (acc_cmd - self.ddq) / dt
+        if self._short:
+            buf = self._buf
+            buf[:7], buf[7:14], buf[14:] = self.dq, acc_cmd, jerk_cmd
+            if np.all(np.abs(buf) <= self._bounds):
+                self.q, self.dq, self.ddq = q_cmd.copy(), v_cmd, acc_cmd  # within every limit: as commanded
+                return q_cmd.copy(), False
         # the acceleration that can still be braked (at the jerk limit) before the velocity limit,
         # and, ticks being longer than the Franka's 1 ms, no tick's step past the velocity limit
         room_up, room_down = lim.velocity - self.dq, -lim.velocity - self.dq
@@ -95,27 +108,38 @@ class Reflex:
         self.q = np.asarray(q0, dtype=float).copy()
         self.dq = np.zeros(7)
         self.ddq = np.zeros(7)
+        # the position's distance from mid-range, the velocity, acceleration and jerk side by side,
+        # each against its bound: one test a tick
+        self._mid = 0.5 * (rm.MIN_POSITION_RAD + rm.MAX_POSITION_RAD)
+        half = 0.5 * (rm.MAX_POSITION_RAD - rm.MIN_POSITION_RAD) + 1e-9
+        self._limits = np.concatenate([self.lim.velocity, self.lim.acceleration, self.lim.jerk]) * self.tol
+        self._bounds = np.concatenate([half, self._limits])
+        self._buf = np.empty(28)
 
     def check(self, q_cmd: np.ndarray, time_s: float) -> None:
         """Raise :class:`ReflexError` naming the joint, the quantity and the limit."""
         q_cmd = np.asarray(q_cmd, dtype=float)
-        dq = (q_cmd - self.q) / self.dt
-        ddq = (dq - self.dq) / self.dt
-        jerk = (ddq - self.ddq) / self.dt
-        checks = (
-            ("position", "rad", np.maximum(rm.MIN_POSITION_RAD - q_cmd, q_cmd - rm.MAX_POSITION_RAD), 0.0, q_cmd),
-            ("velocity", "rad/s", np.abs(dq), self.lim.velocity, dq),
-            ("acceleration", "rad/s^2", np.abs(ddq), self.lim.acceleration, ddq),
-            ("jerk", "rad/s^3", np.abs(jerk), self.lim.jerk, jerk),
-        )
-        for quantity, unit, value, limit, signed in checks:
-            over = value > limit * self.tol if quantity != "position" else value > 1e-9
-            if np.any(over):
-                j = int(np.flatnonzero(over)[0])
-                if quantity == "position":
-                    lo, hi = rm.MIN_POSITION_RAD[j], rm.MAX_POSITION_RAD[j]
-                    said = f"joint {j + 1} commanded to {signed[j]:.4f} rad, outside [{lo:.4f}, {hi:.4f}]"
-                else:
-                    said = f"joint {j + 1} commanded at {abs(signed[j]):.4g} {unit}, beyond its limit {limit[j]:.4g}"
-                raise ReflexError(f"{said} at {time_s:.3f} s: the robot stops")
-        self.q, self.dq, self.ddq = q_cmd.copy(), dq, ddq
+        buf = self._buf
+        buf[:7] = q_cmd - self._mid
+        dq = buf[7:14] = (q_cmd - self.q) / self.dt
+        ddq = buf[14:21] = (dq - self.dq) / self.dt
+        buf[21:] = (ddq - self.ddq) / self.dt
+        if not np.all(np.abs(buf) <= self._bounds):
+            raise ReflexError(f"{self._what(q_cmd, buf[7:])} at {time_s:.3f} s: the robot stops")
+        self.q, self.dq, self.ddq = q_cmd.copy(), dq.copy(), ddq.copy()
+
+    def _what(self, q_cmd: np.ndarray, rates: np.ndarray) -> str:
+        """The first joint and quantity beyond its limit, said."""
+        out = np.flatnonzero((q_cmd < rm.MIN_POSITION_RAD - 1e-9) | (q_cmd > rm.MAX_POSITION_RAD + 1e-9))
+        if out.size:
+            j = int(out[0])
+            lo, hi = rm.MIN_POSITION_RAD[j], rm.MAX_POSITION_RAD[j]
+            return f"joint {j + 1} commanded to {q_cmd[j]:.4f} rad, outside [{lo:.4f}, {hi:.4f}]"
+        limits = (self.lim.velocity, self.lim.acceleration, self.lim.jerk)
+        for k, unit in enumerate(("rad/s", "rad/s^2", "rad/s^3")):
+            over = np.flatnonzero(np.abs(rates[7 * k : 7 * k + 7]) > self._limits[7 * k : 7 * k + 7])
+            if over.size:
+                j = int(over[0])
+                value = abs(rates[7 * k + j])
+                return f"joint {j + 1} commanded at {value:.4g} {unit}, beyond its limit {limits[k][j]:.4g}"
+        return "a command beyond the limits"  # (not reached)
