@@ -250,6 +250,7 @@ class PickMachine:
         self.lift_scale = 1.0
         self._turn_hand = False  # after a miss: try a square box by its other pair of faces
         self._weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
+        self._line_checked_q: np.ndarray | None = None  # a transfer goal whose straight line was checked
         self._attempt_start_s = 0.0
         # Per state.
         self._entered = False
@@ -593,12 +594,21 @@ class PickMachine:
         if seeded is not None:
             res = self.kin.solve(pose, seeded, self.rng, self.p.goals.ik)
             if res.success and self.kin.limit_margin(res.q) >= self.p.goals.min_margin_rad:
-                if line_trackable(self.kin, res.q, pose, line_to, self.p.goals):
+                # a re-plan a hair from a goal whose line was checked keeps that check (the tracker
+                # moves the goal by a millimetre or so a frame)
+                near = self._line_checked_q is not None and np.max(np.abs(res.q - self._line_checked_q)) < 0.01
+                if near or line_trackable(self.kin, res.q, pose, line_to, self.p.goals):
+                    if not near:
+                        self._line_checked_q = res.q.copy()
                     return res.q, 0
         poses, ends = [pose, _half_turn(pose)], [line_to, _half_turn(line_to)]
         found = goal_candidates(self.kin, poses, self._q, self.rng, self.p.goals, lines_to=ends)
         goal = choose_goal(found, self.p.goals)
-        return (None, 0) if goal is None else (goal.q, goal.index)
+        if goal is None:
+            return None, 0
+        if goal.line_ok:
+            self._line_checked_q = goal.q.copy()
+        return goal.q, goal.index
 
     def _line_limits(self, end: Pose) -> CartesianLimits:
         """The near-object limits for a straight line from where the hand is to ``end``, slowed as the
