@@ -161,6 +161,10 @@ class PayloadParams:
 
     tare_ticks: int = 10  # at rest with nothing held (looking from home): the hand's own weight
     weigh_ticks: int = 5  # readings at rest, lifted, their median is the payload
+    lift_off_m: float = 0.015  # a lift pauses this far up (the object hanging) to be weighed
+    #: a payload heavier than this is carried at sqrt(this / payload) of the speed (accelerations at
+    #: this / payload): a 0.8 kg cube at 0.61, 1.2 kg at 0.5
+    gentle_above_kg: float = 0.3
     #: grip force per kg held, per finger: 50 N/kg holds a 0.8 kg cube without turning in the pads
     #: (20 N let it creep 20-35 deg about the finger axis in transit; measured on pick_heavy)
     grip_n_per_kg: float = 50.0

@@ -57,7 +57,15 @@ from pickdemo.grasp_selection import GraspRequest, GraspSelector, TopDownFaceGra
 from pickdemo.ik_goals import GoalParams, choose_goal, goal_candidates, line_speed_scale, line_trackable
 from pickdemo.interfaces import Command, Observation
 from pickdemo.kinematics import IKParams, PandaKinematics
-from pickdemo.motion import CartesianLimits, JointMotion, MotionError, MotionSample, OnlineMotion, pose_to_x4
+from pickdemo.motion import (
+    CartesianLimits,
+    JointMotion,
+    MotionError,
+    MotionSample,
+    OnlineMotion,
+    pose_to_x4,
+    top_down_se3,
+)
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.rate_limit import RateLimiter
 from pickdemo.result import AttemptRecord, Failure, Stage
@@ -251,6 +259,7 @@ class PickMachine:
         self._turn_hand = False  # after a miss: try a square box by its other pair of faces
         self._weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
         self._line_checked_q: np.ndarray | None = None  # a transfer goal whose straight line was checked
+        self._lifted_off = False  # lifting: past the pause just off the table where it is weighed
         self._attempt_start_s = 0.0
         # Per state.
         self._entered = False
@@ -544,13 +553,20 @@ class PickMachine:
                 return f"{name} pose out of reach: {res.reason}"
             if turned and not wrist.has_room(float(res.q[6])):  # a turned hand: keep wrist room
                 return f"{name} pose turns joint 7 to {res.q[6]:.2f} rad"
-        above = self.kin.solve(plan.place_above, self.motion.q, self.rng, IKParams())
-        if not above.success:
-            return f"the pose above the place is out of reach: {above.reason}"
-        if (
-            line_speed_scale(self.kin, above.q, plan.place_above, plan.place, self.p.goals)
-            < self.p.goals.min_line_speed_scale
-        ):
+        # Above the place, some IK solution from which the lowering can be followed: with joint
+        # transfers the carry may go in joint space to any of them, the hand turned half a turn or not.
+        lines = [(plan.place_above, plan.place)]
+        if self.p.joint_transfers:
+            lines.append((_half_turn(plan.place_above), _half_turn(plan.place)))
+            found = goal_candidates(self.kin, [a for a, _ in lines], self.motion.q, self.rng, self.p.goals)
+            above = [(g.q, *lines[g.index]) for g in found]
+        else:
+            res = self.kin.solve(plan.place_above, self.motion.q, self.rng, IKParams())
+            above = [(res.q, *lines[0])] if res.success else []
+        if not above:
+            return "the pose above the place is out of reach"
+        floor = self.p.goals.min_line_speed_scale
+        if all(line_speed_scale(self.kin, q, start, end, self.p.goals) < floor for q, start, end in above):
             return "the straight lowering onto the place passes too near a singular posture"
         return ""
 
@@ -840,30 +856,68 @@ class PickMachine:
         self.grip.watch_hold()
         lift = self.move.x4(self.plan.lift)
         v = self.motion.velocity[:2]
-        if np.any(v != 0.0):  # held on the move: carry on along its way a little while rising
+        self._lifted_off = np.any(v != 0.0)  # (a target held on the move is weighed at the top)
+        if self._lifted_off:  # held on the move: carry on along its way a little while rising
             lift[:2] = self.motion.setpoint[:2] + v * self.p.lift_lead_s
+        else:  # first just off the table, to weigh it before it hangs long at the first grip force
+            lift[2] = self.plan.grasp.position[2] + self.p.payload.lift_off_m
         self.motion.set_target(lift, limits=self._near_limits().scaled(self.lift_scale))
         self.scale.start()
 
     def _tick_lift(self, obs: Observation) -> Transition:
         if self._dropped(obs):
             return self._retry(Stage.LIFT, "dropped while lifting", f"fingers at {obs.opening_m * 1e3:.1f} mm")
-        if self._motion_finished and self._weigh(obs):
-            return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
-        return None
+        if not (self._motion_finished and self._weigh(obs)):
+            return None
+        if not self._lifted_off:  # weighed just off the table: on up to the carry height
+            self._lifted_off = True
+            self.motion.set_target(self.move.x4(self.plan.lift), limits=self._near_limits().scaled(self.lift_scale))
+            return None
+        return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
 
     def _enter_transport(self, obs: Observation) -> None:
         assert self.plan is not None
-        if not (self.p.joint_transfers and self.p.carry_in_joint_space):
-            self.move.to(self.plan.place_above, limits=self.p.free.scaled(self.lift_scale))
+        straight = not (self.p.joint_transfers and self.p.carry_in_joint_space)
+        if straight and (not self.p.joint_transfers or self._straight_carry_lowers()):
+            self.move.to(self.plan.place_above, limits=self.p.free.scaled(self.lift_scale * self._payload_scale()))
             return
+        # in joint space, to a goal from which the lowering can be tracked
+        if straight:
+            note = "carried in joint space: the straight line would pass too near a singular posture"
+            self.events.append(Event(self.state, self._now_s, note, note=True))
         q, turned = self._goal(self.plan.place_above, self.plan.place)
         if q is None:
             self._fail(Stage.IK, "place pose out of reach: no IK solution for either hand angle")
             return
         if turned:  # put down with the hand turned half a turn: the same for the place, not the grasp
             self.plan = _turned_plan(self.plan, pick=False, place=True)
-        self._transfer_to(q, self.p.carry_scale * self.lift_scale)
+        self._transfer_to(q, self.p.carry_scale * self.lift_scale * self._payload_scale())
+
+    def _payload_scale(self) -> float:
+        """The carry's speed share for what the wrist weighed: a heavier hold is carried more gently
+        (its accelerations as the square of this), so that it does not swing in the pads."""
+        m = self.scale.payload_kg
+        light = self.p.payload.gentle_above_kg
+        return 1.0 if m is None or m <= light else float(np.sqrt(light / m))
+
+    def _straight_carry_lowers(self) -> bool:
+        """Whether the arm, carried along a straight line to above the place (the per-tick IK keeps
+        to the branch it is on), stays clear of singular postures on the way (its joints within
+        ``line_velocity_share`` of their limits at the carry's speed) and arrives where it can follow
+        the lowering onto the place."""
+        assert self.plan is not None
+        start, end = self.motion.setpoint, self.move.x4(self.plan.place_above)
+        n = self.p.goals.line_steps
+        step_s = float(np.linalg.norm(end[:3] - start[:3])) / n / self.p.free.scaled(self.lift_scale).velocity
+        max_step = self.p.goals.line_velocity_share * rm.MAX_VELOCITY_RAD_S * step_s
+        q = self.motion.q
+        for k in range(1, n + 1):
+            res = self.kin.track(top_down_se3(start + (end - start) * (k / n)), q, max_iterations=8)
+            if not res.success or np.any(np.abs(res.q - q) > max_step):
+                return False
+            q = res.q
+        above = self.kin.forward(q)
+        return line_speed_scale(self.kin, q, above, self.plan.place, self.p.goals) >= self.p.goals.min_line_speed_scale
 
     def _tick_transport(self, obs: Observation) -> Transition:
         if self._dropped(obs):
