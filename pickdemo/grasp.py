@@ -2,11 +2,10 @@
 
 Pure: no simulator. The hand's fingers close along its y axis; a top-down TCP orientation is
 ``Rz(psi) Rx(pi)``, whose y axis points along ``(sin psi, -cos psi, 0)``. The grasp closes across
-the object's narrower side. Of the equivalent hand angles (the hand is symmetric under a half turn,
-a square box under a quarter turn) the one that keeps joint 7 nearest the middle of its range over
-the whole pick and place is chosen: for a top-down Panda, ``q7 ~ pi/4 + q1 - psi`` with
-``q1 ~ atan2(y, x)``, so the hand angle is centred on ``pi/4 + q1`` averaged over the grasp and the
-place. The hand keeps its angle while carrying, so joint 7 turns by the change of q1 on the way.
+the object's narrower side. The hand is symmetric under a half turn and a square box under a quarter
+turn, so a grasp has several equivalent hand angles (:func:`equivalent_hand_yaws`; a cylinder's is
+free). Which of them the arm takes is the skill's choice, by IK (:mod:`pickdemo.pick`): this module
+knows nothing of the robot's joints.
 """
 
 from __future__ import annotations
@@ -16,7 +15,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo import robot_model as rm
-from pickdemo import wrist
 from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.perception import TargetModel
 
@@ -76,6 +74,19 @@ def hand_yaw_for(pose: Pose, model: TargetModel, centre_rad: float = 0.0) -> tup
     return float(centre_rad + wrap_angle(psi - centre_rad, period)), shape.grasp_width_m
 
 
+def equivalent_hand_yaws(pose: Pose, model: TargetModel, free_steps: int = 8) -> list[float]:
+    """Every hand angle (rad, wrapped to [-pi, pi)) that closes across the target's narrower side:
+    its symmetry with the hand's own half turn (2 for a box, 4 for a square top); for a shape with no
+    yaw (a cylinder) ``free_steps`` angles evenly round."""
+    period = model.geometry.yaw_symmetry_rad
+    if period == 0.0:
+        return [float(wrap_angle(-np.pi + 2.0 * np.pi * k / free_steps)) for k in range(free_steps)]
+    psi0, _ = hand_yaw_for(pose, model, 0.0)
+    step = min(period, np.pi)
+    n = int(round(2.0 * np.pi / step))
+    return [float(wrap_angle(psi0 + k * step)) for k in range(n)]
+
+
 def plan_grasp(
     pose: Pose,
     model: TargetModel,
@@ -86,13 +97,11 @@ def plan_grasp(
 ) -> GraspPlan:
     """All TCP poses of the pick and place from the estimated pose of the target.
 
-    ``hand_yaw_near_rad``: of the equivalent hand angles, take the one nearest this (a re-plan keeps
-    the hand's angle; a retry may ask for another); by default the one that keeps joint 7 mid-range.
+    ``hand_yaw_near_rad``: of the equivalent hand angles, take the one nearest this (the skill chooses
+    it; a re-plan keeps the hand's angle); by default the one nearest 0.
     """
     params = params or GraspParams()
-    centre = wrist.centre_yaw(tuple(pose.position[:2]), tuple(place_xy))
-    if hand_yaw_near_rad is not None:
-        centre = hand_yaw_near_rad
+    centre = 0.0 if hand_yaw_near_rad is None else hand_yaw_near_rad
     psi, width = hand_yaw_for(pose, model, centre)
     if width > 2.0 * rm.FINGER_MAX_M - params.width_margin_m:
         raise GraspPlanningError(

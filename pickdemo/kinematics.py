@@ -3,6 +3,14 @@
 Pure: no simulator. The model is the same URDF that the simulator loads, with the two finger joints
 locked (``buildReducedModel``). Joint limits are respected by projecting every iterate; when a solve
 from the seed does not converge, it restarts from random configurations drawn with the caller's RNG.
+
+The per-tick solve (:meth:`PandaKinematics.track`) may be given a posture: a pose of the hand leaves
+the arm one degree of freedom (the elbow's swing), and damped least squares alone lets it drift along
+a long line. Each tick then also steps in the task's null space (the motion that leaves the hand where
+it is) towards the posture and away from any joint within :attr:`PostureParams.limit_zone_rad` of its
+limit: a secondary task as in Siciliano's and Nakamura's redundancy resolution. A null-space term in
+this solver was chosen over a QP (pin-pink): it costs microseconds where pink's solve was measured at
+0.35 ms a tick (``FIELD_NOTES``), more than the whole control decision.
 """
 
 from __future__ import annotations
@@ -49,6 +57,22 @@ class IKResult:
     reason: str = ""
 
 
+@dataclass(frozen=True)
+class PostureParams:
+    """The per-tick IK's secondary task, in the null space of the hand's pose (rad, per tick)."""
+
+    gain: float = 0.02  # a tick pulls this share of the way to the posture (a 0.4 s time constant at 120 Hz)
+    limit_zone_rad: float = 0.3  # joint-limit avoidance acts on a joint this close to a limit ...
+    limit_step_rad: float = 0.002  # ... pushing it away up to this far a tick (at the limit; quadratic onset)
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.gain < 1.0 and self.limit_zone_rad > 0.0 and self.limit_step_rad >= 0.0):
+            raise ValueError("invalid posture parameters")
+
+
+POSTURE = PostureParams()
+
+
 class PandaKinematics:
     """Forward and inverse kinematics of the arm's TCP (``panda_hand_tcp``)."""
 
@@ -83,7 +107,23 @@ class PandaKinematics:
     def within_limits(self, q: np.ndarray) -> bool:
         return bool(np.all(q >= self.lower - 1e-9) and np.all(q <= self.upper + 1e-9))
 
-    def _solve_from(self, target: pin.SE3, q0: np.ndarray, params: IKParams) -> tuple[np.ndarray, float, float, int]:
+    def _posture_step(self, q: np.ndarray, q_ref: np.ndarray, params: PostureParams) -> np.ndarray:
+        """The secondary task's joint step (before the null-space projection): towards ``q_ref``,
+        and away from a joint limit within ``limit_zone_rad`` (zero outside it, growing as the square
+        of the depth in it, so it sets in smoothly)."""
+        zone = params.limit_zone_rad
+        near_lo = np.maximum(zone - (q - self.lower), 0.0) / zone
+        near_hi = np.maximum(zone - (self.upper - q), 0.0) / zone
+        return params.gain * (q_ref - q) + params.limit_step_rad * (near_lo * near_lo - near_hi * near_hi)
+
+    def _solve_from(
+        self,
+        target: pin.SE3,
+        q0: np.ndarray,
+        params: IKParams,
+        q_ref: np.ndarray | None = None,
+        posture: PostureParams = POSTURE,
+    ) -> tuple[np.ndarray, float, float, int]:
         model, data = self.model, self.data
         key = (params.limit_margin_rad, params.damping)
         if key not in self._solver_constants:  # once per setting: this runs every control tick
@@ -116,20 +156,36 @@ class PandaKinematics:
                 return q, e_pos, e_rot, it
             J = pin.computeFrameJacobian(model, data, q, tcp, pin.LOCAL)
             J = -pin.Jlog6(iMd.inverse()) @ J
-            v = -J.T @ np.linalg.solve(J @ J.T + reg, err)
+            if q_ref is not None and it == 1:  # the posture's step, once a tick, in the task's null space
+                g = self._posture_step(q, q_ref, posture)
+                y = np.linalg.solve(J @ J.T + reg, np.column_stack((err, J @ g)))
+                v = -J.T @ y[:, 0] + (g - J.T @ y[:, 1])
+            else:
+                v = -J.T @ np.linalg.solve(J @ J.T + reg, err)
             q = np.minimum(np.maximum(pin.integrate(model, q, step * v), lo), hi)
         return q, e_pos, e_rot, params.max_iterations
 
-    def track(self, target: Pose | pin.SE3, q_prev: np.ndarray, *, max_iterations: int = 4) -> IKResult:
+    def track(
+        self,
+        target: Pose | pin.SE3,
+        q_prev: np.ndarray,
+        *,
+        max_iterations: int = 4,
+        posture: np.ndarray | None = None,
+        posture_params: PostureParams = POSTURE,
+    ) -> IKResult:
         """One warm-started solve per control tick: a few damped least-squares steps from the last
-        command, no restarts (the target moved a millimetre or so since the last tick)."""
+        command, no restarts (the target moved a millimetre or so since the last tick). ``posture``:
+        the configuration the arm's free swing is pulled towards (and away from its joint limits), in
+        the hand's null space; it acts while the hand moves (a target reached at the first step, the
+        arm at rest, takes no step)."""
         params = (
             _TRACK_PARAMS
             if max_iterations == _TRACK_PARAMS.max_iterations
             else IKParams(restarts=0, max_iterations=max_iterations)
         )
         goal = target if isinstance(target, pin.SE3) else target.to_se3()
-        q, e_pos, e_rot, its = self._solve_from(goal, np.asarray(q_prev, dtype=float), params)
+        q, e_pos, e_rot, its = self._solve_from(goal, np.asarray(q_prev, dtype=float), params, posture, posture_params)
         ok = e_pos < params.tolerance_m and e_rot < params.tolerance_rad
         reason = "" if ok else f"not converged in {its} steps ({e_pos * 1e3:.2f} mm, {np.degrees(e_rot):.3f} deg)"
         return IKResult(ok, q, e_pos, e_rot, its, 0, reason)

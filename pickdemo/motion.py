@@ -10,7 +10,9 @@ motion stays within the limits it was given, jerk included, across every re-targ
 Phase synchronisation makes rest-to-rest moves straight lines in Cartesian space (the fingers move
 straight near the object: joint-space moves were measured to stray 10-28 mm from the vertical).
 Each tick's setpoint becomes joint angles by a few damped least-squares steps warm-started from the
-last command (:meth:`pickdemo.kinematics.PandaKinematics.track`).
+last command (:meth:`pickdemo.kinematics.PandaKinematics.track`), with a posture task in the hand's
+null space: the arm's free swing is held to the posture the motion was seated in (home, or the IK goal
+a joint transfer went to) and kept off its joint limits.
 """
 
 from __future__ import annotations
@@ -151,6 +153,8 @@ class OnlineMotion:
         self.kin = kin
         self.dt_s = dt_s
         self.q = np.asarray(q0, dtype=float).copy()
+        #: the configuration the per-tick IK holds the arm's free swing to: where the motion was seated
+        self.posture = self.q.copy()
         self._otg = Ruckig(4, dt_s)
         self._inp = InputParameter(4)
         self._out = OutputParameter(4)
@@ -288,6 +292,7 @@ class OnlineMotion:
     def reset_at(self, q: np.ndarray) -> None:
         """Re-seat the motion at rest where a joint-space transfer left the arm (its TCP at ``q``)."""
         self.q = np.asarray(q, dtype=float).copy()
+        self.posture = self.q.copy()  # the posture the goal was chosen for
         x0 = pose_to_x4(self.kin.forward(self.q))
         self._inp.current_position = x0.tolist()
         self._inp.current_velocity = [0.0] * 4
@@ -327,7 +332,7 @@ class OnlineMotion:
         )
 
     def _joints(self, x4: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        res = self.kin.track(top_down_se3(x4), self.q)
+        res = self.kin.track(top_down_se3(x4), self.q, posture=self.posture)
         if not res.success and (res.position_error_m > 1e-3 or res.rotation_error_rad > np.radians(0.5)):
             raise MotionError(f"IK lost the Cartesian setpoint {np.round(x4, 4).tolist()}: {res.reason}")
         dq = (res.q - self.q) / self.dt_s

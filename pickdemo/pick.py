@@ -33,28 +33,38 @@ The skill is states and transitions only, dispatched from a table (:data:`STATES
 entry action and exit test). What it does, it does through its parts: the hand's :class:`~pickdemo.actions.Move`
 and the fingers' :class:`~pickdemo.actions.Grip` (started, then finished or failed), the target's
 :class:`~pickdemo.belief.TargetBelief` (the tracker and the gate in front of it), a
-:class:`~pickdemo.grasp_selection.GraspSelector` (ranked grasps from the belief), and the Panda's
-wrist rules (:mod:`pickdemo.wrist`).
+:class:`~pickdemo.grasp_selection.GraspSelector` (ranked grasps from the belief). Which of a grasp's
+equivalent hand angles the arm takes, and which IK solution a transfer goes to, is chosen by IK
+(:mod:`pickdemo.ik_goals`): joint-limit margin, then joint travel; no rule of a particular joint.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import enum
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from pickdemo import robot_model as rm
-from pickdemo import wrist
 from pickdemo.actions import Grip, GripParams, Move, PayloadParams, Scale
 from pickdemo.belief import Counters, GateParams, TargetBelief, Verdict
 from pickdemo.camera import Intrinsics, roi_around
-from pickdemo.geometry import Pose
-from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, top_down
+from pickdemo.geometry import Pose, wrap_angle
+from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, equivalent_hand_yaws, top_down
 from pickdemo.grasp_selection import GraspRequest, GraspSelector, TopDownFaceGrasps
-from pickdemo.ik_goals import GoalParams, choose_goal, goal_candidates, line_speed_scale, line_trackable
+from pickdemo.ik_goals import (
+    GoalParams,
+    along_line,
+    choose_goal,
+    goal_candidates,
+    line_speed_scale,
+    line_trackable,
+    path_dip,
+    path_low_z,
+)
 from pickdemo.interfaces import Command, Observation
 from pickdemo.kinematics import IKParams, PandaKinematics
 from pickdemo.motion import (
@@ -71,8 +81,6 @@ from pickdemo.rate_limit import RateLimiter
 from pickdemo.result import AttemptRecord, Failure, Stage
 from pickdemo.tracker import TargetTracker, TrackerParams
 
-#: Re-exported for callers of the old name: the wrist's rule lives in :mod:`pickdemo.wrist`.
-WRIST_TURN_LIMIT_RAD = wrist.WRIST_TURN_LIMIT_RAD
 UNIT_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
 #: A state may hand over to the next within one tick (an exit test met at once): at most this many times.
 MAX_TRANSITIONS_PER_TICK = 4
@@ -233,6 +241,7 @@ class PickMachine:
         self.joints = JointMotion(kin, q0, dt_s)  # transfers in joint space
         self.limiter = RateLimiter(q0, dt_s)  # every joint command within the datasheet, as libfranka's
         self._joint = False  # the joint-space transfer drives the arm (else the Cartesian motion)
+        self._legs: deque[Callable[[], None]] = deque()  # the state's motion still to come, leg by leg
         self._sample: MotionSample | None = None
         self.counters = Counters()
         self.belief = TargetBelief(
@@ -259,6 +268,7 @@ class PickMachine:
         self._turn_hand = False  # after a miss: try a square box by its other pair of faces
         self._weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
         self._line_checked_q: np.ndarray | None = None  # a transfer goal whose straight line was checked
+        self._room_checked: tuple[np.ndarray, bool] | None = None  # a re-plan's last check of joint room
         self._lifted_off = False  # lifting: past the pause just off the table where it is weighed
         self._attempt_start_s = 0.0
         # Per state.
@@ -356,6 +366,10 @@ class PickMachine:
             self._go(*nxt)
         if self.finished:
             return self._command_hold()
+        if self._legs and self._leg_finished:  # the next leg of the state's motion (over the top)
+            self._legs.popleft()()
+            if self.finished:
+                return self._command_hold()
         if self._joint:
             try:
                 sample = self.joints.step()
@@ -380,6 +394,7 @@ class PickMachine:
     def _go(self, state: State, message: str) -> None:
         self.state = state
         self._entered = False
+        self._legs.clear()  # each state starts its own motion
         self.events.append(Event(state, self._now_s, message))
 
     def _fail(self, stage: Stage, reason: str) -> None:
@@ -466,80 +481,122 @@ class PickMachine:
         """The selector's best grasp for the target at ``pose`` with the hand angle nearest ``near``."""
         return next(iter(self.selector.candidates(GraspRequest(pose, self.model, self.place_xy, (near,)))))
 
+    def _ik_room(self, poses: list[Pose], *, from_home: bool = True) -> tuple[float, float] | None:
+        """How the arm would hold ``poses`` (one after another): the least joint-limit margin (rad) of
+        the best IK solution of each (from where the arm is, or was for the pose before, and from
+        home), and the joint travel (s at the speed limits) from here through them; None if one has
+        no solution."""
+        margins, travel, q_prev = [], 0.0, self._q
+        for pose in poses:
+            best = None
+            seeds = [q_prev] if not from_home or np.array_equal(q_prev, rm.HOME_Q) else [q_prev, rm.HOME_Q]
+            for seed in seeds:
+                res = self.kin.solve(pose, seed, self.rng, self.p.goals.ik)
+                if res.success and (best is None or self.kin.limit_margin(res.q) > self.kin.limit_margin(best)):
+                    best = res.q
+            if best is None:
+                return None
+            margins.append(self.kin.limit_margin(best))
+            travel += float(np.max(np.abs(best - q_prev) / rm.MAX_VELOCITY_RAD_S))
+            q_prev = best
+        return min(margins), travel
+
+    def _room_kept(self, plan: GraspPlan) -> bool:
+        """Whether the arm, on the branch it is on, still holds this plan's pregrasp with every joint
+        ``min_margin_rad`` from its limits (a re-plan's check; re-used while the pose moves less than
+        a millimetre and a half-degree: the tracker moves it that much a frame)."""
+        x4 = pose_to_x4(plan.pregrasp)
+        last = self._room_checked
+        if last is not None and np.all(np.abs(x4 - last[0]) < np.array([1e-3, 1e-3, 1e-3, np.radians(0.5)])):
+            return last[1]
+        room = self._ik_room([plan.pregrasp], from_home=False)
+        kept = room is not None and room[0] >= self.p.goals.min_margin_rad
+        self._room_checked = (x4, kept)
+        return kept
+
+    def _ranked_hand_yaws(self, pose: Pose, held: np.ndarray | None, other_faces_than: float | None) -> list[float]:
+        """The target's equivalent hand angles (:func:`~pickdemo.grasp.equivalent_hand_yaws`), best
+        first by IK: those whose grasp (where it will be held, for a moving target) and place have
+        solutions; of them those that keep every joint ``min_margin_rad`` from its limits; then the
+        least joint travel through the grasp and the place, or for a moving target the least turn of
+        the hand from where it is (turning the wrist while chasing a target across the table drifts
+        the arm's redundancy towards a singularity, measured). ``other_faces_than``: a square box
+        missed at this angle is taken by its other pair of faces first."""
+        scored = []
+        for yaw in equivalent_hand_yaws(pose, self.model):
+            try:
+                plan = self._grasp(pose, yaw)
+            except GraspPlanningError:
+                return []
+            grasp = plan.grasp if held is None else Pose(np.array([*held, plan.grasp.position[2]]), plan.grasp.rotation)
+            room = self._ik_room([grasp, plan.place])
+            missed = other_faces_than
+            same_faces = missed is not None and abs(float(wrap_angle(yaw - missed, np.pi))) < np.pi / 4
+            if room is None:
+                scored.append(((True, same_faces, True, 0.0), yaw))
+                continue
+            margin, travel = room
+            turn = abs(float(wrap_angle(yaw - float(self.motion.setpoint[3]))))
+            scored.append(
+                ((False, same_faces, margin < self.p.goals.min_margin_rad, turn if held is not None else travel), yaw)
+            )
+        return [yaw for _, yaw in sorted(scored, key=lambda kv: kv[0])]
+
     def _replan(self, *, first: bool) -> GraspPlan | None:
         """A grasp plan from the tracker's belief now; None after failing the episode.
 
-        A re-plan keeps the hand's angle (unless the wrist would then leave its room). The first plan
-        of an attempt takes the selector's first candidate the whole pick and place can reach; after
-        a miss it first asks for the hand turned a quarter (a square box's other pair of faces).
+        A re-plan keeps the hand's angle, unless IK says the arm would then be left without room at the
+        grasp. The first plan of an attempt takes the best of the equivalent hand angles by IK
+        (:meth:`_ranked_hand_yaws`) that the whole pick and place can reach; after a miss, a square
+        box's other pair of faces first.
         """
         pose = self._tracked_pose()
         self._planned_at_s = self._now_s
+        v = self._target_velocity()
+        held = None if v is None else pose.position[:2] + v * self.p.grasp_time_s
         if not first:
             near = None if self.plan is None else self.plan.hand_yaw_rad
             try:
                 plan = self._grasp(pose, near)
-                centre = wrist.centre_yaw(tuple(pose.position[:2]), tuple(self.place_xy))
-                # Joint 7 where the plan would take it (it turns against the hand's yaw).
-                q7_then = float(self.motion.q[6]) - (
-                    float(self.move.x4(plan.pregrasp)[3]) - float(self.motion.setpoint[3])
-                )
-                if wrist.drifts_too_far(plan.hand_yaw_rad, centre, q7_then):
-                    plan = self._grasp(pose, None)
+                if not self._room_kept(plan):  # this hand angle is running out of room: choose again
+                    ranked = self._ranked_hand_yaws(pose, held, None)
+                    if ranked and abs(float(wrap_angle(ranked[0] - plan.hand_yaw_rad))) > 1e-6:
+                        plan = self._grasp(pose, ranked[0])
             except GraspPlanningError as exc:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
                 return None
-            if self.state is State.APPROACH and self._target_velocity() is not None:  # still in reach?
+            if self.state is State.APPROACH and v is not None:  # still in reach?
                 reason = self._out_of_reach(plan)
                 if reason:
                     self._fail(Stage.IK, reason)
                     return None
             return plan
-        hand_yaws: list[float | None] = [None]
-        v = self._target_velocity()
-        if v is not None:
-            # A moving target: the least turn of the hand first (turning the wrist a quarter while
-            # chasing it across the table drifts the arm's redundancy towards a singularity,
-            # measured), then joint 7 mid-range where it will be held rather than where it is.
-            held = pose.position[:2] + v * self.p.grasp_time_s
-            hand_yaws = [float(self.motion.setpoint[3]), wrist.centre_yaw(tuple(held), tuple(self.place_xy)), None]
-        if self._turn_hand and self.plan is not None:
-            centre = wrist.centre_yaw(tuple(pose.position[:2]), tuple(self.place_xy))
-            try:
-                usual = self._grasp(pose, None).hand_yaw_rad
-            except GraspPlanningError as exc:
-                self._fail(Stage.GRASP_PLANNING, str(exc))
-                return None
-            hand_yaws.insert(0, wrist.quarter_turn(usual, centre))
-        elif v is None and self.symmetry > 0.0:
-            # At rest: if the usual hand angle cannot do it, the same grasp with the hand turned half
-            # a turn (a parallel gripper's equivalent; the place then turned with it).
-            try:
-                usual = self._grasp(pose, None).hand_yaw_rad
-            except GraspPlanningError as exc:
-                self._fail(Stage.GRASP_PLANNING, str(exc))
-                return None
-            hand_yaws.append(usual + np.pi)
+        missed = self.plan.hand_yaw_rad if (self._turn_hand and self.plan is not None) else None
         self._turn_hand = False
-        candidates = iter(self.selector.candidates(GraspRequest(pose, self.model, self.place_xy, tuple(hand_yaws))))
-        first = ""  # the usual hand angle's reason, if no angle will do
-        for near in hand_yaws:
+        try:
+            hand_yaws = self._ranked_hand_yaws(pose, held, missed) or [None]
+            candidates = iter(self.selector.candidates(GraspRequest(pose, self.model, self.place_xy, tuple(hand_yaws))))
+        except GraspPlanningError as exc:
+            self._fail(Stage.GRASP_PLANNING, str(exc))
+            return None
+        first_reason = ""  # the best-ranked hand angle's reason, if no angle will do
+        for _ in hand_yaws:
             try:
                 plan = next(candidates)
             except GraspPlanningError as exc:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
                 return None
-            reason = self._unreachable(plan, turned=near is not None)
+            reason = self._unreachable(plan)
             if isinstance(reason, tuple):
                 self._fail(*reason)
                 return None
             if not reason:
                 return plan
-            first = first or reason
-        self._fail(Stage.IK, first)
+            first_reason = first_reason or reason
+        self._fail(Stage.IK, first_reason)
         return None
 
-    def _unreachable(self, plan: GraspPlan, *, turned: bool) -> str | tuple[Stage, str]:
+    def _unreachable(self, plan: GraspPlan) -> str | tuple[Stage, str]:
         """Why the arm cannot do this plan's pick and place ("" if it can; a (stage, reason) to fail
         the episode at once: a moving target that cannot be met at all)."""
         reach = self._reach_targets(plan)
@@ -551,8 +608,6 @@ class PickMachine:
                 if name not in ("grasp", "place"):  # a moving target's
                     return f"the target leaves the arm's reach before the arm can meet it: {name} is out of reach"
                 return f"{name} pose out of reach: {res.reason}"
-            if turned and not wrist.has_room(float(res.q[6])):  # a turned hand: keep wrist room
-                return f"{name} pose turns joint 7 to {res.q[6]:.2f} rad"
         # Above the place, some IK solution from which the lowering can be followed: with joint
         # transfers the carry may go in joint space to any of them, the hand turned half a turn or not.
         lines = [(plan.place_above, plan.place)]
@@ -580,8 +635,13 @@ class PickMachine:
 
     # ------------------------------------------------------------------- joint-space transfers
     @property
-    def _motion_finished(self) -> bool:
+    def _leg_finished(self) -> bool:
         return self.joints.finished if self._joint else self.move.finished
+
+    @property
+    def _motion_finished(self) -> bool:
+        """The state's motion has finished: the leg under way and every leg after it."""
+        return self._leg_finished and not self._legs
 
     @property
     def _q(self) -> np.ndarray:
@@ -603,12 +663,97 @@ class PickMachine:
             self.motion.reset_at(self.joints.q)
             self._joint = False
 
+    # ------------------------------------------------------------------------- over the top
+    def _raised(self, pose: Pose, h: float) -> Pose:
+        return Pose(pose.position + np.array([0.0, 0.0, h]), pose.rotation)
+
+    def _rise_from_here(self, h: float) -> tuple[Pose, np.ndarray] | None:
+        """The pose ``h`` straight above the hand (at rest, in the Cartesian motion) and the joints the
+        per-tick IK reaches it with; None if it cannot follow the line."""
+        here = self.kin.forward(self.motion.q)
+        up = self._raised(here, h)
+        q = self.motion.q
+        for q_k in along_line(self.kin, q, here, up, self.p.goals.line_steps):
+            if q_k is None:
+                return None
+            q = q_k
+        return up, q
+
+    def _via_above(self, pose: Pose, h: float, q_from: np.ndarray, floor_z: float) -> np.ndarray | None:
+        """An IK goal ``h`` above ``pose`` (the hand's angle kept) that a transfer from ``q_from`` reaches
+        without the hand going below ``floor_z``, and from which the straight line down to ``pose``
+        can be followed; None if there is none."""
+        via = self._raised(pose, h)
+        found = goal_candidates(self.kin, [via], q_from, self.rng, self.p.goals, lines_to=[pose])
+        ok = [g for g in found if g.line_ok and path_low_z(self.kin, q_from, g.q, self.p.goals) >= floor_z]
+        goal = choose_goal(ok, self.p.goals)
+        return None if goal is None else goal.q
+
+    def _transfer_over_the_top(
+        self,
+        q_goal: np.ndarray,
+        scale: float,
+        limits: CartesianLimits,
+        *,
+        rise: bool,
+        above: Pose | None = None,
+        down: Callable[[], None] | None = None,
+    ) -> bool:
+        """A transfer to ``q_goal`` whose straight joint path would take the hand down below both of its
+        ends goes over the top instead, each leg from rest to rest: straight up from here first
+        (``rise``, from the Cartesian motion at rest), in joint space to ``q_goal`` or to a goal
+        straight above ``above`` (the goal's pose) and then straight down onto it (``down``: that last
+        leg, the caller's, so that it goes to where the plan is by then). The path must keep the hand
+        above the lower of the two ends (less ``max_dip_m``). True if so planned (its first leg
+        started); False if the direct path does not dip, or no way over the top was found (the direct
+        transfer is then the caller's)."""
+        g = self.p.goals
+        dip = path_dip(self.kin, self._q, q_goal, g)
+        if dip <= g.max_dip_m:
+            return False
+        z_goal = self.kin.forward(q_goal).position[2]
+        floor = min(self.kin.forward(self._q).position[2], z_goal) - g.max_dip_m
+        for h in g.via_heights_m:
+            legs: list[Callable[[], None]] = []
+            q_start = self._q
+            if rise:
+                found = None if self._joint else self._rise_from_here(h)
+                if found is None:
+                    continue
+                up, q_start = found
+                legs.append(lambda up=up: self.move.to(up, limits=limits))
+            if above is not None:
+                q_via = self._via_above(above, h, q_start, floor)
+                if q_via is None:
+                    continue
+                legs.append(lambda q=q_via: self._transfer_to(q, scale))
+                legs.append(down or (lambda: (self._cartesian(), self.move.to(above, limits=limits))))
+            else:
+                if path_low_z(self.kin, q_start, q_goal, g) < floor:
+                    continue
+                legs.append(lambda: self._transfer_to(q_goal, scale))
+            note = (
+                f"over the top: the joint path would take the hand {dip * 1e3:.0f} mm below its ends, "
+                f"so {'up ' if rise else ''}{h * 1e2:.0f} cm{' and down' if above is not None else ''}"
+            )
+            self.events.append(Event(self.state, self._now_s, note, note=True))
+            self._legs.clear()
+            self._legs.extend(legs[1:])
+            legs[0]()
+            return True
+        return False
+
     def _goal(self, pose: Pose, line_to: Pose, *, seeded: np.ndarray | None = None):
         """The IK goal for a top-down TCP pose or the same pose turned half a turn (a parallel gripper
         closes the same way): the best of several solutions (:mod:`pickdemo.ik_goals`). ``seeded``: a
         re-plan keeps to the solution near the goal it had, if there is one."""
         if seeded is not None:
             res = self.kin.solve(pose, seeded, self.rng, self.p.goals.ik)
+            if res.success and self._joint and not self.joints.finished:
+                # Mid-transfer, the goal stays on its branch while it has a solution there: a goal on
+                # another branch bends the transfer's path off its straight line in joint space, and
+                # that swung the hand down onto the target (measured, pick_anywhere seed 6).
+                return res.q, 0
             if res.success and self.kin.limit_margin(res.q) >= self.p.goals.min_margin_rad:
                 # a re-plan a hair from a goal whose line was checked keeps that check (the tracker
                 # moves the goal by a millimetre or so a frame)
@@ -727,7 +872,8 @@ class PickMachine:
         self._look_frames = 0
         self._fresh_estimate = False
         if self.p.joint_transfers:
-            self._transfer_to(rm.HOME_Q, self.p.transfer_scale)
+            if not self._transfer_over_the_top(rm.HOME_Q, self.p.transfer_scale, self.p.free, rise=True):
+                self._transfer_to(rm.HOME_Q, self.p.transfer_scale)
         else:
             self.move.to(self.home_x4, limits=self.p.free)
 
@@ -771,7 +917,11 @@ class PickMachine:
             return
         if turned:
             self.plan = _turned_plan(self.plan, pick=True, place=True)
-        self._transfer_to(q, self.p.transfer_scale)
+        down = lambda: (self._cartesian(), self._go_to(self.plan.pregrasp, limits=self.p.free))  # noqa: E731
+        if not self._transfer_over_the_top(
+            q, self.p.transfer_scale, self.p.free, rise=False, above=self.plan.pregrasp, down=down
+        ):
+            self._transfer_to(q, self.p.transfer_scale)
 
     def _tick_approach(self, obs: Observation) -> Transition:
         if not self.open_loop and self.belief.lost(obs.time_s):
@@ -785,7 +935,9 @@ class PickMachine:
         plan = self._track_plan()
         if plan is not None:
             self.plan = plan
-            if self._joint:  # the transfer goes on to the new plan's goal, on the same branch
+            if self._legs:  # going over the top: its last leg goes down to where the plan is by then
+                pass
+            elif self._joint:  # the transfer goes on to the new plan's goal, on the same branch
                 q, turned = self._goal(plan.pregrasp, plan.grasp, seeded=self.joints.target)
                 if q is None:
                     self._fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
@@ -891,7 +1043,10 @@ class PickMachine:
             return
         if turned:  # put down with the hand turned half a turn: the same for the place, not the grasp
             self.plan = _turned_plan(self.plan, pick=False, place=True)
-        self._transfer_to(q, self.p.carry_scale * self.lift_scale * self._payload_scale())
+        scale = self.p.carry_scale * self.lift_scale * self._payload_scale()
+        limits = self.p.free.scaled(self.lift_scale * self._payload_scale())
+        if not self._transfer_over_the_top(q, scale, limits, rise=True, above=self.plan.place_above):
+            self._transfer_to(q, scale)
 
     def _payload_scale(self) -> float:
         """The carry's speed share for what the wrist weighed: a heavier hold is carried more gently
@@ -912,7 +1067,8 @@ class PickMachine:
         max_step = self.p.goals.line_velocity_share * rm.MAX_VELOCITY_RAD_S * step_s
         q = self.motion.q
         for k in range(1, n + 1):
-            res = self.kin.track(top_down_se3(start + (end - start) * (k / n)), q, max_iterations=8)
+            res = self.kin.track(top_down_se3(start + (end - start) * (k / n)), q, max_iterations=8,
+                                 posture=self.motion.posture)  # fmt: skip
             if not res.success or np.any(np.abs(res.q - q) > max_step):
                 return False
             q = res.q
@@ -961,7 +1117,8 @@ class PickMachine:
 
     def _enter_home(self, obs: Observation) -> None:
         if self.p.joint_transfers:
-            self._transfer_to(rm.HOME_Q, self.p.transfer_scale)
+            if not self._transfer_over_the_top(rm.HOME_Q, self.p.transfer_scale, self.p.free, rise=True):
+                self._transfer_to(rm.HOME_Q, self.p.transfer_scale)
         else:
             self.move.to(self.home_x4, limits=self.p.free)
 

@@ -1,4 +1,4 @@
-"""Grasp planning: across the narrower side, the hand angle nearest home, the gripper's width."""
+"""Grasp planning: across the narrower side, the equivalent hand angles, the gripper's width."""
 
 from __future__ import annotations
 
@@ -35,18 +35,17 @@ def test_square_box_uses_quarter_turn_symmetry() -> None:
     assert abs(psi) <= np.pi / 4 + 1e-9
 
 
-def test_hand_angle_keeps_joint7_mid_range_over_grasp_and_place() -> None:
-    """Regression (pick_box seed 5): carrying to y = 0.3 must not drive joint 7 past its limit."""
-    from pickdemo import robot_model as rm
-    from pickdemo.kinematics import panda_kinematics
+def test_a_box_has_two_hand_angles_a_square_top_four_a_cylinder_any() -> None:
+    from pickdemo.grasp import equivalent_hand_yaws
+    from pickdemo.shapes import Cylinder
 
-    kin = panda_kinematics()
-    model = TargetModel(Box((0.07, 0.035, 0.04)), (0.0, 0.0, 1.0))
-    for yaw in np.linspace(-90.0, 90.0, 13):
-        plan = plan_grasp(_estimate(yaw, z=0.02), model, (0.45, 0.3))
-        for pose in (plan.grasp, plan.place):
-            res = kin.solve(pose, rm.HOME_Q, np.random.default_rng(0))
-            assert res.success and abs(res.q[6]) < 2.5, (yaw, res.q[6])
+    pose = _estimate(20.0)
+    box = equivalent_hand_yaws(pose, TargetModel(Box((0.06, 0.03, 0.04)), (1.0, 0.0, 0.0)))
+    square = equivalent_hand_yaws(pose, TargetModel(Box((0.05, 0.05, 0.05)), (1.0, 0.0, 0.0)))
+    round_ = equivalent_hand_yaws(pose, TargetModel(Cylinder(0.02, 0.06), (1.0, 0.0, 0.0)))
+    assert len(box) == 2 and len(square) == 4 and len(round_) == 8
+    assert abs(np.cos(box[1] - box[0]) + 1.0) < 1e-9  # half a turn apart
+    assert np.allclose(np.diff(sorted(square)), np.pi / 2.0)
 
 
 def test_plan_heights() -> None:

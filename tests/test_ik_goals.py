@@ -58,3 +58,25 @@ def test_a_joint_space_transfer_ends_at_its_goal_within_the_datasheet() -> None:
     t = np.arange(len(qs)) / 120.0
     ratio = peak_limit_ratios(t, np.array(qs))
     assert max(ratio.values()) <= 1.0, ratio
+
+
+def test_a_joint_path_that_swings_the_hand_down_is_measured() -> None:
+    """From home to a goal on the far branch, the straight joint-space path takes the hand far below
+    both of its ends (it knocked over the target it was sent to; measured, pick_anywhere); a goal
+    nearby takes it straight there."""
+    from pickdemo.ik_goals import path_dip
+
+    kin = panda_kinematics()
+    far_branch = np.array([2.119, 0.923, -1.547, -2.669, 1.258, 2.148, -1.203])  # above (0.35, 0.15), 12 cm up
+    assert path_dip(kin, rm.HOME_Q, far_branch) > 0.03
+    near = kin.solve(top_down(np.array([0.40, 0.0, 0.30]), 0.785), rm.HOME_Q, np.random.default_rng(4)).q
+    assert path_dip(kin, rm.HOME_Q, near) < 0.005
+
+
+def test_choose_goal_takes_a_path_that_does_not_dip_first() -> None:
+    q = rm.HOME_Q
+    pose = top_down(np.zeros(3), 0.0)
+    quick_but_dips = Goal(q, pose, 0, margin_rad=0.5, manipulability=0.1, travel_s=0.5, dip_m=0.08)
+    slower = Goal(q, pose, 1, margin_rad=0.5, manipulability=0.1, travel_s=1.0)
+    assert choose_goal([quick_but_dips, slower]) is slower
+    assert choose_goal([quick_but_dips]) is quick_but_dips  # the skill then goes over the top

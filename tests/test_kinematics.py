@@ -63,3 +63,45 @@ def test_tracking_a_setpoint_as_se3_is_the_same_solve_as_from_a_pose() -> None:
             b.position_error_m,
             b.rotation_error_rad,
         )
+
+
+def test_the_posture_task_swings_the_elbow_without_moving_the_hand() -> None:
+    """The per-tick IK's posture term moves only in the hand's null space: tracking one pose tick
+    after tick from a posture off the reference, the hand stays on it (to the solver's tolerance)
+    and the arm's free swing comes back towards the reference."""
+    kin = panda_kinematics()
+    rng = np.random.default_rng(3)
+    target = top_down(np.array([0.45, 0.10, 0.20]), 0.3)
+    ref = kin.solve(target, rm.HOME_Q, rng).q
+    # the same hand pose with the elbow swung: a solution from a start far from the reference
+    other = next(
+        r.q for r in (kin.solve(target, rng.uniform(kin.lower, kin.upper), rng) for _ in range(40))
+        if r.success and np.max(np.abs(r.q - ref)) > 0.3
+    )  # fmt: skip
+    q, wobble = other, 0.0
+    nudge = Pose(target.position + np.array([0.0, 0.0, 1e-4]), target.rotation)  # a moving target: a step each tick
+    for k in range(300):
+        res = kin.track(nudge if k % 2 else target, q, posture=ref)
+        assert res.success, res.reason
+        q = res.q
+        wobble = max(wobble, float(np.linalg.norm(kin.forward(q).position - target.position)))
+    assert wobble < 2e-4  # the hand stays where it is told
+    assert np.max(np.abs(q - ref)) < 0.5 * np.max(np.abs(other - ref))  # the elbow came back
+    # without a posture the swing stays where it was
+    q = other
+    for k in range(300):
+        q = kin.track(nudge if k % 2 else target, q).q
+    assert np.max(np.abs(q - other)) < 0.05
+
+
+def test_the_posture_task_keeps_off_the_joint_limits() -> None:
+    """A joint inside the avoidance zone is pushed away from its limit, in the null space."""
+    from pickdemo.kinematics import POSTURE
+
+    kin = panda_kinematics()
+    q = np.array(rm.HOME_Q, dtype=float)
+    q[2] = kin.upper[2] - 0.05  # joint 3 near its upper limit
+    step = kin._posture_step(q, q, POSTURE)
+    assert step[2] < 0.0 and np.count_nonzero(step) == 1  # only that joint, away from its limit
+    q[2] = 0.0
+    assert not np.any(kin._posture_step(q, q, POSTURE))  # outside every zone: nothing
