@@ -8,9 +8,9 @@ The per-tick solve (:meth:`PandaKinematics.track`) may be given a posture: a pos
 the arm one degree of freedom (the elbow's swing), and damped least squares alone lets it drift along
 a long line. Each tick then also steps in the task's null space (the motion that leaves the hand where
 it is) towards the posture and away from any joint within :attr:`PostureParams.limit_zone_rad` of its
-limit: a secondary task as in Siciliano's and Nakamura's redundancy resolution. A null-space term in
-this solver was chosen over a QP (pin-pink): it costs microseconds where pink's solve was measured at
-0.35 ms a tick (``FIELD_NOTES``), more than the whole control decision.
+limit: a secondary task as in Siciliano's and Nakamura's redundancy resolution. Chosen over a QP
+(pin-pink) by measurement (``tests/ik_bench.py``): 0.03-0.05 ms a tick against pink's 0.07 ms, both on
+the line to 0.002 mm, and no new dependency.
 """
 
 from __future__ import annotations
