@@ -119,8 +119,9 @@ class Grip:
         self._no_hold = 0
         self._prev_opening: float | None = None
 
-    def open(self) -> None:
-        self.target_m, self.force_n = rm.FINGER_MAX_M, self.p.open_force_n
+    def open(self, force_n: float | None = None) -> None:
+        """Open wide (with ``force_n``, default the usual opening force)."""
+        self.target_m, self.force_n = rm.FINGER_MAX_M, self.p.open_force_n if force_n is None else force_n
 
     def close(self, force_n: float) -> None:
         self.target_m, self.force_n = 0.0, force_n

@@ -269,6 +269,7 @@ class PickMachine:
         self._weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
         self._line_checked_q: np.ndarray | None = None  # a transfer goal whose straight line was checked
         self._room_checked: tuple[np.ndarray, bool] | None = None  # a re-plan's last check of joint room
+        self._forced_open = False  # releasing: the fingers were told to open with full force
         self._lifted_off = False  # lifting: past the pause just off the table where it is weighed
         self._attempt_start_s = 0.0
         # Per state.
@@ -1098,11 +1099,26 @@ class PickMachine:
     def _enter_release(self, obs: Observation) -> None:
         self.grip.open()
         self.grip.watch()
+        self._forced_open = False
 
     def _tick_release(self, obs: Observation) -> Transition:
+        assert self.plan is not None
         opened = self.grip.opened(obs)
-        if opened or self.grip.stopped(obs) or obs.time_s - self._since_s > self.p.close_timeout_s:
-            assert self.plan is not None
+        stopped = not opened and self.grip.stopped(obs)
+        if stopped and not self._forced_open and self.grip.holding(obs, self.plan.object_width_m):
+            # The fingers stopped on the object instead of opening (a simulated Panda's fingers jammed
+            # so after a held cube had turned half a turn in the carry, measured: the retreat then
+            # lifted it away). Open with the hand's full force before letting go of it for good.
+            self._forced_open = True
+            self.grip.open(self.p.max_grip_force_n)
+            self.grip.watch()
+            force = self.p.max_grip_force_n
+            note = (
+                f"the fingers stopped at {obs.opening_m * 1e3:.1f} mm, still on the target: opening with {force:.0f} N"
+            )
+            self.events.append(Event(self.state, self._now_s, note, note=True))
+            return None
+        if opened or stopped or obs.time_s - self._since_s > self.p.close_timeout_s:
             self._end_attempt("placed", "")
             p = self.plan.place.position
             return State.RETREAT, f"released at ({p[0]:.3f}, {p[1]:.3f})"

@@ -51,6 +51,7 @@ class Cell:
         self.yaw = np.radians(yaw_deg)
         self.held_offset: np.ndarray | None = None  # object minus TCP while held
         self.graspable = True  # the fingers close on the object when it lies between them
+        self.jam_below_n = 0.0  # held fingers stay shut when told to open with less force than this
         self.visible = True
         K = Intrinsics.from_fov(640, 480, 57.0, 43.0)
         self.camera = CameraModel(K, look_at_pose(np.array([1.1, 0.0, 0.75]), np.array([0.5, 0.0, 0.0])))
@@ -80,7 +81,9 @@ class Cell:
             self.fingers = max(self.finger_target, self.fingers - step, stop)
             if stop and self.fingers == stop and self.held_offset is None:
                 self.held_offset = self.obj - self.tcp()
-        elif self.finger_target > self.fingers:
+        elif self.finger_target > self.fingers and not (
+            self.held_offset is not None and cmd.finger_force_n < self.jam_below_n
+        ):
             self.fingers = min(self.finger_target, self.fingers + step)
             if self.held_offset is not None and self.fingers > self.width / 2.0 + 0.002:
                 self.drop()
@@ -277,3 +280,15 @@ def test_the_hand_angle_is_chosen_by_ik_with_room_at_the_grasp_and_the_place(yaw
     margin, _ = m._ik_room([plan.grasp, plan.place])
     assert margin >= m.p.goals.min_margin_rad
     assert run(cell, m) == FULL_PICK
+
+
+def test_fingers_that_stop_on_the_target_at_the_release_are_opened_with_full_force() -> None:
+    """A simulated Panda's fingers can stay shut on a held cube when told to open (measured after a
+    half turn in the carry): the release sees them stop still holding it, opens with the hand's full
+    force, and only then retreats, the target left at the place."""
+    cell = Cell()
+    cell.jam_below_n = 50.0
+    m = cell.machine()
+    assert run(cell, m) == FULL_PICK
+    assert any("still on the target: opening with 70 N" in e.message for e in m.events)
+    assert np.linalg.norm(cell.obj[:2] - np.array(PLACE)) < 0.005 and cell.held_offset is None
