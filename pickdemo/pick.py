@@ -515,32 +515,54 @@ class PickMachine:
         self._room_checked = (x4, kept)
         return kept
 
+    def _hand_angle_score(self, plan: GraspPlan, held: np.ndarray | None) -> tuple[bool, bool, float]:
+        """How the arm would do this plan's pick and place with its hand angle, by IK: whether the
+        grasp (where it will be held, for a moving target) has a solution; whether the hand can then
+        go straight to the place with the joints following continuously (the carry: the angle's
+        joint 7 turns with the arm's bearing, and past its stop the carry cannot follow) and every
+        joint ``min_margin_rad`` clear of its limits at both ends; and the joint travel (s at the
+        speed limits) from here to the grasp and on to the place."""
+        grasp = plan.grasp if held is None else Pose(np.array([*held, plan.grasp.position[2]]), plan.grasp.rotation)
+        best = None
+        for seed in [self._q] if np.array_equal(self._q, rm.HOME_Q) else [self._q, rm.HOME_Q]:
+            res = self.kin.solve(grasp, seed, self.rng, self.p.goals.ik)
+            if res.success and (best is None or self.kin.limit_margin(res.q) > self.kin.limit_margin(best)):
+                best = res.q
+        if best is None:
+            return False, False, 0.0
+        g = dataclasses.replace(self.p.goals, line_steps=self.p.goals.line_steps // 2)
+        q_end = best
+        for q_k in along_line(self.kin, best, grasp, plan.place, g.line_steps):
+            if q_k is None:
+                q_end = None
+                break
+            q_end = q_k
+        travel = float(np.max(np.abs(best - self._q) / rm.MAX_VELOCITY_RAD_S))
+        if q_end is None:
+            return True, False, travel
+        travel += float(np.max(np.abs(q_end - best) / rm.MAX_VELOCITY_RAD_S))
+        margin = min(self.kin.limit_margin(best), self.kin.limit_margin(q_end))
+        return True, margin >= g.min_margin_rad, travel
+
     def _ranked_hand_yaws(self, pose: Pose, held: np.ndarray | None, other_faces_than: float | None) -> list[float]:
         """The target's equivalent hand angles (:func:`~pickdemo.grasp.equivalent_hand_yaws`), best
-        first by IK: those whose grasp (where it will be held, for a moving target) and place have
-        solutions; of them those that keep every joint ``min_margin_rad`` from its limits; then the
-        least joint travel through the grasp and the place, or for a moving target the least turn of
-        the hand from where it is (turning the wrist while chasing a target across the table drifts
-        the arm's redundancy towards a singularity, measured). ``other_faces_than``: a square box
-        missed at this angle is taken by its other pair of faces first."""
+        first by IK (:meth:`_hand_angle_score`): those whose grasp has a solution; of them those from
+        which the carry to the place can be followed with room at both ends; then the least joint
+        travel, or for a moving target the least turn of the hand from where it is (turning the
+        wrist while chasing a target across the table drifts the arm's redundancy towards a
+        singularity, measured). ``other_faces_than``: a square box missed at this angle is taken by
+        its other pair of faces first."""
         scored = []
         for yaw in equivalent_hand_yaws(pose, self.model):
             try:
                 plan = self._grasp(pose, yaw)
             except GraspPlanningError:
                 return []
-            grasp = plan.grasp if held is None else Pose(np.array([*held, plan.grasp.position[2]]), plan.grasp.rotation)
-            room = self._ik_room([grasp, plan.place])
+            feasible, carries, travel = self._hand_angle_score(plan, held)
             missed = other_faces_than
             same_faces = missed is not None and abs(float(wrap_angle(yaw - missed, np.pi))) < np.pi / 4
-            if room is None:
-                scored.append(((True, same_faces, True, 0.0), yaw))
-                continue
-            margin, travel = room
             turn = abs(float(wrap_angle(yaw - float(self.motion.setpoint[3]))))
-            scored.append(
-                ((False, same_faces, margin < self.p.goals.min_margin_rad, turn if held is not None else travel), yaw)
-            )
+            scored.append(((not feasible, same_faces, not carries, turn if held is not None else travel), yaw))
         return [yaw for _, yaw in sorted(scored, key=lambda kv: kv[0])]
 
     def _replan(self, *, first: bool) -> GraspPlan | None:
@@ -680,14 +702,23 @@ class PickMachine:
             q = q_k
         return up, q
 
-    def _via_above(self, pose: Pose, h: float, q_from: np.ndarray, floor_z: float) -> np.ndarray | None:
+    def _via_above(
+        self, pose: Pose, h: float, q_from: np.ndarray, floor_z: float, q_goal: np.ndarray
+    ) -> np.ndarray | None:
         """An IK goal ``h`` above ``pose`` (the hand's angle kept) that a transfer from ``q_from`` reaches
         without the hand going below ``floor_z``, and from which the straight line down to ``pose``
-        can be followed; None if there is none."""
+        can be followed; None if there is none. The one on the branch of ``q_goal`` (the goal chosen
+        for ``pose``, from which what follows was checked) first: on another branch the line down
+        arrives where the lowering after it crawled near a singular posture (measured: 15 s)."""
         via = self._raised(pose, h)
-        found = goal_candidates(self.kin, [via], q_from, self.rng, self.p.goals, lines_to=[pose])
-        ok = [g for g in found if g.line_ok and path_low_z(self.kin, q_from, g.q, self.p.goals) >= floor_z]
-        goal = choose_goal(ok, self.p.goals)
+        g = self.p.goals
+        same = self.kin.solve(via, q_goal, self.rng, g.ik)
+        if same.success and self.kin.limit_margin(same.q) > 0.0:
+            if path_low_z(self.kin, q_from, same.q, g) >= floor_z and line_trackable(self.kin, same.q, via, pose, g):
+                return same.q
+        found = goal_candidates(self.kin, [via], q_from, self.rng, g, lines_to=[pose])
+        ok = [c for c in found if c.line_ok and path_low_z(self.kin, q_from, c.q, g) >= floor_z]
+        goal = choose_goal(ok, g)
         return None if goal is None else goal.q
 
     def _transfer_over_the_top(
@@ -724,7 +755,7 @@ class PickMachine:
                 up, q_start = found
                 legs.append(lambda up=up: self.move.to(up, limits=limits))
             if above is not None:
-                q_via = self._via_above(above, h, q_start, floor)
+                q_via = self._via_above(above, h, q_start, floor, q_goal)
                 if q_via is None:
                     continue
                 legs.append(lambda q=q_via: self._transfer_to(q, scale))
@@ -745,9 +776,10 @@ class PickMachine:
         return False
 
     def _goal(self, pose: Pose, line_to: Pose, *, seeded: np.ndarray | None = None):
-        """The IK goal for a top-down TCP pose or the same pose turned half a turn (a parallel gripper
-        closes the same way): the best of several solutions (:mod:`pickdemo.ik_goals`). ``seeded``: a
-        re-plan keeps to the solution near the goal it had, if there is one."""
+        """The IK goal for a top-down TCP pose, or the same pose turned half a turn (a parallel gripper
+        closes the same way) when the pose's own angle will not do: the best of several solutions
+        (:mod:`pickdemo.ik_goals`). ``seeded``: a re-plan keeps to the solution near the goal it had,
+        if there is one."""
         if seeded is not None:
             res = self.kin.solve(pose, seeded, self.rng, self.p.goals.ik)
             if res.success and self._joint and not self.joints.finished:
@@ -763,9 +795,16 @@ class PickMachine:
                     if not near:
                         self._line_checked_q = res.q.copy()
                     return res.q, 0
-        poses, ends = [pose, _half_turn(pose)], [line_to, _half_turn(line_to)]
-        found = goal_candidates(self.kin, poses, self._q, self.rng, self.p.goals, lines_to=ends)
-        goal = choose_goal(found, self.p.goals)
+        # The plan's own hand angle first (chosen by IK for the whole pick and place); the half
+        # turn only when that angle has no goal whose line can be followed and whose path does not dip.
+        g = self.p.goals
+        found = goal_candidates(self.kin, [pose], self._q, self.rng, g, lines_to=[line_to])
+        goal = choose_goal(found, g)
+        if goal is None or not goal.line_ok or goal.dip_m > g.max_dip_m:
+            poses, ends = [pose, _half_turn(pose)], [line_to, _half_turn(line_to)]
+            turned = goal_candidates(self.kin, poses[1:], self._q, self.rng, g, lines_to=ends[1:])
+            found += [dataclasses.replace(t, index=1) for t in turned]
+            goal = choose_goal(found, g)
         if goal is None:
             return None, 0
         if goal.line_ok:
