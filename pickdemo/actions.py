@@ -2,8 +2,9 @@
 grip of the fingers, each started by the skill and then asked whether it has finished or failed.
 
 Pure: no simulator. :class:`Move` drives the online Ruckig motion of the TCP (x, y, z, yaw) and,
-for a target that moves, meets it where it will be; the Panda's wrist rule chooses which way round
-the hand turns (:mod:`pickdemo.wrist`). :class:`Grip` commands the Franka Hand's opening and force
+for a target that moves, meets it where it will be; which way round the hand turns to a new angle is
+the one whose end the IK reaches with the joints clear of their limits
+(:func:`pickdemo.ik_goals.way_round`). :class:`Grip` commands the Franka Hand's opening and force
 and reads its fingers: stopped, holding, dropped. :class:`Scale` weighs what the hand holds with the
 wrist's force sensor.
 """
@@ -16,12 +17,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo import robot_model as rm
-from pickdemo import wrist
-from pickdemo.geometry import Pose
+from pickdemo import ik_goals
+from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.interfaces import Observation
 from pickdemo.motion import CartesianLimits, MotionError, MotionSample, OnlineMotion, pose_to_x4
 
 GRAVITY_M_S2 = 9.81
+#: A target within this of the last one whose way round the IK chose keeps that way round (rad, m).
+TURN_KEPT_RAD = 0.2
+TURN_KEPT_M = 0.05
 
 
 class Status(str, enum.Enum):
@@ -41,12 +45,25 @@ class Move:
         self.meet_horizon_s = meet_horizon_s
         self.failure: str | None = None
         self.last_sample: MotionSample | None = None
+        self._turn: tuple[int, np.ndarray] | None = None  # (the motion's seat, the last x4 decided)
 
     # -------------------------------------------------------------------------------- started
     def x4(self, target: Pose | np.ndarray) -> np.ndarray:
-        """(x, y, z, yaw) of a pose (or of an x4), turned the way round that keeps the wrist in range."""
+        """(x, y, z, yaw) of a pose (or of an x4), its yaw unwrapped to the way round the arm can turn
+        (:func:`pickdemo.ik_goals.way_round`). A target near the last one decided (a moving target's
+        next estimate, a lift above a grasp) keeps its way round without asking the IK again: the
+        choice holds while the target moves, and does not flip halfway through a turn."""
         x4 = pose_to_x4(target) if isinstance(target, Pose) else np.array(target, dtype=float)
-        return wrist.way_round(x4, self.motion.setpoint, float(self.motion.q[6]))
+        m = self.motion
+        if self._turn is not None and self._turn[0] == m.seated:
+            last = self._turn[1]
+            dyaw = float(wrap_angle(x4[3] - last[3]))
+            if abs(dyaw) <= TURN_KEPT_RAD and float(np.hypot(*(x4[:2] - last[:2]))) <= TURN_KEPT_M:
+                x4[3] = last[3] + dyaw
+                return x4
+        x4 = ik_goals.way_round(m.kin, m.q, m.setpoint, x4)
+        self._turn = (m.seated, x4.copy())
+        return x4
 
     def to(self, target: Pose | np.ndarray, *, limits: CartesianLimits | None = None) -> None:
         """Go to a fixed pose (limits change only at rest: ``None`` keeps the current ones)."""

@@ -17,8 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pinocchio as pin
+
 from pickdemo import robot_model as rm
-from pickdemo.geometry import Pose
+from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.kinematics import IKParams, PandaKinematics
 
 
@@ -35,6 +37,7 @@ class GoalParams:
     max_dip_m: float = 0.01  # a transfer's hand may pass at most this far below the lower of its two ends
     path_steps: int = 16  # ... checked at this many points of its path
     via_heights_m: tuple[float, ...] = (0.1, 0.2, 0.3)  # a transfer that would dip goes over the top: this much higher
+    turn_iterations: int = 30  # the IK of a Cartesian turn's end (from its first-order prediction)
 
 
 @dataclass(frozen=True)
@@ -177,3 +180,46 @@ def choose_goal(goals: Sequence[Goal], params: GoalParams = GoalParams()) -> Goa
     if kept:
         return min(kept, key=lambda g: (g.travel_s, -g.margin_rad))
     return max(goals, key=lambda g: g.margin_rad)
+
+
+def turn_end(
+    kin: PandaKinematics, q: np.ndarray, start_x4: np.ndarray, end_x4: np.ndarray, params: GoalParams = GoalParams()
+) -> tuple[np.ndarray, bool]:
+    """The joints a Cartesian motion from ``start_x4`` (the arm at ``q``) ends in at ``end_x4`` (x, y,
+    z and the hand's yaw, unwrapped: 3 rad is not -3.28 rad), and whether the IK reaches it within the
+    joint limits. The per-tick IK follows the motion continuously, so which of the equal poses it
+    ends in depends on the way round: the end is predicted to first order (the Jacobian's
+    least-squares step for the whole move, rotation about the world's z as asked) and then solved
+    exactly from there. Every joint counts, not one joint's rule."""
+    from pickdemo.motion import top_down_se3  # (motion imports this module)
+
+    q = np.asarray(q, dtype=float)
+    J = pin.computeFrameJacobian(kin.model, kin.data, q, kin.tcp_id, pin.LOCAL_WORLD_ALIGNED)
+    d = np.asarray(end_x4, dtype=float) - np.asarray(start_x4, dtype=float)
+    twist = np.array([d[0], d[1], d[2], 0.0, 0.0, d[3]])
+    seed = q + J.T @ np.linalg.solve(J @ J.T + 1e-9 * np.eye(6), twist)
+    res = kin.track(top_down_se3(end_x4), seed, max_iterations=params.turn_iterations)
+    return res.q, res.success
+
+
+def way_round(
+    kin: PandaKinematics, q: np.ndarray, setpoint: np.ndarray, x4: np.ndarray, params: GoalParams = GoalParams()
+) -> np.ndarray:
+    """``x4`` (x, y, z, yaw) with its yaw unwrapped to the way round a Cartesian turn of the hand
+    should go from ``setpoint`` (the arm at ``q``): the nearer way, unless the joints it ends in
+    would come within ``min_margin_rad`` of a limit (or beyond) and the other way's are further from
+    theirs. A turn of near half a revolution can run a joint into its stop the nearer way."""
+    x4 = np.array(x4, dtype=float)
+    d = wrap_angle(x4[3] - setpoint[3])
+    x4[3] = setpoint[3] + d
+    if d == 0.0:
+        return x4
+    q_near, ok_near = turn_end(kin, q, setpoint, x4, params)
+    margin_near = kin.limit_margin(q_near) if ok_near else -np.inf
+    if margin_near >= params.min_margin_rad:
+        return x4
+    other = x4.copy()
+    other[3] -= 2.0 * np.pi * np.sign(d)
+    q_other, ok_other = turn_end(kin, q, setpoint, other, params)
+    margin_other = kin.limit_margin(q_other) if ok_other else -np.inf
+    return other if margin_other > margin_near else x4

@@ -83,8 +83,8 @@ class PandaKinematics:
         self.model = pin.buildReducedModel(full, lock, q_ref)
         self.data = self.model.createData()
         self.tcp_id = self.model.getFrameId(rm.TCP_FRAME)
-        if self.model.nq != 7:
-            raise RuntimeError(f"expected 7 arm joints after locking the fingers, got {self.model.nq}")
+        if self.model.nq != 7 or any(j.shortname() not in ("JointModelRZ", "JointModelRevoluteUnaligned") for j in self.model.joints[1:]):
+            raise RuntimeError("expected 7 revolute arm joints after locking the fingers (the solver steps q + v)")
         self.lower = self.model.lowerPositionLimit.copy()
         self.upper = self.model.upperPositionLimit.copy()
         self._solver_constants: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -144,6 +144,7 @@ class PandaKinematics:
         e_pos = e_rot = 0.0
         stall = params.stall_iterations
         best = [math.inf]  # the best error up to each step
+        rhs = np.empty((6, 2))
         for it in range(1, params.max_iterations + 1):
             pin.forwardKinematics(model, data, q)
             iMd = pin.updateFramePlacement(model, data, tcp).actInv(target)
@@ -158,11 +159,13 @@ class PandaKinematics:
             J = -pin.Jlog6(iMd.inverse()) @ J
             if q_ref is not None and it == 1:  # the posture's step, once a tick, in the task's null space
                 g = self._posture_step(q, q_ref, posture)
-                y = np.linalg.solve(J @ J.T + reg, np.column_stack((err, J @ g)))
+                rhs[:, 0], rhs[:, 1] = err, J @ g
+                y = np.linalg.solve(J @ J.T + reg, rhs)
                 v = -J.T @ y[:, 0] + (g - J.T @ y[:, 1])
             else:
                 v = -J.T @ np.linalg.solve(J @ J.T + reg, err)
-            q = np.minimum(np.maximum(pin.integrate(model, q, step * v), lo), hi)
+            # pin.integrate(model, q, v) is q + v for the Panda's revolute joints (bit for bit)
+            q = np.minimum(np.maximum(q + step * v, lo), hi)
         return q, e_pos, e_rot, params.max_iterations
 
     def track(

@@ -169,6 +169,7 @@ class OnlineMotion:
         self._write_limits(limits)
         self._finished = True
         self.retargets = 0  # re-targets written while a motion was under way
+        self.seated = 0  # times the motion was re-seated where a joint transfer left the arm
         self._calc = Ruckig(4)  # offline: how long a motion would take (an intercept's search)
         self._trajectory = Trajectory(4)
 
@@ -292,6 +293,7 @@ class OnlineMotion:
     def reset_at(self, q: np.ndarray) -> None:
         """Re-seat the motion at rest where a joint-space transfer left the arm (its TCP at ``q``)."""
         self.q = np.asarray(q, dtype=float).copy()
+        self.seated += 1
         self.posture = self.q.copy()  # the posture the goal was chosen for
         x0 = pose_to_x4(self.kin.forward(self.q))
         self._inp.current_position = x0.tolist()

@@ -74,3 +74,42 @@ def test_invalid_limits_rejected() -> None:
         CartesianLimits(velocity=0.0)
     with pytest.raises(ValueError):
         CartesianLimits(jerk=float("inf"))
+
+
+def test_a_turn_of_the_hand_goes_the_way_round_the_joints_can_follow() -> None:
+    """Which way round a Cartesian turn goes is chosen by IK (every joint's limits); where that way
+    ends within the limits, the motion turns that way with the per-tick IK never losing the setpoint
+    and every joint in range. 36 moves from home across the table, turns of up to 175 deg."""
+    from pickdemo.actions import Move
+    from pickdemo.ik_goals import turn_end
+
+    kin = panda_kinematics()
+    lim = CartesianLimits(velocity=0.3, acceleration=1.5, jerk=15.0)
+    followed = 0
+    for xy in ((0.45, 0.25), (0.5, -0.3), (0.35, 0.0), (0.6, 0.1)):
+        for yaw_deg in (-175.0, -120.0, -60.0, 0.0, 60.0, 120.0, 175.0, 90.0, -90.0):
+            m = OnlineMotion(kin, rm.HOME_Q, DT, lim)
+            move = Move(m, chase_fraction=0.5, meet_horizon_s=5.0)
+            goal = np.array([*xy, 0.2, m.setpoint[3] + np.radians(yaw_deg)])
+            x4 = move.x4(goal)
+            assert abs(np.angle(np.exp(1j * (x4[3] - goal[3])))) < 1e-9  # the same hand angle, some way round
+            if not turn_end(kin, m.q, m.setpoint, x4)[1]:
+                continue  # neither way ends within the joint limits (the skill never asks for it)
+            move.to(x4)
+            samples = _run(m, 3000)  # a MotionError (IK lost, a joint too fast) would raise here
+            assert samples[-1].finished
+            assert all(kin.within_limits(s.q) for s in samples)
+            np.testing.assert_allclose(pose_to_x4(kin.forward(samples[-1].q))[:3], goal[:3], atol=1e-4)
+            followed += 1
+    assert followed >= 28
+
+
+def test_a_half_turn_the_nearer_way_would_stop_joint_7_goes_the_other_way() -> None:
+    from pickdemo.ik_goals import way_round
+
+    kin = panda_kinematics()
+    sp = pose_to_x4(kin.forward(rm.HOME_Q))
+    near_ok = way_round(kin, rm.HOME_Q, sp, sp + np.array([0.0, 0.0, 0.0, np.radians(170.0)]))
+    assert np.isclose(near_ok[3] - sp[3], np.radians(170.0))  # the nearer way is within range: taken
+    blocked = way_round(kin, rm.HOME_Q, sp, sp + np.array([0.0, 0.0, 0.0, np.radians(-170.0)]))
+    assert np.isclose(blocked[3] - sp[3], np.radians(190.0))  # the nearer way would pass joint 7's stop

@@ -230,7 +230,7 @@ def test_the_skill_and_its_parts_import_no_simulator() -> None:
 
     code = (
         "import sys\n"
-        "import pickdemo.pick, pickdemo.belief, pickdemo.actions, pickdemo.grasp_selection, pickdemo.wrist\n"
+        "import pickdemo.pick, pickdemo.belief, pickdemo.actions, pickdemo.grasp_selection, pickdemo.ik_goals\n"
         "import pickdemo.tracker, pickdemo.grasp, pickdemo.motion, pickdemo.kinematics, pickdemo.metrics\n"
         "assert 'pybullet' not in sys.modules, 'pybullet imported'\n"
     )
