@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pickdemo import robot_model as rm
 from pickdemo import ik_goals
+from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.interfaces import Observation
 from pickdemo.motion import CartesianLimits, MotionError, MotionSample, OnlineMotion, pose_to_x4

@@ -16,7 +16,6 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
 import pinocchio as pin
 
 from pickdemo import robot_model as rm

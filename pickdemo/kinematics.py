@@ -83,7 +83,8 @@ class PandaKinematics:
         self.model = pin.buildReducedModel(full, lock, q_ref)
         self.data = self.model.createData()
         self.tcp_id = self.model.getFrameId(rm.TCP_FRAME)
-        if self.model.nq != 7 or any(j.shortname() not in ("JointModelRZ", "JointModelRevoluteUnaligned") for j in self.model.joints[1:]):
+        revolute = ("JointModelRZ", "JointModelRevoluteUnaligned")
+        if self.model.nq != 7 or any(j.shortname() not in revolute for j in self.model.joints[1:]):
             raise RuntimeError("expected 7 revolute arm joints after locking the fingers (the solver steps q + v)")
         self.lower = self.model.lowerPositionLimit.copy()
         self.upper = self.model.upperPositionLimit.copy()

@@ -482,25 +482,15 @@ class PickMachine:
         """The selector's best grasp for the target at ``pose`` with the hand angle nearest ``near``."""
         return next(iter(self.selector.candidates(GraspRequest(pose, self.model, self.place_xy, (near,)))))
 
-    def _ik_room(self, poses: list[Pose], *, from_home: bool = True) -> tuple[float, float] | None:
-        """How the arm would hold ``poses`` (one after another): the least joint-limit margin (rad) of
-        the best IK solution of each (from where the arm is, or was for the pose before, and from
-        home), and the joint travel (s at the speed limits) from here through them; None if one has
-        no solution."""
-        margins, travel, q_prev = [], 0.0, self._q
-        for pose in poses:
-            best = None
-            seeds = [q_prev] if not from_home or np.array_equal(q_prev, rm.HOME_Q) else [q_prev, rm.HOME_Q]
-            for seed in seeds:
-                res = self.kin.solve(pose, seed, self.rng, self.p.goals.ik)
-                if res.success and (best is None or self.kin.limit_margin(res.q) > self.kin.limit_margin(best)):
-                    best = res.q
-            if best is None:
-                return None
-            margins.append(self.kin.limit_margin(best))
-            travel += float(np.max(np.abs(best - q_prev) / rm.MAX_VELOCITY_RAD_S))
-            q_prev = best
-        return min(margins), travel
+    def _best_ik(self, pose: Pose, seeds: list[np.ndarray]) -> np.ndarray | None:
+        """Of the IK solutions of ``pose`` from each of ``seeds``, the one with the most joint-limit
+        margin; None if none converged."""
+        best = None
+        for seed in seeds:
+            res = self.kin.solve(pose, seed, self.rng, self.p.goals.ik)
+            if res.success and (best is None or self.kin.limit_margin(res.q) > self.kin.limit_margin(best)):
+                best = res.q
+        return best
 
     def _room_kept(self, plan: GraspPlan) -> bool:
         """Whether the arm, on the branch it is on, still holds this plan's pregrasp with every joint
@@ -510,8 +500,8 @@ class PickMachine:
         last = self._room_checked
         if last is not None and np.all(np.abs(x4 - last[0]) < np.array([1e-3, 1e-3, 1e-3, np.radians(0.5)])):
             return last[1]
-        room = self._ik_room([plan.pregrasp], from_home=False)
-        kept = room is not None and room[0] >= self.p.goals.min_margin_rad
+        q = self._best_ik(plan.pregrasp, [self._q])  # on the branch the arm is on
+        kept = q is not None and self.kin.limit_margin(q) >= self.p.goals.min_margin_rad
         self._room_checked = (x4, kept)
         return kept
 
@@ -523,11 +513,7 @@ class PickMachine:
         joint ``min_margin_rad`` clear of its limits at both ends; and the joint travel (s at the
         speed limits) from here to the grasp and on to the place."""
         grasp = plan.grasp if held is None else Pose(np.array([*held, plan.grasp.position[2]]), plan.grasp.rotation)
-        best = None
-        for seed in [self._q] if np.array_equal(self._q, rm.HOME_Q) else [self._q, rm.HOME_Q]:
-            res = self.kin.solve(grasp, seed, self.rng, self.p.goals.ik)
-            if res.success and (best is None or self.kin.limit_margin(res.q) > self.kin.limit_margin(best)):
-                best = res.q
+        best = self._best_ik(grasp, [self._q] if np.array_equal(self._q, rm.HOME_Q) else [self._q, rm.HOME_Q])
         if best is None:
             return False, False, 0.0
         g = dataclasses.replace(self.p.goals, line_steps=self.p.goals.line_steps // 2)
