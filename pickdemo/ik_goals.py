@@ -16,7 +16,6 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose, wrap_angle
@@ -36,7 +35,8 @@ class GoalParams:
     max_dip_m: float = 0.01  # a transfer's hand may pass at most this far below the lower of its two ends
     path_steps: int = 16  # ... checked at this many points of its path
     via_heights_m: tuple[float, ...] = (0.1, 0.2, 0.3)  # a transfer that would dip goes over the top: this much higher
-    turn_iterations: int = 30  # the IK of a Cartesian turn's end (from its first-order prediction)
+    turn_step_rad: float = 0.1  # a Cartesian turn's path is walked by the per-tick IK in steps of this ...
+    turn_step_m: float = 0.02  # ... and of this
 
 
 @dataclass(frozen=True)
@@ -181,44 +181,50 @@ def choose_goal(goals: Sequence[Goal], params: GoalParams = GoalParams()) -> Goa
     return max(goals, key=lambda g: g.margin_rad)
 
 
-def turn_end(
+def turn_path(
     kin: PandaKinematics, q: np.ndarray, start_x4: np.ndarray, end_x4: np.ndarray, params: GoalParams = GoalParams()
-) -> tuple[np.ndarray, bool]:
-    """The joints a Cartesian motion from ``start_x4`` (the arm at ``q``) ends in at ``end_x4`` (x, y,
-    z and the hand's yaw, unwrapped: 3 rad is not -3.28 rad), and whether the IK reaches it within the
-    joint limits. The per-tick IK follows the motion continuously, so which of the equal poses it
-    ends in depends on the way round: the end is predicted to first order (the Jacobian's
-    least-squares step for the whole move, rotation about the world's z as asked) and then solved
-    exactly from there. Every joint counts, not one joint's rule."""
+) -> tuple[np.ndarray, float]:
+    """The per-tick IK walked along a Cartesian motion from ``start_x4`` (the arm at ``q``) to
+    ``end_x4`` (x, y, z and the hand's yaw, unwrapped: 3 rad is not -3.28 rad), as the motion will
+    follow it (a phase-synchronised Ruckig move is the straight line between them in x, y, z, yaw):
+    the joints it ends in, and the least joint-limit margin (rad) on the way; ``-inf`` if the IK
+    loses the path (a joint held at its stop). Which of a pose's IK solutions the arm ends in
+    depends on the way round; every joint counts, not one joint's rule."""
     from pickdemo.motion import top_down_se3  # (motion imports this module)
 
-    q = np.asarray(q, dtype=float)
-    J = pin.computeFrameJacobian(kin.model, kin.data, q, kin.tcp_id, pin.LOCAL_WORLD_ALIGNED)
-    d = np.asarray(end_x4, dtype=float) - np.asarray(start_x4, dtype=float)
-    twist = np.array([d[0], d[1], d[2], 0.0, 0.0, d[3]])
-    seed = q + J.T @ np.linalg.solve(J @ J.T + 1e-9 * np.eye(6), twist)
-    res = kin.track(top_down_se3(end_x4), seed, max_iterations=params.turn_iterations)
-    return res.q, res.success
+    start, end = np.asarray(start_x4, dtype=float), np.asarray(end_x4, dtype=float)
+    d = end - start
+    n = int(
+        min(max(np.ceil(abs(d[3]) / params.turn_step_rad), np.ceil(np.linalg.norm(d[:3]) / params.turn_step_m), 1), 64)
+    )
+    q_prev = q_start = np.asarray(q, dtype=float)
+    margin = kin.limit_margin(q_start)
+    for k in range(1, n + 1):
+        res = kin.track(top_down_se3(start + d * (k / n)), q_prev, max_iterations=8, posture=q_start)
+        if not res.success:
+            return res.q, -np.inf
+        q_prev = res.q
+        margin = min(margin, kin.limit_margin(q_prev))
+    return q_prev, margin
 
 
 def way_round(
     kin: PandaKinematics, q: np.ndarray, setpoint: np.ndarray, x4: np.ndarray, params: GoalParams = GoalParams()
 ) -> np.ndarray:
     """``x4`` (x, y, z, yaw) with its yaw unwrapped to the way round a Cartesian turn of the hand
-    should go from ``setpoint`` (the arm at ``q``): the nearer way, unless the joints it ends in
-    would come within ``min_margin_rad`` of a limit (or beyond) and the other way's are further from
-    theirs. A turn of near half a revolution can run a joint into its stop the nearer way."""
+    should go from ``setpoint`` (the arm at ``q``): the nearer way, unless on its path
+    (:func:`turn_path`) a joint would come within ``min_margin_rad`` of a limit (or lose the path)
+    and on the other way's it would keep further from them. A turn of near half a revolution can run
+    a joint into its stop the nearer way."""
     x4 = np.array(x4, dtype=float)
-    d = wrap_angle(x4[3] - setpoint[3])
+    d = float(wrap_angle(x4[3] - setpoint[3]))
     x4[3] = setpoint[3] + d
-    if d == 0.0:
+    if abs(d) < params.turn_step_rad:  # a small turn: the other way is a whole revolution
         return x4
-    q_near, ok_near = turn_end(kin, q, setpoint, x4, params)
-    margin_near = kin.limit_margin(q_near) if ok_near else -np.inf
+    _, margin_near = turn_path(kin, q, setpoint, x4, params)
     if margin_near >= params.min_margin_rad:
         return x4
     other = x4.copy()
     other[3] -= 2.0 * np.pi * np.sign(d)
-    q_other, ok_other = turn_end(kin, q, setpoint, other, params)
-    margin_other = kin.limit_margin(q_other) if ok_other else -np.inf
+    _, margin_other = turn_path(kin, q, setpoint, other, params)
     return other if margin_other > margin_near else x4

@@ -81,7 +81,7 @@ def test_a_turn_of_the_hand_goes_the_way_round_the_joints_can_follow() -> None:
     ends within the limits, the motion turns that way with the per-tick IK never losing the setpoint
     and every joint in range. 36 moves from home across the table, turns of up to 175 deg."""
     from pickdemo.actions import Move
-    from pickdemo.ik_goals import turn_end
+    from pickdemo.ik_goals import turn_path
 
     kin = panda_kinematics()
     lim = CartesianLimits(velocity=0.3, acceleration=1.5, jerk=15.0)
@@ -93,8 +93,8 @@ def test_a_turn_of_the_hand_goes_the_way_round_the_joints_can_follow() -> None:
             goal = np.array([*xy, 0.2, m.setpoint[3] + np.radians(yaw_deg)])
             x4 = move.x4(goal)
             assert abs(np.angle(np.exp(1j * (x4[3] - goal[3])))) < 1e-9  # the same hand angle, some way round
-            if not turn_end(kin, m.q, m.setpoint, x4)[1]:
-                continue  # neither way ends within the joint limits (the skill never asks for it)
+            if turn_path(kin, m.q, m.setpoint, x4)[1] <= 0.0:
+                continue  # neither way stays within the joint limits (the skill never asks for it)
             move.to(x4)
             samples = _run(m, 3000)  # a MotionError (IK lost, a joint too fast) would raise here
             assert samples[-1].finished
@@ -113,3 +113,18 @@ def test_a_half_turn_the_nearer_way_would_stop_joint_7_goes_the_other_way() -> N
     assert np.isclose(near_ok[3] - sp[3], np.radians(170.0))  # the nearer way is within range: taken
     blocked = way_round(kin, rm.HOME_Q, sp, sp + np.array([0.0, 0.0, 0.0, np.radians(-170.0)]))
     assert np.isclose(blocked[3] - sp[3], np.radians(190.0))  # the nearer way would pass joint 7's stop
+
+
+def test_a_move_with_no_turn_never_goes_a_whole_revolution_round() -> None:
+    """With a joint already near its limit, a straight move down with the hand's angle unchanged (up
+    to the last bit) keeps the angle: the other way round is a whole revolution (seen: a lowering
+    after an over-the-top carry turned the hand 2 pi and lost the setpoint)."""
+    from pickdemo.ik_goals import way_round
+
+    kin = panda_kinematics()
+    q = np.array(rm.HOME_Q, dtype=float)
+    q[6] = kin.upper[6] - 0.1  # joint 7 within 0.15 rad of its stop
+    sp = pose_to_x4(kin.forward(q))
+    for eps in (0.0, 1e-15, -1e-15, 1e-3):
+        x4 = way_round(kin, q, sp, sp + np.array([0.0, 0.0, -0.1, eps]))
+        assert abs(x4[3] - sp[3]) < 2e-3
