@@ -46,12 +46,31 @@ def _footprint_mm(obj: ObjectSpec) -> np.ndarray:
 
 def check_scenario(sc: Scenario) -> None:
     """Raise :class:`ScenarioError` (``key: what is impossible``) for a scenario that cannot run."""
+    _check_mesh_files(sc)
     _check_objects(sc)
     _check_conveyor(sc)
     if sc.task == "pick":
         _check_pick(sc)
     _check_camera(sc)
     _check_layout(sc)
+
+
+def _check_mesh_files(sc: Scenario) -> None:
+    """Every mesh's files exist and are URDFs pickdemo can read (one line for the first bad one)."""
+    from pickdemo.meshes import MeshFileError, read_urdf
+
+    for obj in sc.objects:
+        if obj.shape != "mesh":
+            continue
+        key = f"objects.{obj.name}.{'urdf' if obj.urdf is not None else 'urdf_choice'}"
+        files = obj.urdf_files
+        if not files:
+            raise ScenarioError(f"{key}: {obj.urdf_choice!r} matches no file")
+        for f in files:
+            try:
+                read_urdf(f)
+            except MeshFileError as exc:
+                raise ScenarioError(f"{key}: {exc}") from None
 
 
 def _check_objects(sc: Scenario) -> None:
@@ -258,7 +277,7 @@ def _check_layout(sc: Scenario) -> None:
     for seed in LAYOUT_SEEDS:
         try:
             rngs = spawn_rngs(seed)
-            layout = sample_layout(sc, rngs["layout"])
+            layout = sample_layout(sc, rngs["layout"], rngs["objects"])
             if sc.task == "pick":
                 sample_place(sc, layout, rngs["place"])
         except LayoutError as exc:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo.geometry import Pose
+from pickdemo.meshes import MeshFileError
 from pickdemo.schema import CameraSpec, ObjectSpec, Scenario
 from pickdemo.shapes import Shape
 
@@ -34,7 +35,7 @@ class Placement:
 
     @property
     def size(self) -> tuple[float, ...]:
-        """The size in the scenario's order (box: x, y, z; cylinder: diameter, height), m."""
+        """The size in the scenario's order (box: x, y, z; cylinder: diameter, height; mesh: its bounding box), m."""
         return self.geometry.size
 
     @property
@@ -73,13 +74,36 @@ def _draw(obj: ObjectSpec, rng: np.random.Generator) -> tuple[np.ndarray, float,
     return xy, yaw, pitch, roll
 
 
-def sample_layout(scenario: Scenario, rng: np.random.Generator) -> tuple[Placement, ...]:
+def _mesh(obj: ObjectSpec, rng: np.random.Generator) -> Shape:
+    """A mesh object's file (one of its ``urdf_choice`` matches) and scale for this seed, drawn from
+    the seed's ``objects`` stream (so that the layout's own draws stay as they were)."""
+    files = obj.urdf_files
+    if not files:
+        raise LayoutError(f"objects.{obj.name}.urdf_choice: {obj.urdf_choice!r} matches no file")
+    urdf = files[int(rng.integers(len(files)))] if len(files) > 1 else files[0]
+    lo, hi = obj.scales
+    scale = float(rng.uniform(lo, hi)) if hi > lo else lo
+    try:
+        return obj.mesh_shape(urdf, scale)
+    except MeshFileError as exc:
+        raise LayoutError(f"objects.{obj.name}: {exc}") from None
+
+
+def sample_layout(
+    scenario: Scenario, rng: np.random.Generator, objects_rng: np.random.Generator | None = None
+) -> tuple[Placement, ...]:
     """Start poses and sizes of all objects, resting on the table (or the belt) unless a centre height
-    is given."""
+    is given. ``objects_rng``: the stream a mesh's file and scale are drawn from (a scenario with no
+    mesh never asks it)."""
     placed: list[tuple[np.ndarray, float]] = []
     out: list[Placement] = []
     for obj in scenario.objects:
-        shape = obj.shape_of_size(_size(obj, rng))
+        if obj.shape == "mesh":
+            if objects_rng is None:
+                raise ValueError("a mesh's file and scale are drawn from the seed's objects stream: pass objects_rng")
+            shape = _mesh(obj, objects_rng)
+        else:
+            shape = obj.shape_of_size(_size(obj, rng))
         r = shape.footprint_radius_m
         for _ in range(MAX_DRAWS):
             xy, yaw, pitch, roll = _draw(obj, rng)

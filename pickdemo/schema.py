@@ -11,7 +11,8 @@ string or a boolean is never a number, a number never a boolean), names are prin
 reserved, and an unknown key names itself and the closest valid key. What needs geometry (is the
 object on the table, in reach, in view?) is checked by :mod:`pickdemo.checks`.
 
-Pure: no simulator, no files.
+Pure: no simulator. Files are read only when a mesh's files or shape are asked for
+(:attr:`ObjectSpec.urdf_files`, :attr:`ObjectSpec.largest_shape`), never while validating.
 """
 
 from __future__ import annotations
@@ -19,10 +20,12 @@ from __future__ import annotations
 import difflib
 import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
+from pickdemo.meshes import PYBULLET_DATA
 from pickdemo.shapes import SHAPES, Shape, ShapeName, make_shape
 
 PositiveFloat = Annotated[float, Field(gt=0.0)]
@@ -31,6 +34,7 @@ Coord = Annotated[float, Field(ge=-10.0, le=10.0)]  # m, a place in the world
 Angle = Annotated[float, Field(ge=-720.0, le=720.0)]  # deg
 Extent = Annotated[float, Field(ge=0.001, le=0.5)]  # m, an object's size: 1 mm to 50 cm
 Friction = Annotated[float, Field(ge=0.0, le=5.0)]
+Scale = Annotated[float, Field(gt=0.0, le=100.0)]  # a mesh's scale: positive and finite
 Vec2 = tuple[Coord, Coord]
 Vec3 = tuple[Coord, Coord, Coord]
 #: Names: printable, no spaces or control characters (they end up in terminals, files and JUnit XML).
@@ -148,15 +152,22 @@ class ReferenceSpec(_Model):
 
 
 class ObjectSpec(_Model):
-    """One object on the table: a box or a cylinder (upright unless tilted)."""
+    """One object on the table: a box or a cylinder (upright unless tilted), or a mesh from a URDF file
+    (as the file stands it, turned about z)."""
 
     name: Name
     shape: ShapeName
     size: tuple[Extent, ...] | None = None  # box: x, y, z extents; cylinder: diameter, height (m)
     size_range: tuple[tuple[Extent, Extent], ...] | None = None  # per dimension: [min, max]
-    color: tuple[UnitFloat, UnitFloat, UnitFloat]
-    mass: Annotated[float, Field(ge=0.001, le=20.0)] = 0.1  # kg: 1 g to 20 kg (the Panda carries 3 kg)
-    friction: Friction = 0.9
+    color: tuple[UnitFloat, UnitFloat, UnitFloat] | None = None  # a box's or cylinder's; a mesh has its file's
+    #: a mesh: "pybullet_data:duck_vhacd.urdf" (the pybullet wheel's data folder), else a path relative
+    #: to the scenario file; or ``urdf_choice``, a glob of either kind: one of its sorted matches a seed
+    urdf: Annotated[str, Field(min_length=1, max_length=500)] | None = None
+    urdf_choice: Annotated[str, Field(min_length=1, max_length=500)] | None = None
+    scale: Scale | None = None  # a mesh: times the URDF's own mesh scale (default 1)
+    scale_range: tuple[Scale, Scale] | None = None  # ... or drawn per seed from [min, max]
+    mass: Annotated[float, Field(ge=0.001, le=20.0)] = 0.1  # kg: 1 g to 20 kg (a mesh: its file's unless given)
+    friction: Friction = 0.9  # (a mesh: its file's unless given)
     position: tuple[Coord, Coord] | tuple[Coord, Coord, Coord] | None = None  # m: x, y (and centre z)
     position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
     yaw_deg: Angle | None = None
@@ -190,9 +201,30 @@ class ObjectSpec(_Model):
             raise ValueError("each size_range entry must be [min, max]")
         return size
 
+    @field_validator("urdf", "urdf_choice")
+    @classmethod
+    def _resolve(cls, spec: str | None, info: ValidationInfo) -> str | None:
+        """A path relative to the scenario file is made absolute (``pybullet_data:`` ones are kept:
+        another machine finds its own copy)."""
+        if spec is None or spec.startswith(PYBULLET_DATA):
+            return spec
+        if not spec.isprintable():
+            raise ValueError("a path of printable characters")
+        base = (info.context or {}).get("base_dir")
+        path = Path(spec).expanduser()
+        return str(path if path.is_absolute() or base is None else Path(base) / path)
+
     @model_validator(mode="after")
     def _check(self) -> ObjectSpec:
-        if (self.size is None) == (self.size_range is None):
+        if self.shape == "mesh":
+            self._check_mesh()
+        else:
+            for key in ("urdf", "urdf_choice", "scale", "scale_range"):
+                if getattr(self, key) is not None:
+                    raise ValueError(f'{key} is for a mesh (shape = "mesh"), not a {self.shape}')
+            if self.color is None:
+                raise ValueError(f"a {self.shape} needs a color ([r, g, b], each 0-1)")
+        if self.shape != "mesh" and (self.size is None) == (self.size_range is None):
             raise ValueError("give exactly one of size, size_range")
         if (self.position is None) == (self.position_range is None):
             raise ValueError("give exactly one of position, position_range")
@@ -214,20 +246,73 @@ class ObjectSpec(_Model):
                     raise ValueError("position_range bounds must be [min, max]")
         return self
 
+    def _check_mesh(self) -> None:
+        if self.size is not None or self.size_range is not None:
+            raise ValueError("a mesh's size is its file's: give scale or scale_range, not size")
+        if (self.urdf is None) == (self.urdf_choice is None):
+            raise ValueError("a mesh needs exactly one of urdf, urdf_choice")
+        if self.scale is not None and self.scale_range is not None:
+            raise ValueError("give at most one of scale, scale_range")
+        if self.scale_range is not None and self.scale_range[0] > self.scale_range[1]:
+            raise ValueError("scale_range must be [min, max]")
+        if self.color is not None:
+            raise ValueError("a mesh has its file's colours: no color")
+        if self.target:
+            raise ValueError(
+                "a mesh is not yet a target (the robot finds a target by its colour and fits its box or "
+                "cylinder): a mesh may stand on the table beside one"
+            )
+
     def shape_of_size(self, size: tuple[float, ...]) -> Shape:
         """Its :class:`~pickdemo.shapes.Shape` at this size (its own, or one drawn from ``size_range``)."""
         return make_shape(self.shape, size)
 
     @property
+    def urdf_files(self) -> tuple[str, ...]:
+        """A mesh's files: its ``urdf``, or every match of its ``urdf_choice`` (sorted; reads the disk)."""
+        from pickdemo.meshes import expand
+
+        return (self.urdf,) if self.urdf is not None else expand(self.urdf_choice or "", None)
+
+    @property
+    def scales(self) -> tuple[float, float]:
+        """A mesh's smallest and largest scale."""
+        if self.scale_range is not None:
+            return self.scale_range
+        return (self.scale or 1.0, self.scale or 1.0)
+
+    def mesh_shape(self, urdf: str, scale: float) -> Shape:
+        """Its mesh from one of its files at a scale (reads the file: a
+        :class:`~pickdemo.meshes.MeshFileError` for a bad one)."""
+        from pickdemo.meshes import read_urdf
+        from pickdemo.shapes import Mesh
+
+        return Mesh(urdf, scale, read_urdf(urdf).vertices * scale)
+
+    @property
     def largest_size(self) -> tuple[float, ...]:
-        """The largest size it may have: its size, or the top of each size range."""
+        """The largest size it may have: its size, or the top of each size range (a mesh: its
+        bounding box at its largest scale, over all its files)."""
+        if self.shape == "mesh":
+            return self.largest_shape.size
         if self.size is not None:
             return tuple(self.size)
         return tuple(hi for _, hi in self.size_range)  # type: ignore[union-attr]
 
     @property
     def largest_shape(self) -> Shape:
-        """Its shape at :attr:`largest_size` (what the checks hold against the table, the belt and the camera)."""
+        """Its shape at :attr:`largest_size` (what the checks hold against the table, the belt and the
+        camera). A mesh: every vertex of all its files at its largest scale, as one (it reads them)."""
+        if self.shape == "mesh":
+            import numpy as np
+
+            from pickdemo.meshes import read_urdf
+            from pickdemo.shapes import Mesh
+
+            files = self.urdf_files
+            big = self.scales[1]
+            return Mesh(files[0] if len(files) == 1 else f"{len(files)} files", big,
+                        np.vstack([read_urdf(f).vertices for f in files]) * big)  # fmt: skip
         return self.shape_of_size(self.largest_size)
 
 
@@ -675,7 +760,8 @@ def parse_scenario(data: dict, *, source: str = "<scenario>", default_task: str 
         raise ScenarioError(f"{source}: {exc}") from None
     if "task" not in tupled:
         tupled["task"] = default_task
+    base_dir = Path(source).parent if source and not source.startswith("<") else None
     try:
-        return Scenario.model_validate(tupled)
+        return Scenario.model_validate(tupled, context={"base_dir": base_dir})
     except ValidationError as exc:
         raise ScenarioError(f"{source}: {_problems(exc, data)}") from None

@@ -15,13 +15,13 @@ top face (a cylinder's axis). Pure: numpy only.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar, Literal, Protocol
 
 import numpy as np
 
 #: The names a scenario gives shapes (its ``shape`` key), as written in ``result.json``.
-ShapeName = Literal["box", "cylinder"]
+ShapeName = Literal["box", "cylinder", "mesh"]
 
 
 #: A box whose top sides differ by less than this is square (for its symmetry).
@@ -245,16 +245,153 @@ class Cylinder:
         return self.diameter_m / 2.0 * np.column_stack([np.cos(a), np.sin(a)])
 
 
+def convex_hull_2d(points: np.ndarray) -> np.ndarray:
+    """The convex hull of (N, 2) points, counter-clockwise (Andrew's monotone chain)."""
+    pts = np.unique(np.round(np.asarray(points, dtype=float), 9), axis=0)
+    if len(pts) < 3:
+        return pts
+
+    def half(seq: np.ndarray) -> list[np.ndarray]:
+        out: list[np.ndarray] = []
+        for p in seq:
+            while len(out) >= 2:
+                a, b = out[-2], out[-1]
+                if (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) > 0:
+                    break
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def caliper_widths(points_xy: np.ndarray) -> tuple[float, float, float]:
+    """Of a planar point set: its narrowest width, the direction (rad) across which it is that narrow,
+    and its widest extent (the widths across each edge's normal of the convex hull: the narrowest is
+    one of them)."""
+    hull = convex_hull_2d(points_xy)
+    if len(hull) < 3:
+        span = float(np.ptp(hull, axis=0).max()) if len(hull) else 0.0
+        return 0.0, 0.0, span
+    edges = np.roll(hull, -1, axis=0) - hull
+    normals = np.column_stack([-edges[:, 1], edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
+    proj = hull @ normals.T
+    widths = proj.max(axis=0) - proj.min(axis=0)
+    k = int(np.argmin(widths))
+    widest = float(np.max(np.linalg.norm(hull[:, None, :] - hull[None, :, :], axis=2)))
+    return float(widths[k]), float(np.arctan2(normals[k, 1], normals[k, 0])), widest
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """An object of any shape, from a URDF file: its collision meshes' vertices (m, in its body frame:
+    PyBullet's base frame, at its centre of mass), at the scale it is loaded with.
+
+    Its size is its bounding box's extents; it is known to the robot only as what the camera sees of
+    it (no model to fit). Upright means as the file stands it, body z up. Two meshes are equal when
+    they come from the same file at the same scale."""
+
+    urdf: str  # the scenario's name for the file ("pybullet_data:..." or an absolute path)
+    scale: float  # times the URDF's own mesh scale (PyBullet's ``globalScaling``)
+    vertices: np.ndarray = field(compare=False, repr=False)
+    kind: ClassVar[ShapeName] = "mesh"
+    n_sizes: ClassVar[int] = 3
+    size_text: ClassVar[str] = "bounding box x, y, z extents"
+
+    @property
+    def size(self) -> tuple[float, ...]:
+        lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
+        return tuple(float(v) for v in hi - lo)
+
+    @property
+    def height_m(self) -> float:
+        return float(np.ptp(self.vertices[:, 2]))
+
+    @property
+    def footprint_radius_m(self) -> float:
+        return float(np.max(np.hypot(self.vertices[:, 0], self.vertices[:, 1])))
+
+    @property
+    def bounding_radius_m(self) -> float:
+        return float(np.max(np.linalg.norm(self.vertices, axis=1)))
+
+    @property
+    def yaw_symmetry_rad(self) -> float:
+        """None known: a whole turn."""
+        return 2.0 * np.pi
+
+    @property
+    def grasp_width_m(self) -> float:
+        """The narrowest width of its footprint (what a top-down grasp across it closes on)."""
+        return caliper_widths(self.vertices[:, :2])[0]
+
+    @property
+    def top_extents_m(self) -> tuple[float, float]:
+        narrow, _, wide = caliper_widths(self.vertices[:, :2])
+        return wide, narrow
+
+    @property
+    def min_width_m(self) -> float:
+        """Its narrowest width in any direction (a parallel gripper closing across it at its best): the
+        least over 2000 directions, its body axes and its principal axes, and exact across the horizontal
+        (an upper bound on the true least within the directions' 2.5 deg)."""
+        v = self.vertices
+        _, axes = np.linalg.eigh(np.cov((v - v.mean(axis=0)).T))  # its principal axes: a box's face normals
+        proj = v @ np.vstack([_DIRECTIONS, np.eye(3), axes.T]).T
+        return min(float(np.min(proj.max(axis=0) - proj.min(axis=0))), self.grasp_width_m)
+
+    def resting_height_m(self, rotation: np.ndarray) -> float:
+        return float(-np.min(self.vertices @ np.asarray(rotation)[2]))
+
+    def resting_face(self, rotation: np.ndarray) -> tuple[float, float]:
+        """Its body z from the vertical, and its extent along body z."""
+        tilt = float(np.degrees(np.arccos(np.clip(abs(rotation[2, 2]), -1.0, 1.0))))
+        return tilt, self.height_m
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Its nearest vertices, with the direction from its centre as the normal (a coarse model:
+        a mesh is perceived as an unknown object, not fitted)."""
+        d = np.linalg.norm(points[:, None, :] - self.vertices[None, :, :], axis=2)
+        q = self.vertices[np.argmin(d, axis=1)]
+        return q.copy(), q / np.maximum(np.linalg.norm(q, axis=1), 1e-12)[:, None]
+
+    def outline_residuals(self, xy: np.ndarray) -> np.ndarray:
+        raise NotImplementedError("a mesh has no top face to fit: it is perceived as an unknown object")
+
+    def outline_xy(self, yaw_rad: float) -> np.ndarray:
+        """The convex hull of its footprint, turned ``yaw_rad``."""
+        hull = convex_hull_2d(self.vertices[:, :2])
+        rot = np.array([[np.cos(yaw_rad), -np.sin(yaw_rad)], [np.sin(yaw_rad), np.cos(yaw_rad)]])
+        return hull @ rot.T
+
+
+def _hemisphere(n: int) -> np.ndarray:
+    """``n`` unit vectors spread evenly over the upper hemisphere (a Fibonacci lattice)."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - k / n
+    r = np.sqrt(1.0 - z * z)
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * k
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+#: Directions across which a mesh's narrowest width is sought (about 2.5 deg apart).
+_DIRECTIONS = _hemisphere(2000)
+
+
 #: Each shape's class by its name.
-SHAPES: dict[str, type[Box] | type[Cylinder]] = {cls.kind: cls for cls in (Box, Cylinder)}
+SHAPES: dict[str, type[Box] | type[Cylinder] | type[Mesh]] = {cls.kind: cls for cls in (Box, Cylinder, Mesh)}
 
 
 def make_shape(kind: str, size: Sequence[float]) -> Box | Cylinder:
-    """The shape named ``kind`` of this size (the scenario's order: box x, y, z; cylinder diameter, height)."""
+    """The shape named ``kind`` of this size (the scenario's order: box x, y, z; cylinder diameter, height).
+    A :class:`Mesh` is made from its file (:func:`pickdemo.meshes.read_urdf`), not from a size."""
     if kind == Box.kind:
         x, y, z = size
         return Box((x, y, z))
     if kind == Cylinder.kind:
         d, h = size
         return Cylinder(d, h)
+    if kind == Mesh.kind:
+        raise ValueError("a mesh is made from its file (ObjectSpec.mesh_shape), not from a size")
     raise ValueError(f"unknown shape {kind!r} (known: {', '.join(SHAPES)})")

@@ -34,7 +34,7 @@ class World:
         self.scenario = scenario
         self.seed = seed
         self.rngs: dict[str, np.random.Generator] = spawn_rngs(seed)
-        self.layout: list[Placement] = sample_layout(scenario, self.rngs["layout"])
+        self.layout: list[Placement] = sample_layout(scenario, self.rngs["layout"], self.rngs["objects"])
         #: where the target is to be put down (the scenario's spot, or drawn for this seed)
         self.place_xy: tuple[float, float] = sample_place(scenario, self.layout, self.rngs["place"])
         self.scene: Scene | None = None

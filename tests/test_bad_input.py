@@ -366,3 +366,63 @@ def test_junit_is_valid_xml_whatever_the_names_and_messages_hold() -> None:
     root = ET.fromstring(text.encode("utf-8"))
     failure = root.find("testsuite/testcase/failure")
     assert failure is not None and "\\x1b[31m <closed> &" in failure.get("message")
+
+
+MESH = '\n[[objects]]\nname = "duck"\nshape = "mesh"\nurdf = "pybullet_data:duck_vhacd.urdf"\nposition = [0.6, -0.2]\n'
+NOT_XML = "this is not XML\n"
+SDF = '<?xml version="1.0"?>\n<sdf version="1.6"><model name="m"/></sdf>\n'
+STL_URDF = (
+    '<robot name="r"><link name="l"><collision><geometry><mesh filename="part.stl"/></geometry></collision>'
+    "</link></robot>\n"
+)
+NO_MESH_URDF = (
+    '<robot name="r"><link name="l"><collision><geometry><mesh filename="gone.obj"/></geometry></collision>'
+    "</link></robot>\n"
+)
+
+# (id, scenario text, {file name: text} written beside it, what the one line must say)
+MESH_CASES: list[tuple[str, str, dict[str, str], str]] = [
+    ("a mesh beside the target validates", GOOD + MESH, {}, ""),
+    ("missing URDF", GOOD + MESH.replace("pybullet_data:duck_vhacd.urdf", "nothing_here.urdf"), {},
+     "objects.duck.urdf: {dir}/nothing_here.urdf: no such file"),
+    ("not XML", GOOD + MESH.replace("pybullet_data:duck_vhacd.urdf", "notes.urdf"), {"notes.urdf": NOT_XML},
+     "notes.urdf: not a URDF (not XML"),
+    ("XML but not a URDF", GOOD + MESH.replace("pybullet_data:duck_vhacd.urdf", "model.sdf"), {"model.sdf": SDF},
+     "model.sdf: not a URDF (its root element is <sdf>, not <robot>)"),
+    ("an STL collision mesh", GOOD + MESH.replace("pybullet_data:duck_vhacd.urdf", "r.urdf"), {"r.urdf": STL_URDF},
+     "collision mesh 'part.stl' is not a Wavefront .obj file"),
+    ("a collision mesh that is not there", GOOD + MESH.replace("pybullet_data:duck_vhacd.urdf", "r.urdf"),
+     {"r.urdf": NO_MESH_URDF}, "gone.obj: cannot read the mesh"),
+    ("a glob matching nothing",
+     GOOD + MESH.replace('urdf = "pybullet_data:duck_vhacd.urdf"',
+                         'urdf_choice = "pybullet_data:random_urdfs/x*/*.urdf"'),
+     {}, "objects.duck.urdf_choice: 'pybullet_data:random_urdfs/x*/*.urdf' matches no file"),
+    ("scale 0", GOOD + MESH + "scale = 0.0\n", {}, "objects.duck.scale: Input should be greater than 0"),
+    ("negative scale", GOOD + MESH + "scale = -1.0\n", {}, "objects.duck.scale: Input should be greater than 0"),
+    ("NaN scale", GOOD + MESH + "scale = nan\n", {}, "objects.duck.scale: Input should be a finite number"),
+    ("scale range reversed", GOOD + MESH + "scale_range = [0.7, 0.5]\n", {}, "scale_range must be [min, max]"),
+    ("a mesh with a size", GOOD + MESH + "size = [0.05, 0.05, 0.05]\n", {}, "a mesh's size is its file's"),
+    ("urdf and urdf_choice", GOOD + MESH + 'urdf_choice = "pybullet_data:lego/*.urdf"\n', {},
+     "a mesh needs exactly one of urdf, urdf_choice"),
+    ("a box with a urdf", _edit("mass = 0.1", 'mass = 0.1\nurdf = "pybullet_data:duck_vhacd.urdf"'), {},
+     'objects.cube: urdf is for a mesh (shape = "mesh"), not a box'),
+    ("a box without a colour", _edit("color = [0.85, 0.1, 0.1]\n", ""), {}, "objects.cube: a box needs a color"),
+    ("a mesh target", GOOD.replace("target = true\n", "") + MESH + "target = true\n", {}, "a mesh is not yet a target"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("text", "files", "expected"), [c[1:] for c in MESH_CASES], ids=[c[0] for c in MESH_CASES])
+def test_bad_mesh_object(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, files: dict[str, str], expected: str
+) -> None:
+    f = tmp_path / "s.toml"
+    f.write_text(text)
+    for name, content in files.items():
+        (tmp_path / name).write_text(content)
+    if not expected:
+        assert main(["validate", str(f)]) == 0, capsys.readouterr().err
+        return
+    assert main(["run", str(f), "--quiet"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"pickdemo: error: {f}: ") and expected.format(dir=tmp_path) in err, err

@@ -64,7 +64,7 @@ def test_surface_points_and_outline() -> None:
 def test_make_shape_by_name() -> None:
     assert make_shape("box", (0.05, 0.04, 0.03)) == Box((0.05, 0.04, 0.03))
     assert make_shape("cylinder", [0.04, 0.08]) == Cylinder(0.04, 0.08)
-    assert set(SHAPES) == {"box", "cylinder"}
+    assert set(SHAPES) == {"box", "cylinder", "mesh"}
     with pytest.raises(ValueError, match="unknown shape 'sphere'"):
         make_shape("sphere", (0.05,))
     with pytest.raises(ValueError):

@@ -17,8 +17,9 @@ from pybullet_utils.bullet_client import BulletClient
 from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose
 from pickdemo.layout import Placement
+from pickdemo.meshes import resolve
 from pickdemo.scenario import ObjectSpec, Scenario
-from pickdemo.shapes import Box, Cylinder
+from pickdemo.shapes import Box, Cylinder, Mesh
 from pickdemo.sim import quiet_c_stdout
 
 TABLE_THICKNESS_M = 0.05
@@ -165,6 +166,9 @@ class Scene:
             vis = c.createVisualShape(
                 p.GEOM_MESH, vertices=verts, normals=normals, indices=indices, rgbaColor=[*spec.color, 1.0]
             )
+        elif isinstance(shape, Mesh):
+            self._build_mesh(spec, shape, pose)
+            return
         else:
             raise TypeError(f"objects.{spec.name}: the scene cannot build a {shape.kind}")
         mass = 0.0 if spec.static else spec.mass  # a static body stays where it is put
@@ -172,6 +176,25 @@ class Scene:
             mass, col, vis, basePosition=list(pose.position), baseOrientation=list(pose.quaternion_xyzw)
         )
         c.changeDynamics(body, -1, lateralFriction=spec.friction, spinningFriction=0.001, rollingFriction=0.0001)
+        self.bodies[spec.name] = body
+
+    def _build_mesh(self, spec: ObjectSpec, shape: Mesh, pose: Pose) -> None:
+        """A mesh object from its URDF, scaled; its inertia computed by PyBullet from its shape (the
+        files' inertia is often a placeholder), its mass and friction the file's unless the scenario
+        gives them. Placed by its centre of mass (PyBullet's base frame, the frame of its vertices)."""
+        c = self.client
+        with quiet_c_stdout():
+            body = c.loadURDF(
+                str(resolve(shape.urdf, None)), basePosition=list(pose.position),
+                baseOrientation=list(pose.quaternion_xyzw), globalScaling=shape.scale, useFixedBase=spec.static,
+            )  # fmt: skip
+        c.resetBasePositionAndOrientation(body, list(pose.position), list(pose.quaternion_xyzw))
+        given = spec.model_fields_set
+        if "mass" in given and not spec.static:
+            c.changeDynamics(body, -1, mass=spec.mass)
+        if "friction" in given:
+            c.changeDynamics(body, -1, lateralFriction=spec.friction)
+        c.changeDynamics(body, -1, spinningFriction=0.001, rollingFriction=0.0001)
         self.bodies[spec.name] = body
 
     # ---------------------------------------------------------------------------------- stepping
