@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from pickdemo.geometry import Pose
+from pickdemo.geometry import OrientedBox, Pose
 
 #: Depth noise model of the paper's eq. (8) (Kinect / Xtion): sigma_z = 1.45e-3 z^2, z and sigma in m.
 KINECT_NOISE_COEFF = 1.45e-3
@@ -289,6 +289,9 @@ class RGBDFrame:
     calibration_sigma: tuple[float, float] = (0.0, 0.0)  # (m, rad): how far T_world_cam may be off
     rgb_noise_sigma: float = 0.0  # 8-bit units, the colour image's noise
     depth_edge_dropout: float = 0.0  # fraction of pixels at depth edges that read no depth
+    #: The robot's own links where its joint states put them when the frame was taken (padded boxes):
+    #: a point inside one is the arm or the hand, not the scene (the self-filter). Empty: not known.
+    robot_boxes: tuple[OrientedBox, ...] = ()
 
     def depth_variance(self, z_m: np.ndarray | float) -> np.ndarray:
         """Variance (m^2) of a depth reading at ``z_m``: the sensor's noise and its quantisation."""

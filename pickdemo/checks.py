@@ -19,8 +19,8 @@ from pickdemo.streams import spawn_rngs
 
 #: The robot's base on the table: nothing may stand within this radius of the origin (m).
 ROBOT_BASE_RADIUS_M = 0.12
-#: Clearance the open gripper needs around the target's narrower side (m).
-GRIPPER_CLEARANCE_M = 0.010
+#: Clearance the open gripper needs around the target's narrower side (m): the grasp planner's.
+GRIPPER_CLEARANCE_M = GraspParams().width_margin_m
 #: The Panda's payload (kg).
 MAX_PAYLOAD_KG = 3.0
 #: Seeds whose layouts must be possible (a range that leaves no room fails on most seeds).

@@ -47,6 +47,7 @@ from pickdemo.result import (
     limit_exceedances,
     peak_limit_ratios,
 )
+from pickdemo.robot_geometry import robot_body
 from pickdemo.scenario import Scenario
 from pickdemo.task import target_model
 from pickdemo.world import World
@@ -463,6 +464,9 @@ class Episode:
         world = self.world
         with self.timer("render"):
             frame = world.camera.capture(world.scene, request.roi)
+        obs = self.observation  # the joint states when the frame was taken: where the arm is in it
+        if obs is not None:
+            frame = dataclasses.replace(frame, robot_boxes=robot_body().boxes(obs.arm_q, obs.fingers_m))
         with self.timer("perceive"):
             try:
                 result: PoseEstimate | PerceptionError = self.estimator(frame, self.model)

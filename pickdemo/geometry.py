@@ -82,3 +82,24 @@ class Pose:
 def wrap_angle(angle_rad: float | np.ndarray, period_rad: float = 2.0 * np.pi) -> float | np.ndarray:
     """Wrap an angle into [-period/2, period/2)."""
     return (np.asarray(angle_rad) + period_rad / 2.0) % period_rad - period_rad / 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class OrientedBox:
+    """A box in the world: ``lo``..``hi`` (m) in the frame placed by ``pose`` (a robot link's
+    collision geometry bounded in its own frame, say)."""
+
+    pose: Pose
+    lo: np.ndarray  # (3,) m, in the box's frame
+    hi: np.ndarray  # (3,)
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Which of the (N, 3) world points lie inside it (NaN points do not)."""
+        local = (np.asarray(points, dtype=float) - self.pose.position) @ self.pose.rotation
+        return np.all((local >= self.lo) & (local <= self.hi), axis=-1)
+
+    def corners(self) -> np.ndarray:
+        """Its 8 corners in the world (8, 3)."""
+        c = np.array([[x, y, z] for x in (self.lo[0], self.hi[0]) for y in (self.lo[1], self.hi[1])
+                      for z in (self.lo[2], self.hi[2])])  # fmt: skip
+        return self.pose.transform_points(c)

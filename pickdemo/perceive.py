@@ -8,6 +8,7 @@ when the reported covariance is honest; the method's own time, rendering exclude
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Callable, Iterator
@@ -16,10 +17,12 @@ from typing import Any, TypeAlias
 
 import numpy as np
 
+from pickdemo import robot_model as rm
 from pickdemo.estimators import BUILTIN
 from pickdemo.evaluation import pose_errors
 from pickdemo.metrics import position_nees
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
+from pickdemo.robot_geometry import robot_body
 from pickdemo.scenario import Scenario
 from pickdemo.stats import describe
 
@@ -58,6 +61,8 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
             world.scene.step(120)  # let what is not held come to rest
         camera = world.camera
         frame = camera.capture(world.scene)
+        # the robot stands at home: the self-filter is told so (what its joint states would say)
+        frame = dataclasses.replace(frame, robot_boxes=robot_body().boxes(rm.HOME_Q, [rm.FINGER_MAX_M] * 2))
         truths = {t.name: world.true_pose(t.name) for t in scenario.targets}  # truth: scoring only
     distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))
     samples = []

@@ -205,8 +205,8 @@ FILE_CASES: list[tuple[str, str, str]] = [
     ),
     (
         "too wide for the gripper",
-        _edit("size = [0.05, 0.05, 0.05]", "size = [0.073, 0.09, 0.05]"),
-        "its narrower side is 73 mm; the gripper opens to 80 mm and needs 10 mm of clearance, so at most 70 mm",
+        _edit("size = [0.05, 0.05, 0.05]", "size = [0.077, 0.09, 0.05]"),
+        "its narrower side is 77 mm; the gripper opens to 80 mm and needs 5 mm of clearance, so at most 75 mm",
     ),
     ("too heavy", _edit("mass = 0.1", "mass = 5.0"), "objects.cube.mass: 5.0 kg is more than the Panda carries"),
     (

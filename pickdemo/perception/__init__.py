@@ -1,12 +1,14 @@
 """Perception: the target's pose from one RGB-D frame, by the paper's method (``shared/paper``).
 
 Pure: arrays in, dataclasses out. It reads only what a real robot has: the RGB image, the metric
-depth image, the intrinsics and the camera pose, plus the task's description of the target (its
-colour, shape and size, as a pick order or a CAD model would give them). Nothing from the simulator.
+depth image, the intrinsics and the camera pose, where its own links were when the frame was taken
+(from its joint states), plus the task's description of the target (its colour, shape and size, as a
+pick order or a CAD model would give them). Nothing from the simulator.
 
 Steps (equation numbers as in the paper):
 
-1. Segment the target: pixels above the table plane (z = 0) whose colour matches the target's,
+1. Segment the target: pixels above the table plane (z = 0) whose colour matches the target's and
+   whose point is not in the robot's own body (the frame's ``robot_boxes``: the self-filter),
    searched first on a subsampled frame to find a region of interest; all else runs on that crop.
 2. The top face: of the target's pixels, the region of one uniform colour holding its highest
    points (flat faces shade uniformly, so its edges are crisp in the noise-free RGB image). Its

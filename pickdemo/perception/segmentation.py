@@ -43,13 +43,50 @@ def color_match(rgb: np.ndarray, color: tuple[float, float, float], cos_min: flo
     return (dot > 0.0) & (dot * dot >= np.float32(cos_min * cos_min) * norm2) & (norm2 > 400.0)
 
 
+def robot_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
+    """Which of the ``candidates`` (an (H, W) mask) are the robot's own body: their points lie in one
+    of the frame's :attr:`~pickdemo.camera.RGBDFrame.robot_boxes` (the links where the joint states
+    put them). Only the links whose box can reach a pixel of the frame are tested."""
+    out = np.zeros(candidates.shape, dtype=bool)
+    if not frame.robot_boxes or not candidates.any():
+        return out
+    K, T = frame.intrinsics, frame.T_world_cam
+    T_cam_world = T.inverse()
+    h, w = candidates.shape
+    near = []
+    for box in frame.robot_boxes:
+        c = T_cam_world.transform_points(box.corners())
+        if np.all(c[:, 2] <= 1e-3):
+            continue  # behind the camera
+        if np.all(c[:, 2] > 1e-3):
+            u, v = K.fx * c[:, 0] / c[:, 2] + K.cx, K.fy * c[:, 1] / c[:, 2] + K.cy
+            if u.max() < -1 or u.min() > w or v.max() < -1 or v.min() > h:
+                continue  # projects outside the frame
+        near.append(box)
+    if not near:
+        return out
+    ys, xs = np.nonzero(candidates)
+    z = frame.depth_m[ys, xs]
+    ok = np.isfinite(z) & (z > 0)
+    ys, xs, z = ys[ok], xs[ok], z[ok]
+    cam = np.column_stack([z * (xs - K.cx) / K.fx, z * (ys - K.cy) / K.fy, z])
+    pts = cam @ T.rotation.T + T.position
+    inside = np.zeros(len(pts), dtype=bool)
+    for box in near:
+        inside |= box.contains(pts)
+    out[ys[inside], xs[inside]] = True
+    return out
+
+
 def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParams, z_world: np.ndarray) -> np.ndarray:
-    """Binary mask of the target: above the table, of its colour, the largest such blob.
+    """Binary mask of the target: above the table, of its colour, not the robot's own body (its
+    links where its joint states put them), the largest such blob.
 
     ``z_world`` is the (H, W) world height of every pixel (:func:`world_heights`).
     """
     above = np.nan_to_num(z_world, nan=-1.0) > params.min_height_m
-    mask = (above & color_match(frame.rgb, model.color, params.color_cos_min)).astype(np.uint8)
+    cand = above & color_match(frame.rgb, model.color, params.color_cos_min)
+    mask = (cand & ~robot_pixels(frame, cand)).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n <= 1:
         raise PerceptionError("no pixel above the table has the target's colour")
@@ -131,15 +168,31 @@ def crop_frame(frame: RGBDFrame, x0: int, y0: int, x1: int, y1: int) -> RGBDFram
     )
 
 
+def _strided(K: Intrinsics, stride: int) -> Intrinsics:
+    """The intrinsics of every ``stride``-th pixel (pixel ``i`` of the strided image is ``stride * i``)."""
+    return Intrinsics(width=-(-K.width // stride), height=-(-K.height // stride), fx=K.fx / stride,
+                      fy=K.fy / stride, cx=K.cx / stride, cy=K.cy / stride)  # fmt: skip
+
+
 def target_roi(
     frame: RGBDFrame, model: TargetModel, params: PerceptionParams, pad: int = 8, stride: int = 4
 ) -> tuple[int, int, int, int]:
-    """Bounding box of the pixels of the target's colour, padded.
+    """Bounding box of the pixels of the target's colour above the table (the robot's own body
+    left out), padded.
 
     Searched on every ``stride``-th pixel (any blob wider than the stride is hit), which makes
     this whole-frame step 16x cheaper; everything after it runs on the box only.
     """
-    cand = color_match(frame.rgb[::stride, ::stride], model.color, params.color_cos_min)
+    sub = crop_frame(frame, 0, 0, frame.intrinsics.width, frame.intrinsics.height)
+    sub = dataclasses.replace(
+        sub,
+        rgb=frame.rgb[::stride, ::stride],
+        depth_m=sub.depth_m[::stride, ::stride],
+        intrinsics=_strided(frame.intrinsics, stride),
+    )
+    above = np.nan_to_num(world_heights(sub), nan=-1.0) > params.min_height_m
+    cand = above & color_match(sub.rgb, model.color, params.color_cos_min)
+    cand &= ~robot_pixels(sub, cand)
     ys, xs = np.nonzero(cand)
     if len(xs) == 0:
         raise PerceptionError("the target is not in view: no pixel has its colour")
