@@ -3,7 +3,8 @@
 An estimator is any callable ``(frame: RGBDFrame, model: TargetModel) -> PoseEstimate`` that raises
 :class:`~pickdemo.perception.PerceptionError` (with the reason) when it cannot measure the target.
 The frame is what a real robot has (RGB, metric depth with holes as 0 or NaN, intrinsics, the pose it
-is told, its sensor's noise model); the model is the task's description of the target (shape, size,
+is told, its sensor's noise model, and ``robot_boxes``: its own links where its joint states put them
+when the frame was taken, for a self-filter); the model is the task's description of the target (shape, size,
 colour). ``PoseEstimate.position_cov`` must be honest: the tracker weighs estimates by it.
 
 Names: ``paper`` (the default), ``icp``, ``centroid``, ``pixel``, or ``module:function`` for your
