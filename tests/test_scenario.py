@@ -94,7 +94,7 @@ def test_one_path_style_for_schema_and_geometry_errors(tmp_path: Path) -> None:
     f.write_text(GOOD.replace("[0.05, 0.05, 0.05]", "[0.05, 0.05]"))
     with pytest.raises(ScenarioError, match=r"objects\.cube\.size: "):
         load_scenario(f)
-    f.write_text(GOOD.replace("[0.05, 0.05, 0.05]", "[0.073, 0.09, 0.05]"))
+    f.write_text(GOOD.replace("[0.05, 0.05, 0.05]", "[0.077, 0.09, 0.05]"))
     with pytest.raises(ScenarioError, match=r"objects\.cube\.size: its narrower side"):
         load_scenario(f)
 
