@@ -25,6 +25,7 @@ import time
 import numpy as np
 
 from pickdemo import robot_model as rm
+from pickdemo.bench import wilson_interval
 from pickdemo.grasp import GraspParams, top_down
 from pickdemo.interfaces import Command
 from pickdemo.kinematics import panda_kinematics
@@ -126,16 +127,6 @@ def one(urdf: str, scale: float, seed: int) -> str:
         return "held" if turn < TURN_LIMIT_DEG else "rotated in the grip"
 
 
-def _wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    if n == 0:
-        return 0.0, 1.0
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return c - h, c + h
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--glob", default="pybullet_data:random_urdfs/??0/*.urdf")
@@ -153,7 +144,7 @@ def main() -> None:
             outcomes[r] += 1
             by_file.setdefault(f, []).append(r)
     n = sum(outcomes.values())
-    lo, hi = _wilson(outcomes["held"], n)
+    lo, hi = wilson_interval(outcomes["held"], n)
     print(f"oracle: {outcomes['held']}/{n} held ({100 * outcomes['held'] / max(n, 1):.1f} %, Wilson 95 % "
           f"[{100 * lo:.1f}, {100 * hi:.1f}]) over {len(files)} files x {a.seeds} seed(s), scale {a.scale}, "
           f"{time.perf_counter() - t0:.0f} s")  # fmt: skip
