@@ -65,6 +65,14 @@ def _check_mesh_files(sc: Scenario) -> None:
         key = f"objects.{obj.name}.{'urdf' if obj.urdf is not None else 'urdf_choice'}"
         files = obj.urdf_files
         if not files:
+            from pickdemo.meshes import expand
+
+            matched = expand(obj.urdf_choice or "", None)
+            if matched:  # every match is broken: say why the first is
+                try:
+                    read_urdf(matched[0])
+                except MeshFileError as exc:
+                    raise ScenarioError(f"{key}: none of its {len(matched)} matches can be read; {exc}") from None
             raise ScenarioError(f"{key}: {obj.urdf_choice!r} matches no file")
         for f in files:
             try:

@@ -63,6 +63,21 @@ def expand(pattern: str, base_dir: Path | None) -> tuple[str, ...]:
     return tuple(h for h in sorted(glob.glob(str(path))) if Path(h).is_file())
 
 
+@functools.lru_cache(maxsize=64)
+def usable(pattern: str) -> tuple[str, ...]:
+    """The matches of a ``urdf_choice`` glob (:func:`expand`) that can be read: a broken file in a
+    large set (``random_urdfs/168`` has only NaN vertices) is left out of the choice rather than
+    making the whole set unusable. A ``urdf`` naming one such file is still an error."""
+    out = []
+    for f in expand(pattern, None):
+        try:
+            read_urdf(f)
+        except MeshFileError:
+            continue
+        out.append(f)
+    return tuple(out)
+
+
 def _floats(text: str | None, n: int, default: float, what: str, where: Path) -> np.ndarray:
     if text is None:
         return np.full(n, default)

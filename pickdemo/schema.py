@@ -269,10 +269,11 @@ class ObjectSpec(_Model):
 
     @property
     def urdf_files(self) -> tuple[str, ...]:
-        """A mesh's files: its ``urdf``, or every match of its ``urdf_choice`` (sorted; reads the disk)."""
-        from pickdemo.meshes import expand
+        """A mesh's files: its ``urdf``, or every readable match of its ``urdf_choice`` (sorted; reads
+        the disk: :func:`pickdemo.meshes.usable`)."""
+        from pickdemo.meshes import usable
 
-        return (self.urdf,) if self.urdf is not None else expand(self.urdf_choice or "", None)
+        return (self.urdf,) if self.urdf is not None else usable(self.urdf_choice or "")
 
     @property
     def scales(self) -> tuple[float, float]:

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from pickdemo.cli import main
+from pickdemo.meshes import pybullet_data_dir
 
 GOOD = """name = "t"
 description = "a good scenario"
@@ -397,6 +398,10 @@ MESH_CASES: list[tuple[str, str, dict[str, str], str]] = [
      GOOD + MESH.replace('urdf = "pybullet_data:duck_vhacd.urdf"',
                          'urdf_choice = "pybullet_data:random_urdfs/x*/*.urdf"'),
      {}, "objects.duck.urdf_choice: 'pybullet_data:random_urdfs/x*/*.urdf' matches no file"),
+    ("a glob whose every match is broken",
+     GOOD + MESH.replace('urdf = "pybullet_data:duck_vhacd.urdf"',
+                         'urdf_choice = "pybullet_data:random_urdfs/168/*.urdf"'),
+     {}, "none of its 1 matches can be read; {dir_data}/random_urdfs/168/168.obj: a vertex that is not finite"),
     ("scale 0", GOOD + MESH + "scale = 0.0\n", {}, "objects.duck.scale: Input should be greater than 0"),
     ("negative scale", GOOD + MESH + "scale = -1.0\n", {}, "objects.duck.scale: Input should be greater than 0"),
     ("NaN scale", GOOD + MESH + "scale = nan\n", {}, "objects.duck.scale: Input should be a finite number"),
@@ -425,4 +430,5 @@ def test_bad_mesh_object(
     assert main(["run", str(f), "--quiet"]) == 2
     out, err = capsys.readouterr()
     assert out == "" and err.count("\n") == 1 and "Traceback" not in err, err
-    assert err.startswith(f"pickdemo: error: {f}: ") and expected.format(dir=tmp_path) in err, err
+    data = pybullet_data_dir()
+    assert err.startswith(f"pickdemo: error: {f}: ") and expected.format(dir=tmp_path, dir_data=data) in err, err

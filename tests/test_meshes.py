@@ -53,6 +53,17 @@ def test_a_urdf_s_frames_are_applied() -> None:
     np.testing.assert_allclose(duck.vertices, raw - [0.0, 0.02, 0.0], atol=1e-12)  # its inertial origin
 
 
+def test_a_broken_file_is_left_out_of_a_glob_s_choice() -> None:
+    """random_urdfs/168 has only NaN vertices: named alone it is an error, in a glob it is left out."""
+    from pickdemo.meshes import MeshFileError, usable
+
+    assert "pybullet_data:random_urdfs/168/168.urdf" in expand("pybullet_data:random_urdfs/16?/*.urdf", None)
+    kept = usable("pybullet_data:random_urdfs/16?/*.urdf")
+    assert len(kept) == 9 and "pybullet_data:random_urdfs/168/168.urdf" not in kept
+    with pytest.raises(MeshFileError, match="a vertex that is not finite"):
+        read_urdf("pybullet_data:random_urdfs/168/168.urdf")
+
+
 def test_a_glob_walks_a_sorted_set_and_a_seed_draws_the_same_file() -> None:
     files = expand("pybullet_data:random_urdfs/??0/*.urdf", None)
     assert len(files) == 100 and list(files) == sorted(files)
