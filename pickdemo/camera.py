@@ -253,6 +253,12 @@ def crop_intrinsics(K: Intrinsics, roi: tuple[int, int, int, int]) -> Intrinsics
     return Intrinsics(width=x1 - x0, height=y1 - y0, fx=K.fx, fy=K.fy, cx=K.cx - x0, cy=K.cy - y0)
 
 
+def strided_intrinsics(K: Intrinsics, stride: int) -> Intrinsics:
+    """Intrinsics of every ``stride``-th pixel of an image (pixel ``i`` of the strided image is ``stride * i``)."""
+    return Intrinsics(width=-(-K.width // stride), height=-(-K.height // stride), fx=K.fx / stride,
+                      fy=K.fy / stride, cx=K.cx / stride, cy=K.cy / stride)  # fmt: skip
+
+
 def roi_around(
     points_world: np.ndarray, K: Intrinsics, T_world_cam: Pose, *, pad_px: int, min_size_px: int = 48
 ) -> tuple[int, int, int, int] | None:

@@ -57,28 +57,24 @@ def check_scenario(sc: Scenario) -> None:
 
 def _check_mesh_files(sc: Scenario) -> None:
     """Every mesh's files exist and are URDFs pickdemo can read (one line for the first bad one)."""
-    from pickdemo.meshes import MeshFileError, read_urdf
+    from pickdemo.meshes import MeshFileError, expand, read_urdf
 
     for obj in sc.objects:
         if obj.shape != "mesh":
             continue
-        key = f"objects.{obj.name}.{'urdf' if obj.urdf is not None else 'urdf_choice'}"
-        files = obj.urdf_files
-        if not files:
-            from pickdemo.meshes import expand
-
-            matched = expand(obj.urdf_choice or "", None)
-            if matched:  # every match is broken: say why the first is
-                try:
-                    read_urdf(matched[0])
-                except MeshFileError as exc:
-                    raise ScenarioError(f"{key}: none of its {len(matched)} matches can be read; {exc}") from None
-            raise ScenarioError(f"{key}: {obj.urdf_choice!r} matches no file")
-        for f in files:
+        if obj.urdf is not None:
             try:
-                read_urdf(f)
+                read_urdf(obj.urdf)
             except MeshFileError as exc:
-                raise ScenarioError(f"{key}: {exc}") from None
+                raise ScenarioError(f"objects.{obj.name}.urdf: {exc}") from None
+        elif not obj.urdf_files:  # urdf_choice: its readable matches (a broken one is left out)
+            key, matched = f"objects.{obj.name}.urdf_choice", expand(obj.urdf_choice or "", None)
+            if not matched:
+                raise ScenarioError(f"{key}: {obj.urdf_choice!r} matches no file")
+            try:
+                read_urdf(matched[0])
+            except MeshFileError as exc:
+                raise ScenarioError(f"{key}: none of its {len(matched)} matches can be read; {exc}") from None
 
 
 def _check_objects(sc: Scenario) -> None:

@@ -11,7 +11,15 @@ import dataclasses
 import cv2
 import numpy as np
 
-from pickdemo.camera import Intrinsics, RGBDFrame, backproject_image, holes_as_nan
+from pickdemo.camera import (
+    Intrinsics,
+    RGBDFrame,
+    backproject,
+    backproject_image,
+    holes_as_nan,
+    project,
+    strided_intrinsics,
+)
 from pickdemo.perception.model import PerceptionError, PerceptionParams, TargetModel
 
 
@@ -59,8 +67,8 @@ def robot_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
         if np.all(c[:, 2] <= 1e-3):
             continue  # behind the camera
         if np.all(c[:, 2] > 1e-3):
-            u, v = K.fx * c[:, 0] / c[:, 2] + K.cx, K.fy * c[:, 1] / c[:, 2] + K.cy
-            if u.max() < -1 or u.min() > w or v.max() < -1 or v.min() > h:
+            uv = project(c, K)
+            if uv[:, 0].max() < -1 or uv[:, 0].min() > w or uv[:, 1].max() < -1 or uv[:, 1].min() > h:
                 continue  # projects outside the frame
         near.append(box)
     if not near:
@@ -69,8 +77,7 @@ def robot_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
     z = frame.depth_m[ys, xs]
     ok = np.isfinite(z) & (z > 0)
     ys, xs, z = ys[ok], xs[ok], z[ok]
-    cam = np.column_stack([z * (xs - K.cx) / K.fx, z * (ys - K.cy) / K.fy, z])
-    pts = cam @ T.rotation.T + T.position
+    pts = T.transform_points(backproject(np.column_stack([xs, ys]).astype(float), z, K))
     inside = np.zeros(len(pts), dtype=bool)
     for box in near:
         inside |= box.contains(pts)
@@ -168,12 +175,6 @@ def crop_frame(frame: RGBDFrame, x0: int, y0: int, x1: int, y1: int) -> RGBDFram
     )
 
 
-def _strided(K: Intrinsics, stride: int) -> Intrinsics:
-    """The intrinsics of every ``stride``-th pixel (pixel ``i`` of the strided image is ``stride * i``)."""
-    return Intrinsics(width=-(-K.width // stride), height=-(-K.height // stride), fx=K.fx / stride,
-                      fy=K.fy / stride, cx=K.cx / stride, cy=K.cy / stride)  # fmt: skip
-
-
 def target_roi(
     frame: RGBDFrame, model: TargetModel, params: PerceptionParams, pad: int = 8, stride: int = 4
 ) -> tuple[int, int, int, int]:
@@ -183,12 +184,11 @@ def target_roi(
     Searched on every ``stride``-th pixel (any blob wider than the stride is hit), which makes
     this whole-frame step 16x cheaper; everything after it runs on the box only.
     """
-    sub = crop_frame(frame, 0, 0, frame.intrinsics.width, frame.intrinsics.height)
     sub = dataclasses.replace(
-        sub,
+        frame,
         rgb=frame.rgb[::stride, ::stride],
-        depth_m=sub.depth_m[::stride, ::stride],
-        intrinsics=_strided(frame.intrinsics, stride),
+        depth_m=holes_as_nan(frame.depth_m[::stride, ::stride]),
+        intrinsics=strided_intrinsics(frame.intrinsics, stride),
     )
     above = np.nan_to_num(world_heights(sub), nan=-1.0) > params.min_height_m
     cand = above & color_match(sub.rgb, model.color, params.color_cos_min)
