@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
+from pickdemo.perception import ObjectCloud, PerceptionError, PoseEstimate, TargetModel
+from pickdemo.shapes import Unknown
 from pickdemo.tracker import TargetTracker, TrackedPose, TrackerParams
 
 
@@ -79,10 +80,16 @@ class TargetBelief:
         self.counters = counters
         self.tracker = TargetTracker(symmetry_rad, tracker_params)
         self._velocity_cache: tuple[tuple, np.ndarray | None] | None = None
+        self.unknown = isinstance(model.geometry, Unknown)
+        #: an object nobody described: the newest cloud seen of it whole with the hand away (grasps are
+        #: planned from it); its extents as first seen on this track
+        self.cloud: ObjectCloud | None = None
+        self._extents: tuple[float, float] | None = None
 
     def restart(self) -> None:
         """Forget the target: the next estimate starts a new track."""
         self.tracker = TargetTracker(self.symmetry, self.tracker_params)
+        self._extents = None
 
     @property
     def initialised(self) -> bool:
@@ -121,6 +128,11 @@ class TargetBelief:
             self.counters.rejected += 1
         if up.jumped:
             self.counters.jumps += 1
+        if up.accepted and self.unknown and result.cloud is not None and not hand_over_target:
+            if self._extents is None or up.jumped:
+                self._extents = result.top_face_size_m
+            if self.complete_view(result):
+                self.cloud = result.cloud
         return Offered(Verdict.ACCEPTED if up.accepted else Verdict.REJECTED, jumped=up.jumped)
 
     def implausible(self, est: PoseEstimate) -> str:
@@ -134,6 +146,12 @@ class TargetBelief:
         if sigma > self.gate.max_sigma_m:
             return f"estimate too uncertain ({sigma * 1e3:.1f} mm)"
         surface = self.surface_z(float(p[0]), float(p[1]))
+        if self.unknown:  # its features lie on it: between what it rests on and its size bound above
+            if float(p[2]) < surface - self.gate.table_gap_m:
+                return f"estimate sinks {(surface - float(p[2])) * 1e3:.0f} mm into what it rests on"
+            if float(p[2]) > surface + self.model.height_m:
+                return f"estimate floats {(float(p[2]) - surface) * 1e3:.0f} mm above what it rests on"
+            return ""
         gap = float(p[2]) - surface - self.model.height_m / 2.0
         if abs(gap) > self.gate.table_gap_m:
             where = "above" if gap > 0 else "into"
@@ -145,7 +163,12 @@ class TargetBelief:
         """Whether the estimate saw the whole top face: its measured extents within
         ``face_size_tolerance`` of the model's. A partly hidden face (the hand over it while it
         descends) can mislead the fit consistently, so only a complete view may restart the track."""
-        expected = self.model.geometry.top_extents_m
+        if self.unknown:  # seen whole, and its extents as first seen on this track
+            if estimate.occluded:
+                return False
+            expected = self._extents if self._extents is not None else estimate.top_face_size_m
+        else:
+            expected = self.model.geometry.top_extents_m
         measured = sorted(estimate.top_face_size_m, reverse=True)
         tol = self.gate.face_size_tolerance
         return all(abs(m - e) <= tol * e for m, e in zip(measured, expected, strict=True))

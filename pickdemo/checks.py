@@ -247,8 +247,12 @@ def _check_pick(sc: Scenario) -> None:
 
     target = sc.target
     key = f"objects.{target.name}"
-    narrow = target.largest_shape.grasp_width_m
     opening = 2.0 * rm.FINGER_MAX_M
+    if target.shape == "mesh":
+        _check_mesh_holdable(target, key, opening - GRIPPER_CLEARANCE_M)
+        narrow = 0.0
+    else:
+        narrow = target.largest_shape.grasp_width_m
     if narrow > opening - GRIPPER_CLEARANCE_M:
         raise ScenarioError(
             f"{key}.size: its narrower side is {narrow * 1e3:.0f} mm; the gripper opens to {opening * 1e3:.0f} mm "
@@ -275,6 +279,29 @@ def _check_pick(sc: Scenario) -> None:
             res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), rm.HOME_Q, rng, IKParams())
             if not res.success:
                 raise ScenarioError(f"{what}: out of the arm's reach from above ({res.reason})")
+
+
+def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float) -> None:
+    """A mesh target some top-down grasp of the hand can hold at its smallest scale (of a
+    ``urdf_choice``: at least one of its files; a seed that draws one no grasp can hold is refused
+    when its episode is built)."""
+    from pickdemo.shapes import Mesh
+
+    files = target.urdf_files
+    widths = []
+    for path in files:
+        shape = target.mesh_shape(path, target.scales[0])
+        assert isinstance(shape, Mesh)
+        widths.append(shape.top_down_width_m())
+    if min(widths) <= widest_m:
+        return
+    which = f"{key}.urdf" if target.urdf is not None else f"{key}.urdf_choice"
+    what = "it is" if len(files) == 1 else f"each of its {len(files)} files is, the narrowest"
+    raise ScenarioError(
+        f"{which}: no top-down grasp can hold it: at scale {target.scales[0]:g} {what} {min(widths) * 1e3:.0f} mm "
+        f"across where the fingers would close; the gripper opens to {2e3 * rm.FINGER_MAX_M:.0f} mm and needs "
+        f"{GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance (a smaller scale?)"
+    )
 
 
 def _check_layout(sc: Scenario) -> None:

@@ -163,6 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
 def yaw_modulus_deg(target: ObjectSpec) -> float | None:
     """The turn (deg) after which the target looks the same, modulo which its yaw is estimated and
     scored (90 for a square box, 180 for another box); None for a cylinder, which has no yaw."""
+    if target.shape == "mesh":
+        return 180.0  # seen as an unknown object: its principal axes, a half turn
     symmetry = target.largest_shape.yaw_symmetry_rad
     if symmetry == 0.0:
         return None

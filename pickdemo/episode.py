@@ -35,6 +35,7 @@ from pickdemo.kinematics import panda_kinematics
 from pickdemo.layout import LayoutError
 from pickdemo.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX, Observer, TraceRecorder
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
+from pickdemo.perception.unknown import estimate_unknown
 from pickdemo.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
 from pickdemo.rate_limit import ReflexError
 from pickdemo.referee import PERCEPTION_OFF_MM, Referee, diagnose
@@ -49,6 +50,7 @@ from pickdemo.result import (
 )
 from pickdemo.robot_geometry import robot_body
 from pickdemo.scenario import Scenario
+from pickdemo.shapes import Unknown
 from pickdemo.task import target_model
 from pickdemo.world import World
 
@@ -315,17 +317,23 @@ class Episode:
         self.world = world
         from pickdemo.estimators import EstimatorError, resolve_estimator
 
+        self.target_name = sc.target.name
+        self.model = target_model(sc, world.placement(self.target_name))
         method = self.options.perception_method
-        if method == "paper":
-            perception = self.options.perception
+        perception = self.options.perception
+        if isinstance(self.model.geometry, Unknown):
+            if method != "paper":
+                raise EpisodeFailure(
+                    Stage.PERCEPTION, f"the target is a mesh nobody described: perception {method!r} needs its model"
+                )
+            self.estimator = lambda frame, model: estimate_unknown(frame, model, perception)
+        elif method == "paper":
             self.estimator = lambda frame, model: estimate_pose(frame, model, perception)
         else:
             try:
                 self.estimator = resolve_estimator(method)
             except EstimatorError as exc:
                 raise EpisodeFailure(Stage.PERCEPTION, str(exc)) from None
-        self.target_name = sc.target.name
-        self.model = target_model(sc, world.placement(self.target_name))
         with self.timer("scene"):
             world.open(gui=self.options.gui)
             kin = panda_kinematics()

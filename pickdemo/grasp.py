@@ -121,6 +121,21 @@ def plan_grasp(
     grasp_above_bottom = grasp_z - bottom_z
 
     grasp_p = np.array([center[0], center[1], grasp_z])
+    return poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params)
+
+
+def poses_of_pick(
+    grasp_p: np.ndarray,
+    psi: float,
+    grasp_above_bottom: float,
+    width: float,
+    place_xy: tuple[float, float],
+    params: GraspParams,
+) -> GraspPlan:
+    """Every TCP pose of a top-down pick and place from its grasp: the TCP at ``grasp_p`` with the hand
+    angle ``psi``, ``grasp_above_bottom`` above what the object rests on; put down with the TCP over
+    ``place_xy`` at that height over the table."""
+    grasp_z = float(grasp_p[2])
     up = np.array([0.0, 0.0, 1.0])
     place_p = np.array([place_xy[0], place_xy[1], grasp_above_bottom + params.place_clearance_m])
     carry_z = grasp_z + params.transport_height_m

@@ -13,7 +13,7 @@ from pickdemo.evaluation import pose_errors
 from pickdemo.geometry import Pose
 from pickdemo.perception import PoseEstimate
 from pickdemo.result import PerceptionScore
-from pickdemo.shapes import Shape
+from pickdemo.shapes import Mesh, Shape
 
 
 def position_nees(estimate: PoseEstimate, true: Pose) -> float:
@@ -22,8 +22,10 @@ def position_nees(estimate: PoseEstimate, true: Pose) -> float:
     return float(e @ np.linalg.solve(estimate.position_cov, e))
 
 
-def score_perception(estimate: PoseEstimate, true: Pose) -> PerceptionScore:
-    errors = pose_errors(estimate.pose, true, estimate.yaw_symmetry_rad)
+def score_perception(estimate: PoseEstimate, true: Pose, *, oriented: bool = True) -> PerceptionScore:
+    """``oriented``: whether the estimate's orientation is the body's (not an unknown object's
+    principal axes, which are no axis of its file's body frame)."""
+    errors = pose_errors(estimate.pose, true, estimate.yaw_symmetry_rad, has_orientation=oriented)
     return PerceptionScore(
         estimated_pose=estimate.to_dict(),
         true_pose=true.to_dict(),
@@ -53,24 +55,33 @@ def score_place(
     shape: Shape,
     lift_height_m: float,
     place_tolerance_m: float,
+    upright_required: bool = True,
 ) -> PlaceOutcome:
     """Success: rose at least ``lift_height_m``, ended within tolerance of the place position, upright
-    and at rest. Upright: on the face it stood on, or one the same height (a cube on any face) with
-    that face within 10 deg of level; a cylinder on a cap.
+    (when ``upright_required``) and at rest. Upright: on the face it stood on, or one the same height
+    (a cube on any face) with that face within 10 deg of level; a cylinder on a cap; a mesh with its
+    body z within 10 deg of the vertical, resting on the table.
 
     ``shape``: the target's :class:`~pickdemo.shapes.Shape`."""
     height_m = float(shape.height_m)
     lifted = max_z_m - float(start.position[2])
-    err = float(np.hypot(final.position[0] - place_xy[0], final.position[1] - place_xy[1]))
+    # A mesh's centre: its bounding box's (its file's origin and its centre of mass may lie anywhere).
+    centre = final.transform_points(shape.box_centre[None, :])[0] if isinstance(shape, Mesh) else final.position
+    err = float(np.hypot(centre[0] - place_xy[0], centre[1] - place_xy[1]))
     tilt, extent = shape.resting_face(final.rotation)
-    upright = tilt < 10.0 and abs(extent - height_m) < 2e-3 and abs(float(final.position[2]) - height_m / 2.0) < 0.01
+    if isinstance(shape, Mesh):  # its centre of mass at the height it rests at, turned as it ended
+        upright = tilt < 10.0 and abs(float(final.position[2]) - shape.resting_height_m(final.rotation)) < 0.01
+    else:
+        upright = (
+            tilt < 10.0 and abs(extent - height_m) < 2e-3 and abs(float(final.position[2]) - height_m / 2.0) < 0.01
+        )
     at_rest = final_speed_m_s < 0.01
     reason = ""
     if lifted < lift_height_m:
         reason = f"target rose {lifted * 1e3:.1f} mm, less than {lift_height_m * 1e3:.0f} mm"
     elif err > place_tolerance_m:
         reason = f"target ended {err * 1e3:.1f} mm from the place position (tolerance {place_tolerance_m * 1e3:.0f} mm)"
-    elif not upright:
+    elif upright_required and not upright:
         reason = (
             f"target did not end upright on the table (resting face tilted {tilt:.1f} deg, "
             f"{extent * 1e3:.0f} mm tall against {height_m * 1e3:.0f} mm, z {final.position[2] * 1e3:.1f} mm)"

@@ -53,8 +53,8 @@ from pickdemo.actions import Grip, GripParams, Move, PayloadParams, Scale
 from pickdemo.belief import Counters, GateParams, TargetBelief, Verdict
 from pickdemo.camera import Intrinsics, roi_around
 from pickdemo.geometry import Pose, wrap_angle
-from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, equivalent_hand_yaws, top_down
-from pickdemo.grasp_selection import GraspRequest, GraspSelector, TopDownFaceGrasps
+from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, top_down
+from pickdemo.grasp_selection import GraspRequest, GraspSelector, selector_for
 from pickdemo.ik_goals import (
     GoalParams,
     along_line,
@@ -232,7 +232,7 @@ class PickMachine:
         self.place_tolerance_m = place_tolerance_m
         self.open_loop = open_loop
         self.dt_s = dt_s
-        self.selector: GraspSelector = selector or TopDownFaceGrasps(self.p.grasp)
+        self.selector: GraspSelector = selector or selector_for(model, self.p.grasp)
         # The parts: the hand's motion, the fingers, the belief about the target.
         self.motion = OnlineMotion(kin, q0, dt_s, self.p.free)
         self.move = Move(self.motion, chase_fraction=self.p.chase_fraction, meet_horizon_s=self.p.meet_horizon_s)
@@ -284,6 +284,8 @@ class PickMachine:
         self._descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
         self._verify_asked = False
         self._relooks = 0
+        self._plan_id = 0  # counts first plans (the grasp selector's plan_id)
+        self._seen_in_hand = np.zeros(3)  # an object nobody described: its seen centre from the TCP, hand frame
 
     # ================================================================================ interface
     @property
@@ -480,7 +482,20 @@ class PickMachine:
 
     def _grasp(self, pose: Pose, near: float | None) -> GraspPlan:
         """The selector's best grasp for the target at ``pose`` with the hand angle nearest ``near``."""
-        return next(iter(self.selector.candidates(GraspRequest(pose, self.model, self.place_xy, (near,)))))
+        return next(iter(self.selector.candidates(self._request(pose, (near,)))))
+
+    def _request(self, pose: Pose, hand_yaws: tuple[float | None, ...]) -> GraspRequest:
+        """What the selector is asked: the target at ``pose`` (and, seen as a cloud, its newest view)."""
+        surface = self.belief.surface_z(float(pose.position[0]), float(pose.position[1]))
+        return GraspRequest(
+            pose,
+            self.model,
+            self.place_xy,
+            hand_yaws,
+            cloud=self.belief.cloud,
+            surface_z=surface,
+            plan_id=self._plan_id,
+        )
 
     def _best_ik(self, pose: Pose, seeds: list[np.ndarray]) -> np.ndarray | None:
         """Of the IK solutions of ``pose`` from each of ``seeds``, the one with the most joint-limit
@@ -531,7 +546,7 @@ class PickMachine:
         return True, margin >= g.min_margin_rad, travel
 
     def _ranked_hand_yaws(self, pose: Pose, held: np.ndarray | None, other_faces_than: float | None) -> list[float]:
-        """The target's equivalent hand angles (:func:`~pickdemo.grasp.equivalent_hand_yaws`), best
+        """The target's equivalent hand angles (the selector's ``hand_yaws``), best
         first by IK (:meth:`_hand_angle_score`): those whose grasp has a solution; of them those from
         which the carry to the place can be followed with room at both ends; then the least joint
         travel, or for a moving target the least turn of the hand from where it is (turning the
@@ -539,7 +554,11 @@ class PickMachine:
         singularity, measured). ``other_faces_than``: a square box missed at this angle is taken by
         its other pair of faces first."""
         scored = []
-        for yaw in equivalent_hand_yaws(pose, self.model):
+        try:
+            yaws = self.selector.hand_yaws(self._request(pose, (None,)))
+        except GraspPlanningError:
+            return []
+        for yaw in yaws:
             try:
                 plan = self._grasp(pose, yaw)
             except GraspPlanningError:
@@ -582,9 +601,10 @@ class PickMachine:
             return plan
         missed = self.plan.hand_yaw_rad if (self._turn_hand and self.plan is not None) else None
         self._turn_hand = False
+        self._plan_id += 1  # a first plan: the selector plans afresh
         try:
             hand_yaws = self._ranked_hand_yaws(pose, held, missed) or [None]
-            candidates = iter(self.selector.candidates(GraspRequest(pose, self.model, self.place_xy, tuple(hand_yaws))))
+            candidates = iter(self.selector.candidates(self._request(pose, tuple(hand_yaws))))
         except GraspPlanningError as exc:
             self._fail(Stage.GRASP_PLANNING, str(exc))
             return None
@@ -1011,6 +1031,9 @@ class PickMachine:
     def _enter_close(self, obs: Observation) -> None:
         self.grip.close(self.grip_force_n)
         self.grip.watch()
+        if self.belief.unknown and self.plan is not None:  # where its seen centre lies in the hand's frame
+            d = self._tracked_pose().position - self.plan.grasp.position
+            self._seen_in_hand = self.plan.grasp.rotation.T @ np.array([d[0], d[1], 0.0])
 
     def _tick_close(self, obs: Observation) -> Transition:
         assert self.plan is not None
@@ -1175,7 +1198,9 @@ class PickMachine:
             return None
         if self.verify_estimate is None:
             return State.DONE, "the camera does not find the target at the end"
-        seen = self.verify_estimate.pose.position
+        # An object nobody described is seen by its visible surface's centre, which lies where the hand
+        # held it from the TCP (the hand may have turned a half turn on the way).
+        seen = self.verify_estimate.pose.position[:2] - (self.plan.place.rotation @ self._seen_in_hand)[:2]
         err = float(np.hypot(seen[0] - self.place_xy[0], seen[1] - self.place_xy[1]))
         said = f"the camera sees the target {err * 1e3:.1f} mm from the place position"
         if self.place_tolerance_m is None or err <= self.place_tolerance_m:

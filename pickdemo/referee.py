@@ -17,6 +17,7 @@ from pickdemo.metrics import score_perception, score_place
 from pickdemo.perception import PerceptionError, PoseEstimate
 from pickdemo.result import EpisodeFailure, Failure, PerceptionScore, Stage
 from pickdemo.scenario import Scenario
+from pickdemo.shapes import Mesh
 from pickdemo.world import World
 
 #: Above this, the tracker's belief was off when the robot committed to the grasp (scored on the truth).
@@ -55,6 +56,20 @@ class Referee:
     def _truth(self) -> Pose:
         return self.world.true_pose(self.target)
 
+    @property
+    def _mesh(self) -> Mesh | None:
+        geometry = self.world.placement(self.target).geometry
+        return geometry if isinstance(geometry, Mesh) else None
+
+    def _seen_truth(self) -> Pose:
+        """What an estimate is scored against: the target's pose (a mesh's: at its bounding box's
+        centre, which an object nobody described is seen by)."""
+        truth = self._truth()
+        mesh = self._mesh
+        if mesh is None:
+            return truth
+        return Pose(truth.transform_points(mesh.box_centre[None, :])[0], truth.rotation)
+
     def started(self) -> None:
         """The objects are at rest and the robot is about to move: where the target starts."""
         self.start_pose = self._truth()
@@ -63,14 +78,14 @@ class Referee:
     def first_estimate(self, result: PoseEstimate | PerceptionError) -> None:
         """A frame's result: the first estimate is scored in full."""
         if self.perception is None and isinstance(result, PoseEstimate):
-            self.perception = score_perception(result, self._truth())
+            self.perception = score_perception(result, self._seen_truth(), oriented=self._mesh is None)
 
     def error_mm(self, result: PoseEstimate | PerceptionError) -> float | None:
         """How far the result (or the estimate perception's own checks rejected) is off the truth now."""
         scored = result.estimate if isinstance(result, PerceptionError) else result
         if scored is None:
             return None
-        return float(np.linalg.norm(scored.pose.position - self._truth().position)) * 1e3
+        return float(np.linalg.norm(scored.pose.position - self._seen_truth().position)) * 1e3
 
     def delivered(self, result: PoseEstimate | PerceptionError, error_mm: float | None, status: str) -> None:
         """A result reached the controller: count it if it was off and the controller saw it."""
@@ -81,9 +96,9 @@ class Referee:
 
     def committed(self, predicted, symmetry_rad: float) -> None:
         """The robot commits to the grasp: the tracker's belief now (``predicted``) against the truth."""
-        truth = self._truth()
+        truth = self._seen_truth()
         self.tracking_error_mm = float(np.linalg.norm(predicted.position - truth.position)) * 1e3
-        if symmetry_rad > 0:
+        if symmetry_rad > 0 and self._mesh is None:
             dyaw = wrap_angle(predicted.yaw_rad - float(truth.rpy[2]), symmetry_rad)
             self.tracking_yaw_deg = float(abs(np.degrees(dyaw)))
 
@@ -111,6 +126,9 @@ class Referee:
             shape=placement.geometry,
             lift_height_m=sc.success.lift_height,
             place_tolerance_m=sc.success.place_tolerance,
+            upright_required=sc.success.upright
+            if sc.success.upright is not None
+            else placement.geometry.kind != "mesh",
         )
         self.place_error_mm = outcome.place_error_m * 1e3
         if not outcome.success:

@@ -257,11 +257,6 @@ class ObjectSpec(_Model):
             raise ValueError("scale_range must be [min, max]")
         if self.color is not None:
             raise ValueError("a mesh has its file's colours: no color")
-        if self.target:
-            raise ValueError(
-                "a mesh is not yet a target (the robot finds a target by its colour and fits its box or "
-                "cylinder): a mesh may stand on the table beside one"
-            )
 
     def shape_of_size(self, size: tuple[float, ...]) -> Shape:
         """Its :class:`~pickdemo.shapes.Shape` at this size (its own, or one drawn from ``size_range``)."""
@@ -348,6 +343,9 @@ class PlaceSpec(_Model):
 class SuccessSpec(_Model):
     lift_height: Annotated[float, Field(gt=0.0, le=1.0)] = 0.05  # m the target must rise
     place_tolerance: Annotated[float, Field(ge=0.001, le=1.0)] = 0.02  # m, horizontal distance to the place
+    #: the target must end standing as it stood (a box or cylinder on a face of its height, a mesh with
+    #: its body z within 10 deg of the vertical); default: a box's or cylinder's yes, a mesh's no
+    upright: bool | None = None
 
 
 class MotionSpec(_Model):

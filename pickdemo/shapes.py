@@ -309,6 +309,19 @@ class Mesh:
         return float(np.ptp(self.vertices[:, 2]))
 
     @property
+    def box_centre(self) -> np.ndarray:
+        """Its centre in its body frame (m): the middle of its footprint along its principal axes seen
+        from above, at half its height. Where a place puts "it", and what an object nobody described
+        is seen by (its file's origin and its centre of mass may lie anywhere); unlike the middle of
+        a bounding box in the world, it turns with the object."""
+        v = self.vertices
+        xy = v[:, :2] - v[:, :2].mean(axis=0)
+        _, axes = np.linalg.eigh(np.cov(xy.T))
+        along = xy @ axes
+        mid = axes @ (0.5 * (along.min(axis=0) + along.max(axis=0))) + v[:, :2].mean(axis=0)
+        return np.array([mid[0], mid[1], 0.5 * (v[:, 2].min() + v[:, 2].max())])
+
+    @property
     def footprint_radius_m(self) -> float:
         return float(np.max(np.hypot(self.vertices[:, 0], self.vertices[:, 1])))
 
@@ -341,6 +354,19 @@ class Mesh:
         proj = v @ np.vstack([_DIRECTIONS, np.eye(3), axes.T]).T
         return min(float(np.min(proj.max(axis=0) - proj.min(axis=0))), self.grasp_width_m)
 
+    def top_down_width_m(self, levels: int = 12, min_pad_z_m: float = 0.003) -> float:
+        """The narrowest width a top-down grasp of it standing upright could close across: of the part
+        above each pad height (from ``min_pad_z_m`` over its base to near its top), the narrowest
+        caliper width of its footprint (the fingers pass everything above the pads on their way down)."""
+        v = self.vertices
+        z = v[:, 2] - v[:, 2].min()
+        best = np.inf
+        for h in np.linspace(min_pad_z_m, max(float(z.max()) - 0.005, min_pad_z_m), levels):
+            above = v[z >= h, :2]
+            if len(above) >= 3:
+                best = min(best, caliper_widths(above)[0])
+        return float(best) if np.isfinite(best) else self.grasp_width_m
+
     def resting_height_m(self, rotation: np.ndarray) -> float:
         return float(-np.min(self.vertices @ np.asarray(rotation)[2]))
 
@@ -364,6 +390,67 @@ class Mesh:
         hull = convex_hull_2d(self.vertices[:, :2])
         rot = np.array([[np.cos(yaw_rad), -np.sin(yaw_rad)], [np.sin(yaw_rad), np.cos(yaw_rad)]])
         return hull @ rot.T
+
+
+@dataclass(frozen=True)
+class Unknown:
+    """What the robot is told of an object nobody described: nothing of its shape, only a bound on its
+    size (the task's: the largest object it expects, m), which sizes the regions it looks at. Its
+    extents, its yaw and its grasps are what the camera sees of it (:mod:`pickdemo.perception.unknown`).
+
+    Its pose is its features' mean and the principal axes of their spread, as the paper describes;
+    the principal axes look the same after a half turn. The robot's model only: a scenario's object
+    is a box, a cylinder or a mesh."""
+
+    max_extent_m: float = 0.15
+    kind: ClassVar[str] = "unknown"
+    n_sizes: ClassVar[int] = 0
+    size_text: ClassVar[str] = "nothing (its size is seen)"
+
+    @property
+    def size(self) -> tuple[float, ...]:
+        return ()
+
+    @property
+    def height_m(self) -> float:
+        return self.max_extent_m
+
+    @property
+    def footprint_radius_m(self) -> float:
+        return self.max_extent_m / 2.0
+
+    @property
+    def bounding_radius_m(self) -> float:
+        return self.max_extent_m / 2.0
+
+    @property
+    def yaw_symmetry_rad(self) -> float:
+        """Its principal axes: a half turn."""
+        return np.pi
+
+    @property
+    def grasp_width_m(self) -> float:
+        raise NotImplementedError("an unknown object's width is seen, not told")
+
+    @property
+    def top_extents_m(self) -> tuple[float, float]:
+        raise NotImplementedError("an unknown object's extents are seen, not told")
+
+    def resting_height_m(self, rotation: np.ndarray) -> float:
+        raise NotImplementedError("an unknown object's height is seen, not told")
+
+    def resting_face(self, rotation: np.ndarray) -> tuple[float, float]:
+        raise NotImplementedError("an unknown object has no known faces")
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError("an unknown object has no model to fit")
+
+    def outline_residuals(self, xy: np.ndarray) -> np.ndarray:
+        raise NotImplementedError("an unknown object has no model to fit")
+
+    def outline_xy(self, yaw_rad: float) -> np.ndarray:
+        """A square of its size bound (for pictures only)."""
+        return Box((self.max_extent_m, self.max_extent_m, self.max_extent_m)).outline_xy(yaw_rad)
 
 
 def _hemisphere(n: int) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The task as the robot is told it: what the target looks like (a pick order or a CAD model).
 
-Shared by an episode and ``perceive``: the robot knows the target's shape, size and colour, never
-where it is.
+Shared by an episode and ``perceive``: the robot knows a box's or a cylinder's shape, size and
+colour, never where it is; of a mesh, nothing (an object nobody described: found by its geometry).
 """
 
 from __future__ import annotations
@@ -9,9 +9,14 @@ from __future__ import annotations
 from pickdemo.layout import Placement
 from pickdemo.perception import TargetModel
 from pickdemo.schema import Scenario
+from pickdemo.shapes import Mesh, Unknown
 
 
 def target_model(scenario: Scenario, placement: Placement) -> TargetModel:
-    """What the task tells the robot about an object: its shape (at the size placed) and colour."""
+    """What the task tells the robot about an object: a box's or a cylinder's shape (at the size
+    placed) and colour; a mesh's nothing."""
+    if isinstance(placement.geometry, Mesh):
+        return TargetModel(geometry=Unknown(), color=None)
     spec = next(o for o in scenario.objects if o.name == placement.name)
+    assert spec.color is not None  # the schema requires it of a box or cylinder
     return TargetModel(geometry=placement.geometry, color=tuple(spec.color))

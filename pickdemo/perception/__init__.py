@@ -61,6 +61,7 @@ from pickdemo.perception.fit6d import MODEL_FLOOR_M, closest_on_model, refine_po
 from pickdemo.perception.model import (
     FeaturePoint,
     FitQuality,
+    ObjectCloud,
     PerceptionError,
     PerceptionParams,
     PoseEstimate,
@@ -80,11 +81,11 @@ from pickdemo.perception.segmentation import (
 )
 
 __all__ = [
-    "MIXTURE_KERNEL", "MODEL_FLOOR_M", "SIGMA_COLOR", "SIGMA_UV_PX", "FeaturePoint", "FitQuality", "PerceptionError",
-    "PerceptionParams", "PoseEstimate", "TargetModel", "circle_residuals", "closest_on_model", "color_match",
-    "condition_on_plane", "crop_frame", "estimate_pose", "fit_face_plane", "fit_outline", "fit_plane_weighted",
-    "intersect_rays_plane", "measure_features", "mixture_at", "mixture_moments", "outline_pixels", "plane_basis",
-    "point_covariance", "rectangle_residuals", "refine_circle", "refine_pose_6dof", "refine_rectangle",
-    "segment_target", "shi_tomasi_features", "target_roi", "top_face_mask", "unoccluded", "world_heights",
-    "world_points",
+    "MIXTURE_KERNEL", "MODEL_FLOOR_M", "SIGMA_COLOR", "SIGMA_UV_PX", "FeaturePoint", "FitQuality", "ObjectCloud",
+    "PerceptionError", "PerceptionParams", "PoseEstimate", "TargetModel", "circle_residuals", "closest_on_model",
+    "color_match", "condition_on_plane", "crop_frame", "estimate_pose", "fit_face_plane", "fit_outline",
+    "fit_plane_weighted", "intersect_rays_plane", "measure_features", "mixture_at", "mixture_moments",
+    "outline_pixels", "plane_basis", "point_covariance", "rectangle_residuals", "refine_circle", "refine_pose_6dof",
+    "refine_rectangle", "segment_target", "shi_tomasi_features", "target_roi", "top_face_mask", "unoccluded",
+    "world_heights", "world_points",
 ]  # fmt: skip

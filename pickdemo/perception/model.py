@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pickdemo.camera import Intrinsics
 from pickdemo.geometry import Pose
 from pickdemo.shapes import Shape
 
@@ -58,10 +59,11 @@ class PerceptionParams:
 
 @dataclass(frozen=True)
 class TargetModel:
-    """What the task says about the target: its shape with its size (m), and its nominal colour (0-1)."""
+    """What the task says about the target: its shape with its size (m), and its nominal colour (0-1;
+    None: not said, for an object nobody described, whose shape is :class:`~pickdemo.shapes.Unknown`)."""
 
     geometry: Shape
-    color: tuple[float, float, float]
+    color: tuple[float, float, float] | None
 
     @property
     def shape(self) -> str:
@@ -118,6 +120,46 @@ class FitQuality:
 
 
 @dataclass(frozen=True)
+class ObjectCloud:
+    """What the camera saw of an object nobody described: its points in the world frame (m, thinned
+    to a few thousand), the points of what stands near it (other objects: obstacles to a grasp), and
+    the time of the frame."""
+
+    points: np.ndarray  # (N, 3)
+    obstacles: np.ndarray  # (M, 3)
+    time_s: float
+    #: the view it was seen in (the depth image, its intrinsics, the camera's pose): where the camera
+    #: saw past a point, that point is free; where something nearer hid it, it is unknown
+    depth_m: np.ndarray | None = field(default=None, repr=False)
+    intrinsics: Intrinsics | None = None
+    T_world_cam: Pose | None = None
+
+    def unknown(self, points: np.ndarray, tolerance_m: float = 0.003) -> np.ndarray:
+        """Which of (..., 3) world points the camera did not see to be free: hidden behind something
+        nearer (or out of the view, or a hole in its depth)."""
+        if self.depth_m is None or self.intrinsics is None or self.T_world_cam is None:
+            return np.ones(points.shape[:-1], dtype=bool)
+        K = self.intrinsics
+        flat = points.reshape(-1, 3)
+        cam = self.T_world_cam.inverse().transform_points(flat)
+        z = cam[:, 2]
+        ok = z > 1e-3
+        u = np.full(len(flat), -1, dtype=np.int64)
+        v = np.full(len(flat), -1, dtype=np.int64)
+        u[ok] = np.round(K.fx * cam[ok, 0] / z[ok] + K.cx).astype(np.int64)
+        v[ok] = np.round(K.fy * cam[ok, 1] / z[ok] + K.cy).astype(np.int64)
+        inside = ok & (u >= 0) & (u < K.width) & (v >= 0) & (v < K.height)
+        seen = np.full(len(flat), np.nan)
+        seen[inside] = self.depth_m[v[inside], u[inside]]
+        free = np.isfinite(seen) & (seen >= z - tolerance_m)
+        return (~free).reshape(points.shape[:-1])
+
+    @property
+    def top_z(self) -> float:
+        return float(np.max(self.points[:, 2]))
+
+
+@dataclass(frozen=True)
 class PoseEstimate:
     """The target's pose with its uncertainty."""
 
@@ -131,6 +173,10 @@ class PoseEstimate:
     n_features_fused: int = 0  # features that lay on the face's outline and joined its fit
     fit: FitQuality | None = None  # how well the model fitted (None: an estimator that does not say)
     features: tuple[FeaturePoint, ...] = field(repr=False, default=())
+    #: an object nobody described: the points it was seen as (what grasps are planned from)
+    cloud: ObjectCloud | None = field(repr=False, default=None)
+    #: something nearer the camera (the hand, another object) hides part of it: a partial view
+    occluded: bool = False
 
     def to_dict(self) -> dict[str, object]:
         d = self.pose.to_dict()

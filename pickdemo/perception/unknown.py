@@ -1,0 +1,283 @@
+"""An object nobody described: found by its geometry, its pose by the paper's method, its points for
+the grasp.
+
+Pure: arrays in, dataclasses out; no simulator. Steps:
+
+1. Segmentation by geometry: the pixels whose points stand above the table's plane (z = 0 in the
+   world frame: the camera's pose is known), less the robot's own body (its links where its joint
+   states put them: the self-filter), grouped into clusters by where their points stand on the
+   table (a grid seen from above: an object hiding part of itself is still one, two objects a
+   grid cell apart are two); first on a strided frame to find the region, then at full resolution
+   in it.
+2. Which cluster: a colour the task names is a cue (the cluster whose median colour is nearest
+   it), not a requirement; else, on a region the robot asked for around its belief, the cluster
+   nearest that region's centre; on the whole image, the largest.
+3. The paper's method on it: Shi-Tomasi features on the cluster, each with the 3x3 mixture's depth
+   and colour (eqs. 9-12), back-projected (eqs. 5-7) with eq. (14)'s covariance. Features whose
+   window spans a depth step (the object's silhouette against the table behind it) are left out:
+   their mixture depth lies between two surfaces.
+4. The pose, from every pixel of the cluster off its silhouette (its 3x3 mixture within one surface),
+   each taken as the paper takes a feature: mixture depth (eqs. 9-10), back-projection (eqs. 5-7),
+   covariance (eq. 14). The paper's features are Shi-Tomasi corners, and the pose their mean with
+   the principal axes of their spread; on an object of plain colour there are too few corners (0 to
+   7 on the duck, off its silhouette) and their mean moves with them, so every pixel is a feature
+   here (the corners are still found and reported). Its yaw: the principal axes of their spread seen
+   from above (the object is taken to stand as it rests: no roll or pitch), with the variance of a
+   principal axis from that many independent points (a round object has none to speak of). Its
+   position: the middle of its footprint along those axes (the far side's top edge bounds it) at
+   half its height (it stands on the table up to its top seen): what the camera sees from any side
+   alike, where the visible surface's mean moves with the view.
+5. Whether it is seen whole: something nearer the camera bordering its silhouette (the hand as it
+   comes down, another object) hides part of it, and its centre seen is then off (the controller
+   does not act on such a view).
+6. Its points: every cluster pixel back-projected, thinned to a few thousand, with the other
+   clusters' points near it as obstacles (:class:`~pickdemo.perception.model.ObjectCloud`): the grasp
+   is planned from them (:mod:`pickdemo.grasp_cloud`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+
+from pickdemo.camera import RGBDFrame, holes_as_nan, strided_intrinsics
+from pickdemo.geometry import Pose
+from pickdemo.perception.equations import mixture_moments, point_covariance
+from pickdemo.perception.features import measure_features, shi_tomasi_features
+from pickdemo.perception.model import ObjectCloud, PerceptionError, PerceptionParams, PoseEstimate, TargetModel
+from pickdemo.perception.segmentation import crop_frame, robot_pixels, world_points
+from pickdemo.shapes import Unknown
+
+#: The grid on the table in which points above it are clustered (m): objects this far apart are two.
+CLUSTER_CELL_M = 0.005
+#: ... and at least this many of a pixel's footprints on the table, seen straight on.
+CLUSTER_CELL_FOOTPRINTS = 2.5
+#: Clusters with up to twice this many empty cells between them are one object (a gap of 10 mm at
+#: 5 mm cells: two objects closer than that are taken for one).
+CLUSTER_BRIDGE_CELLS = 1
+#: At most this many of the object's points are kept for the grasp (a regular thinning beyond).
+MAX_CLOUD_POINTS = 3000
+#: A pixel whose mixture standard deviation exceeds this many times the sensor's spans a depth step.
+FEATURE_STEP_SIGMAS = 4.0
+#: The least uncertainty (m, each axis) of the visible surface's centroid: which pixels are the object
+#: at its silhouette changes with the noise, by a pixel or so.
+SILHOUETTE_FLOOR_M = 0.0005
+#: The footprint's ends are taken at these quantiles of its points (a stray pixel does not move them).
+FOOTPRINT_QUANTILE = 0.01
+
+
+@dataclasses.dataclass(frozen=True)
+class Clusters:
+    """Connected regions of pixels above the table: ``labels`` (H, W) int32, 0 for none, and each
+    label's pixel count."""
+
+    labels: np.ndarray
+    areas: np.ndarray  # (n,) for labels 1..n
+
+    def mask(self, label: int) -> np.ndarray:
+        return self.labels == label
+
+
+def segment_objects(frame: RGBDFrame, params: PerceptionParams, pts: np.ndarray | None = None) -> Clusters:
+    """The frame's pixels above the table, the robot's own body left out, in clusters: pixels whose
+    points fall in touching cells of a grid on the table (seen from above, ``CLUSTER_CELL_M``) are
+    one object, however the object hides parts of itself from the camera. ``pts``: the frame's
+    world points (:func:`world_points`), if already computed."""
+    pts = world_points(frame) if pts is None else pts
+    z = pts[..., 2]
+    above = np.nan_to_num(z, nan=-1.0) > params.min_height_m
+    above &= ~robot_pixels(frame, above)
+    labels = np.zeros(above.shape, dtype=np.int32)
+    if not above.any():
+        return Clusters(labels, np.zeros(0, dtype=np.int64))
+    xy = pts[above][:, :2]
+    # Neighbouring pixels' points lie a pixel's footprint apart, more on a surface seen obliquely: the
+    # cells are at least a few footprints wide (a strided frame's pixels are wide).
+    footprint = float(np.nanmedian(frame.depth_m[above])) / frame.intrinsics.fx
+    size = max(CLUSTER_CELL_M, CLUSTER_CELL_FOOTPRINTS * footprint)
+    cell = np.floor((xy - xy.min(axis=0)) / size).astype(np.int64)
+    grid = np.zeros(tuple(cell.max(axis=0) + 1), dtype=np.uint8)
+    grid[cell[:, 0], cell[:, 1]] = 1
+    # Cells with up to 2 x CLUSTER_BRIDGE_CELLS empty ones between them join: where an object hides
+    # part of itself (a duck's head in front of its body), its footprint seen has a gap.
+    k = 2 * CLUSTER_BRIDGE_CELLS + 1
+    joined = cv2.dilate(np.pad(grid, CLUSTER_BRIDGE_CELLS), np.ones((k, k), np.uint8))
+    n, cells = cv2.connectedComponents(joined, connectivity=8)
+    cells = cells[CLUSTER_BRIDGE_CELLS:-CLUSTER_BRIDGE_CELLS, CLUSTER_BRIDGE_CELLS:-CLUSTER_BRIDGE_CELLS]
+    labels[above] = cells[cell[:, 0], cell[:, 1]]
+    areas = np.bincount(labels[above], minlength=n)[1:].astype(np.int64)
+    return Clusters(labels, areas)
+
+
+def choose_cluster(
+    frame: RGBDFrame, clusters: Clusters, model: TargetModel, min_px: int, *, centre_uv: np.ndarray | None
+) -> int:
+    """The label of the target's cluster (see the module docstring); raises :class:`PerceptionError`
+    when no cluster is large enough."""
+    big = [k + 1 for k, a in enumerate(clusters.areas) if a >= min_px]
+    if not big:
+        raise PerceptionError(
+            "nothing stands on the table in view" if not len(clusters.areas) else "no object large enough in view"
+        )
+    if len(big) == 1:
+        return big[0]
+    if model.color is not None:
+        cue = 255.0 * np.asarray(model.color, dtype=np.float64)
+        dist = [
+            float(np.linalg.norm(np.median(frame.rgb[clusters.labels == k].astype(np.float64), axis=0) - cue))
+            for k in big
+        ]
+        return big[int(np.argmin(dist))]
+    if centre_uv is not None:
+        d = []
+        for k in big:
+            ys, xs = np.nonzero(clusters.labels == k)
+            d.append(float(np.min(np.hypot(xs - centre_uv[0], ys - centre_uv[1]))))
+        return big[int(np.argmin(d))]
+    return big[int(np.argmax([clusters.areas[k - 1] for k in big]))]
+
+
+def object_roi(
+    frame: RGBDFrame, model: TargetModel, params: PerceptionParams, pad: int = 8, stride: int = 4
+) -> tuple[int, int, int, int]:
+    """Bounding box of the target's cluster, padded, found on every ``stride``-th pixel."""
+    sub = dataclasses.replace(
+        frame,
+        rgb=frame.rgb[::stride, ::stride],
+        depth_m=holes_as_nan(frame.depth_m[::stride, ::stride]),
+        intrinsics=strided_intrinsics(frame.intrinsics, stride),
+    )
+    clusters = segment_objects(sub, params)
+    h, w = frame.rgb.shape[:2]
+    centre = None if frame.roi is None else np.array([w, h], dtype=np.float64) / (2.0 * stride)
+    label = choose_cluster(sub, clusters, model, max(params.min_target_px // (stride * stride), 2), centre_uv=centre)
+    ys, xs = np.nonzero(clusters.labels == label)
+    return (
+        max(int(xs.min()) * stride - pad, 0),
+        max(int(ys.min()) * stride - pad, 0),
+        min(int(xs.max()) * stride + stride + pad, w),
+        min(int(ys.max()) * stride + stride + pad, h),
+    )
+
+
+def principal_yaw(cov_xy: np.ndarray, n: int) -> tuple[float, float]:
+    """The yaw (rad) of the major principal axis of a 2x2 covariance of ``n`` points, and its variance
+    (rad^2): ``l1 l2 / ((n - 1) (l1 - l2)^2)``, the sampling variance of a principal axis (capped at
+    that of a uniform angle over a half turn, pi^2 / 12: no axis at all)."""
+    w, V = np.linalg.eigh(0.5 * (cov_xy + cov_xy.T))
+    l2, l1 = max(float(w[0]), 0.0), max(float(w[1]), 0.0)
+    yaw = float(np.arctan2(V[1, 1], V[0, 1]))
+    gap = l1 - l2
+    var = np.pi**2 / 12.0 if gap <= 1e-12 or n < 3 else min(l1 * l2 / ((n - 1) * gap * gap), np.pi**2 / 12.0)
+    return yaw, float(var)
+
+
+def estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None) -> PoseEstimate:
+    """The pose of an object nobody described (see the module docstring). Raises
+    :class:`PerceptionError` with the reason when it cannot be measured."""
+    params = params or PerceptionParams()
+    try:
+        return _estimate_unknown(frame, model, params)
+    except (np.linalg.LinAlgError, cv2.error, ValueError, IndexError) as exc:
+        reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise PerceptionError(f"degenerate estimate ({type(exc).__name__}: {reason})") from None
+
+
+def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionParams) -> PoseEstimate:
+    x0, y0, x1, y1 = object_roi(frame, model, params)
+    f = crop_frame(frame, x0, y0, x1, y1)
+    pts = world_points(f)
+    clusters = segment_objects(f, params, pts)
+    h, w = frame.rgb.shape[:2]
+    centre = None if frame.roi is None else np.array([w / 2.0 - x0, h / 2.0 - y0])
+    label = choose_cluster(f, clusters, model, params.min_target_px, centre_uv=centre)
+    mask = clusters.labels == label
+
+    depth = f.depth_m  # holes are NaN in a crop
+    mu_z, var_z = mixture_moments(depth, f.depth_variance(depth))
+    features = measure_features(f, shi_tomasi_features(f, mask, params), mu_z, var_z, offset=(x0, y0))
+    # Every pixel of the object off its silhouette (its 3x3 mixture within one surface), each
+    # back-projected at its mixture depth (eqs. 5-10).
+    sensor_sd = np.sqrt(f.depth_variance(np.nan_to_num(mu_z, nan=1.0)))
+    on = mask & np.isfinite(mu_z) & (np.sqrt(var_z) <= FEATURE_STEP_SIGMAS * sensor_sd)
+    n = int(on.sum())
+    if n < params.min_target_px:
+        raise PerceptionError(f"only {n} pixels of the object lie off its silhouette")
+    vs, us = np.nonzero(on)
+    K = f.intrinsics
+    z = mu_z[vs, us]
+    cam = np.column_stack([z * (us - K.cx) / K.fx, z * (vs - K.cy) / K.fy, z])
+    surface = f.T_world_cam.transform_points(cam)
+    mean = surface.mean(axis=0)
+    # Eq. (14) at a sample of them, averaged, over their number: a 3x3 mixture shares its pixels with
+    # its neighbours', so about one in nine is independent.
+    R = f.T_world_cam.rotation
+    pick = np.linspace(0, n - 1, min(n, 64)).astype(int)
+    c_cam = np.mean(
+        [point_covariance(us[i], vs[i], z[i], var_z[vs[i], us[i]], K.fx, K.fy, K.cx, K.cy) for i in pick], axis=0
+    )
+    n_independent = max(n / 9.0, 1.0)
+    position_cov = R @ c_cam @ R.T / n_independent + np.eye(3) * SILHOUETTE_FLOOR_M**2
+    yaw, yaw_var = principal_yaw(np.cov((surface[:, :2] - mean[:2]).T), int(n_independent))
+    s_t, s_r = f.calibration_sigma
+    if s_t > 0.0 or s_r > 0.0:
+        rng_m = float(np.linalg.norm(mean - f.T_world_cam.position))
+        position_cov = position_cov + np.eye(3) * (s_t**2 + (s_r * rng_m) ** 2) / 3.0
+
+    occluded = hidden_in_part(depth, mask)
+    cloud_pts = pts[mask]
+    cloud_pts = cloud_pts[np.all(np.isfinite(cloud_pts), axis=1)]
+    if len(cloud_pts) > MAX_CLOUD_POINTS:
+        cloud_pts = cloud_pts[:: int(np.ceil(len(cloud_pts) / MAX_CLOUD_POINTS))]
+    others = (clusters.labels > 0) & ~mask
+    obstacles = pts[others]
+    obstacles = obstacles[np.all(np.isfinite(obstacles), axis=1)]
+    if len(obstacles) > MAX_CLOUD_POINTS:
+        obstacles = obstacles[:: int(np.ceil(len(obstacles) / MAX_CLOUD_POINTS))]
+    # Its footprint along its principal axes, seen from above (the far side's top edge bounds it): its
+    # middle is the object's centre, which the camera sees from any side alike (the visible surface's
+    # mean moves with the view: measured up to 40 mm on a duck seen from two places).
+    c, s = np.cos(yaw), np.sin(yaw)
+    axes = np.array([[c, -s], [s, c]])
+    along = (surface[:, :2] - mean[:2]) @ axes
+    lo, hi = np.quantile(along, FOOTPRINT_QUANTILE, axis=0), np.quantile(along, 1.0 - FOOTPRINT_QUANTILE, axis=0)
+    extents = hi - lo
+    # Its height: it stands on the table (z = 0) up to its top seen; its centre halfway.
+    top = float(np.quantile(surface[:, 2], 1.0 - FOOTPRINT_QUANTILE))
+    centre = np.array([*(mean[:2] + axes @ (0.5 * (lo + hi))), 0.5 * top])
+    rpy_cov = np.diag([0.0, 0.0, yaw_var])
+    return PoseEstimate(
+        pose=Pose.from_xyz_rpy(centre, yaw=yaw),
+        position_cov=position_cov,
+        rpy_cov=rpy_cov,
+        yaw_symmetry_rad=Unknown().yaw_symmetry_rad,
+        top_face_size_m=(float(max(extents)), float(min(extents))),
+        n_features=len(features),
+        n_face_pixels=n,
+        features=features,
+        cloud=ObjectCloud(
+            points=cloud_pts,
+            obstacles=obstacles,
+            time_s=f.time_s,
+            depth_m=holes_as_nan(frame.depth_m),
+            intrinsics=frame.intrinsics,
+            T_world_cam=frame.T_world_cam,
+        ),
+        occluded=occluded,
+    )
+
+
+def hidden_in_part(
+    depth: np.ndarray, mask: np.ndarray, *, ring_px: int = 2, step_m: float = 0.01, min_px: int = 4
+) -> bool:
+    """Whether something nearer the camera borders the object's silhouette (the hand, another
+    object): at least ``min_px`` pixels within ``ring_px`` of it whose depth is ``step_m`` nearer
+    than the object's nearest depth about them."""
+    k = np.ones((2 * ring_px + 1, 2 * ring_px + 1), np.uint8)
+    ring = cv2.dilate(mask.astype(np.uint8), k).astype(bool) & ~mask
+    own = np.where(mask & np.isfinite(depth), depth, np.inf).astype(np.float32)
+    nearest_own = cv2.erode(own, k)  # the object's nearest depth within the ring's reach
+    d = np.where(np.isfinite(depth), depth, np.inf)
+    return int(np.sum(ring & np.isfinite(nearest_own) & (d < nearest_own - step_m))) >= min_px
