@@ -293,8 +293,8 @@ def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float) -> None:
         shape = target.mesh_shape(path, target.scales[0])
         assert isinstance(shape, Mesh)
         widths.append(shape.top_down_width_m())
-    if min(widths) <= widest_m:
-        return
+        if widths[-1] <= widest_m:
+            return
     which = f"{key}.urdf" if target.urdf is not None else f"{key}.urdf_choice"
     what = "it is" if len(files) == 1 else f"each of its {len(files)} files is, the narrowest"
     raise ScenarioError(

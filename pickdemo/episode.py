@@ -30,6 +30,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pickdemo import robot_model as rm
+from pickdemo.grasp import GraspParams
 from pickdemo.interfaces import Observation
 from pickdemo.kinematics import panda_kinematics
 from pickdemo.layout import LayoutError
@@ -50,7 +52,7 @@ from pickdemo.result import (
 )
 from pickdemo.robot_geometry import robot_body
 from pickdemo.scenario import Scenario
-from pickdemo.shapes import Unknown
+from pickdemo.shapes import Mesh, Unknown
 from pickdemo.task import target_model
 from pickdemo.world import World
 
@@ -318,6 +320,15 @@ class Episode:
         from pickdemo.estimators import EstimatorError, resolve_estimator
 
         self.target_name = sc.target.name
+        drawn = world.placement(self.target_name).geometry
+        widest = 2.0 * rm.FINGER_MAX_M - GraspParams().width_margin_m
+        if isinstance(drawn, Mesh) and drawn.top_down_width_m() > widest:  # refused before it runs
+            raise EpisodeFailure(
+                Stage.GRASP_PLANNING,
+                f"this seed drew {drawn.urdf} at scale {drawn.scale:.3g}: no top-down grasp can hold it (it is "
+                f"{drawn.top_down_width_m() * 1e3:.0f} mm across where the fingers would close; "
+                f"at most {widest * 1e3:.0f} mm)",
+            )
         self.model = target_model(sc, world.placement(self.target_name))
         method = self.options.perception_method
         perception = self.options.perception

@@ -44,8 +44,9 @@ PALM_HALF_LENGTH_M = 0.105
 PALM_HALF_WIDTH_M = 0.035
 #: A finger's thickness outside its pad (m): the open finger's outer face.
 FINGER_THICKNESS_M = 0.022
-#: Fingers closed to less than this have closed on nothing that the hand can carry (m).
-MIN_HELD_M = 0.008
+#: An object nobody described is held at any opening the fingers touch it at above this, less the
+#: grip's hold margin (m): they have not closed on nothing.
+MIN_HELD_M = 0.012
 
 
 @dataclass(frozen=True)
@@ -81,9 +82,10 @@ class CloudGrasp:
 
     @property
     def held_width_m(self) -> float:
-        """The least opening at which the fingers hold it: where they touch (the band's span seen), or
-        (its far side hidden) less."""
-        return max(self.band_width_m, MIN_HELD_M)
+        """The width the skill checks its hold against: the fingers touch where the object is at the pads,
+        which the camera sees only in part (its far side hidden), and it may turn in the grip; so a hold
+        is both fingers on it, less than ``MIN_HELD_M`` apart (with the hold margin) meaning closed on nothing."""
+        return MIN_HELD_M
 
 
 def sample_grasps(
@@ -245,7 +247,7 @@ class CloudGrasps:
                 rot @ (g.position[:2] - at.position[:2]),
                 g.hand_yaw_rad - yaw0,
                 g.above_surface_m,
-                max(g.band_width_m, MIN_HELD_M),
+                g.held_width_m,
             )
             for g in grasps
         ]
