@@ -19,11 +19,15 @@ import collections
 import json
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 from pickdemo.bench import wilson_interval
 from pickdemo.meshes import usable
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 
 
 def _toml(d: dict) -> str:
