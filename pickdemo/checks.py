@@ -56,7 +56,8 @@ def check_scenario(sc: Scenario) -> None:
 
 
 def _check_mesh_files(sc: Scenario) -> None:
-    """Every mesh's files exist and are URDFs pickdemo can read (one line for the first bad one)."""
+    """Every mesh's files exist and are URDFs pickdemo can read (one line for the first bad one); a
+    mesh to pick, some top-down grasp can hold."""
     from pickdemo.meshes import MeshFileError, expand, read_urdf
 
     for obj in sc.objects:
@@ -75,6 +76,8 @@ def _check_mesh_files(sc: Scenario) -> None:
                 read_urdf(matched[0])
             except MeshFileError as exc:
                 raise ScenarioError(f"{key}: none of its {len(matched)} matches can be read; {exc}") from None
+        if obj.target and sc.task == "pick":
+            _check_mesh_holdable(obj, f"objects.{obj.name}", 2.0 * rm.FINGER_MAX_M - GRIPPER_CLEARANCE_M)
 
 
 def _check_objects(sc: Scenario) -> None:
@@ -248,11 +251,7 @@ def _check_pick(sc: Scenario) -> None:
     target = sc.target
     key = f"objects.{target.name}"
     opening = 2.0 * rm.FINGER_MAX_M
-    if target.shape == "mesh":
-        _check_mesh_holdable(target, key, opening - GRIPPER_CLEARANCE_M)
-        narrow = 0.0
-    else:
-        narrow = target.largest_shape.grasp_width_m
+    narrow = 0.0 if target.shape == "mesh" else target.largest_shape.grasp_width_m  # a mesh: _check_mesh_files
     if narrow > opening - GRIPPER_CLEARANCE_M:
         raise ScenarioError(
             f"{key}.size: its narrower side is {narrow * 1e3:.0f} mm; the gripper opens to {opening * 1e3:.0f} mm "

@@ -37,7 +37,6 @@ from pickdemo.kinematics import panda_kinematics
 from pickdemo.layout import LayoutError
 from pickdemo.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX, Observer, TraceRecorder
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
-from pickdemo.perception.unknown import estimate_unknown
 from pickdemo.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
 from pickdemo.rate_limit import ReflexError
 from pickdemo.referee import PERCEPTION_OFF_MM, Referee, diagnose
@@ -332,13 +331,11 @@ class Episode:
         self.model = target_model(sc, world.placement(self.target_name))
         method = self.options.perception_method
         perception = self.options.perception
-        if isinstance(self.model.geometry, Unknown):
-            if method != "paper":
-                raise EpisodeFailure(
-                    Stage.PERCEPTION, f"the target is a mesh nobody described: perception {method!r} needs its model"
-                )
-            self.estimator = lambda frame, model: estimate_unknown(frame, model, perception)
-        elif method == "paper":
+        if isinstance(self.model.geometry, Unknown) and method != "paper":
+            raise EpisodeFailure(
+                Stage.PERCEPTION, f"the target is a mesh nobody described: perception {method!r} needs its model"
+            )
+        if method == "paper":  # (an object nobody described: estimate_pose sends it to estimate_unknown)
             self.estimator = lambda frame, model: estimate_pose(frame, model, perception)
         else:
             try:

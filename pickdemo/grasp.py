@@ -56,6 +56,9 @@ class GraspPlan:
     retreat: Pose
     object_width_m: float  # expected width between the fingers when closed on the object
     hand_yaw_rad: float
+    #: the TCP from the object's centre when it is put down (m, world x and y): the centre, not the
+    #: hand, goes to the place (zero when the grasp is through the centre)
+    place_offset_xy: tuple[float, float] = (0.0, 0.0)
 
 
 def top_down(position: np.ndarray, yaw_rad: float) -> Pose:
@@ -131,13 +134,20 @@ def poses_of_pick(
     width: float,
     place_xy: tuple[float, float],
     params: GraspParams,
+    place_offset_xy: tuple[float, float] = (0.0, 0.0),
 ) -> GraspPlan:
     """Every TCP pose of a top-down pick and place from its grasp: the TCP at ``grasp_p`` with the hand
-    angle ``psi``, ``grasp_above_bottom`` above what the object rests on; put down with the TCP over
-    ``place_xy`` at that height over the table."""
+    angle ``psi``, ``grasp_above_bottom`` above what the object rests on; put down with the object's
+    centre over ``place_xy`` (the TCP ``place_offset_xy`` from it) at that height over the table."""
     grasp_z = float(grasp_p[2])
     up = np.array([0.0, 0.0, 1.0])
-    place_p = np.array([place_xy[0], place_xy[1], grasp_above_bottom + params.place_clearance_m])
+    place_p = np.array(
+        [
+            place_xy[0] + place_offset_xy[0],
+            place_xy[1] + place_offset_xy[1],
+            grasp_above_bottom + params.place_clearance_m,
+        ]
+    )
     carry_z = grasp_z + params.transport_height_m
     return GraspPlan(
         pregrasp=top_down(grasp_p + params.pregrasp_height_m * up, psi),
@@ -148,4 +158,5 @@ def poses_of_pick(
         retreat=top_down(place_p + params.retreat_height_m * up, psi),
         object_width_m=float(width),
         hand_yaw_rad=psi,
+        place_offset_xy=(float(place_offset_xy[0]), float(place_offset_xy[1])),
     )

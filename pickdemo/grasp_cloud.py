@@ -13,7 +13,9 @@ opening must clear all of it). For each candidate:
   pads' lower edge, leaves the open hand its clearance (``GraspParams.width_margin_m``);
 - **collides with nothing**: the palm clears the object's top, the pads the table, and the open
   fingers and the palm every other object's points;
-- **cost** (lowest first): the lever of the object's centre (the middle of its footprint, which the
+- **cost** (lowest first): how far the faces under the pads are from square to the closing axis
+  (antipodal: the object's extent at either edge of the pads differs on a slanted face), the lever
+  of the object's centre (the middle of its footprint, which the
   camera sees from above better than the far side's points) about the closing axis (its weight
   turns it in the grip: PyBullet's pads have little torsional friction), how far the pads would
   close past where the faces in their band are (sloped or hidden faces under the pads: they close on
@@ -120,7 +122,7 @@ def sample_grasps(
             in_slab = np.abs(pb - cb) < PAD_HALF_WIDTH_M + p.clearance_m
             if in_slab.sum() < 5:
                 continue
-            sa, sh = pa[in_slab], h[in_slab]
+            sa, sh, sb = pa[in_slab], h[in_slab], pb[in_slab] - cb
             in_palm = np.abs(pb - cb) < PALM_HALF_WIDTH_M
             for z in levels:
                 pad_low = z - FINGER_PAD_HALF_HEIGHT_M
@@ -141,9 +143,17 @@ def sample_grasps(
                 band = above & (sh <= z + FINGER_PAD_HALF_HEIGHT_M)
                 b_min, b_max = (float(sa[band].min()), float(sa[band].max())) if band.any() else (mid, mid)
                 contact = (b_min - s_min) + (s_max - b_max)
+                # Antipodal, seen from above: a face square to the closing axis reaches as far at both
+                # edges of the pad; a slanted one (its normal off the axis) does not.
+                left = above & (sb < 0.0)
+                right = above & (sb >= 0.0)
+                if left.any() and right.any():
+                    slant = abs(float(sa[left].max() - sa[right].max())) + abs(float(sa[left].min() - sa[right].min()))
+                else:
+                    slant = 0.0
                 cost = (
                     abs(db) / p.lever_scale_m
-                    + contact / p.contact_scale_m
+                    + (contact + slant) / p.contact_scale_m
                     + abs(z - z_pref) / p.height_scale_m
                     + max(0.0, w - p.wide_m) / p.width_scale_m
                 )
@@ -264,8 +274,9 @@ class CloudGrasps:
         offset, psi, z, width = self._local(request)[0]
         yaw = float(request.pose.rpy[2])
         c, s = np.cos(yaw), np.sin(yaw)
-        xy = request.pose.position[:2] + np.array([[c, -s], [s, c]]) @ offset
+        held = np.array([[c, -s], [s, c]]) @ offset  # the TCP from the object's centre
+        xy = request.pose.position[:2] + held
         grasp_p = np.array([xy[0], xy[1], request.surface_z + z])
         for near in request.hand_yaws:
             hand = float(wrap_angle(yaw + psi)) if near is None else float(near + wrap_angle(yaw + psi - near, np.pi))
-            yield poses_of_pick(grasp_p, hand, z, width, request.place_xy, self.params)
+            yield poses_of_pick(grasp_p, hand, z, width, request.place_xy, self.params, (held[0], held[1]))

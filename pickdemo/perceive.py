@@ -20,10 +20,12 @@ import numpy as np
 from pickdemo import robot_model as rm
 from pickdemo.estimators import BUILTIN
 from pickdemo.evaluation import pose_errors
+from pickdemo.geometry import Pose
 from pickdemo.metrics import position_nees
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.robot_geometry import robot_body
 from pickdemo.scenario import Scenario
+from pickdemo.shapes import Mesh, Unknown
 from pickdemo.stats import describe
 
 MethodFn = Callable[..., PoseEstimate]
@@ -63,7 +65,7 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
         frame = camera.capture(world.scene)
         # the robot stands at home: the self-filter is told so (what its joint states would say)
         frame = dataclasses.replace(frame, robot_boxes=robot_body().boxes(rm.HOME_Q, [rm.FINGER_MAX_M] * 2))
-        truths = {t.name: world.true_pose(t.name) for t in scenario.targets}  # truth: scoring only
+        truths = {t.name: _seen_truth(world, t.name) for t in scenario.targets}  # truth: scoring only
     distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))
     samples = []
     for spec in scenario.targets:
@@ -85,18 +87,29 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
             if est is None:
                 sample.update({k: None for k in ERROR_KEYS}, nees=None)
             else:
-                sample.update(_score(est, truth, model, oriented=name in ORIENTED))
+                unknown = isinstance(model.geometry, Unknown)  # its principal axes are no axis of its body
+                sample.update(_score(est, truth, model, oriented=name in ORIENTED and not unknown))
             if spec.reference is not None:
                 sample["reference"] = spec.reference.model_dump()
             samples.append(sample)
     return samples
 
 
+def _seen_truth(world, name: str) -> Pose:  # noqa: ANN001 - a World
+    """An object's true pose; a mesh's at its centre (:attr:`~pickdemo.shapes.Mesh.box_centre`), which an
+    object nobody described is seen by."""
+    truth = world.true_pose(name)
+    geometry = world.placement(name).geometry
+    if isinstance(geometry, Mesh):
+        return Pose(truth.transform_points(geometry.box_centre[None, :])[0], truth.rotation)
+    return truth
+
+
 def _score(est: PoseEstimate, truth, model: TargetModel, *, oriented: bool) -> dict[str, Any]:
     errs = pose_errors(est.pose, truth, est.yaw_symmetry_rad, has_orientation=oriented)
     nees = position_nees(est, truth) if np.all(np.isfinite(est.position_cov)) else None
     # The paper's "main feature point": the centre of the top face.
-    half = model.height_m / 2.0
+    half = 0.0 if isinstance(model.geometry, Unknown) else model.height_m / 2.0
     top_est = est.pose.position + (est.pose.rotation[:, 2] * half if oriented else np.array([0.0, 0.0, half]))
     top_true = truth.position + truth.rotation[:, 2] * half
     return {

@@ -285,7 +285,6 @@ class PickMachine:
         self._verify_asked = False
         self._relooks = 0
         self._plan_id = 0  # counts first plans (the grasp selector's plan_id)
-        self._seen_in_hand = np.zeros(3)  # an object nobody described: its seen centre from the TCP, hand frame
 
     # ================================================================================ interface
     @property
@@ -641,7 +640,8 @@ class PickMachine:
         # transfers the carry may go in joint space to any of them, the hand turned half a turn or not.
         lines = [(plan.place_above, plan.place)]
         if self.p.joint_transfers:
-            lines.append((_half_turn(plan.place_above), _half_turn(plan.place)))
+            turned = _turned_plan(plan, pick=False, place=True)
+            lines.append((turned.place_above, turned.place))
             found = goal_candidates(self.kin, [a for a, _ in lines], self.motion.q, self.rng, self.p.goals)
             above = [(g.q, *lines[g.index]) for g in found]
         else:
@@ -781,7 +781,14 @@ class PickMachine:
             return True
         return False
 
-    def _goal(self, pose: Pose, line_to: Pose, *, seeded: np.ndarray | None = None):
+    def _goal(
+        self,
+        pose: Pose,
+        line_to: Pose,
+        *,
+        seeded: np.ndarray | None = None,
+        half_turned: tuple[Pose, Pose] | None = None,
+    ):
         """The IK goal for a top-down TCP pose, or the same pose turned half a turn (a parallel gripper
         closes the same way) when the pose's own angle will not do: the best of several solutions
         (:mod:`pickdemo.ik_goals`). ``seeded``: a re-plan keeps to the solution near the goal it had,
@@ -807,7 +814,8 @@ class PickMachine:
         found = goal_candidates(self.kin, [pose], self._q, self.rng, g, lines_to=[line_to])
         goal = choose_goal(found, g)
         if goal is None or not goal.line_ok or goal.dip_m > g.max_dip_m:
-            poses, ends = [pose, _half_turn(pose)], [line_to, _half_turn(line_to)]
+            half = half_turned if half_turned is not None else (_half_turn(pose), _half_turn(line_to))
+            poses, ends = [pose, half[0]], [line_to, half[1]]
             turned = goal_candidates(self.kin, poses[1:], self._q, self.rng, g, lines_to=ends[1:])
             found += [dataclasses.replace(t, index=1) for t in turned]
             goal = choose_goal(found, g)
@@ -1031,9 +1039,6 @@ class PickMachine:
     def _enter_close(self, obs: Observation) -> None:
         self.grip.close(self.grip_force_n)
         self.grip.watch()
-        if self.belief.unknown and self.plan is not None:  # where its seen centre lies in the hand's frame
-            d = self._tracked_pose().position - self.plan.grasp.position
-            self._seen_in_hand = self.plan.grasp.rotation.T @ np.array([d[0], d[1], 0.0])
 
     def _tick_close(self, obs: Observation) -> Transition:
         assert self.plan is not None
@@ -1086,12 +1091,13 @@ class PickMachine:
         if straight:
             note = "carried in joint space: the straight line would pass too near a singular posture"
             self.events.append(Event(self.state, self._now_s, note, note=True))
-        q, turned = self._goal(self.plan.place_above, self.plan.place)
+        other = _turned_plan(self.plan, pick=False, place=True)
+        q, turned = self._goal(self.plan.place_above, self.plan.place, half_turned=(other.place_above, other.place))
         if q is None:
             self._fail(Stage.IK, "place pose out of reach: no IK solution for either hand angle")
             return
         if turned:  # put down with the hand turned half a turn: the same for the place, not the grasp
-            self.plan = _turned_plan(self.plan, pick=False, place=True)
+            self.plan = other
         scale = self.p.carry_scale * self.lift_scale * self._payload_scale()
         limits = self.p.free.scaled(self.lift_scale * self._payload_scale())
         if not self._transfer_over_the_top(q, scale, limits, rise=True, above=self.plan.place_above):
@@ -1198,9 +1204,7 @@ class PickMachine:
             return None
         if self.verify_estimate is None:
             return State.DONE, "the camera does not find the target at the end"
-        # An object nobody described is seen by its visible surface's centre, which lies where the hand
-        # held it from the TCP (the hand may have turned a half turn on the way).
-        seen = self.verify_estimate.pose.position[:2] - (self.plan.place.rotation @ self._seen_in_hand)[:2]
+        seen = self.verify_estimate.pose.position
         err = float(np.hypot(seen[0] - self.place_xy[0], seen[1] - self.place_xy[1]))
         said = f"the camera sees the target {err * 1e3:.1f} mm from the place position"
         if self.place_tolerance_m is None or err <= self.place_tolerance_m:
@@ -1274,19 +1278,28 @@ STATES: dict[State, StateHandlers] = {
 }
 
 
-def _half_turn(pose: Pose) -> Pose:
-    """A top-down TCP pose turned half a turn about the vertical: a parallel gripper's equivalent."""
-    return top_down(pose.position, float(pose.rpy[2]) + np.pi)
+def _half_turn(pose: Pose, shift: np.ndarray | None = None) -> Pose:
+    """A top-down TCP pose turned half a turn about the vertical: a parallel gripper's equivalent (moved
+    by ``shift``, m)."""
+    return top_down(pose.position if shift is None else pose.position + shift, float(pose.rpy[2]) + np.pi)
 
 
 def _turned_plan(plan: GraspPlan, *, pick: bool, place: bool) -> GraspPlan:
-    """The plan with the hand turned half a turn for the pick's poses, the place's, or both."""
-    turn = {}
+    """The plan with the hand turned half a turn for the pick's poses, the place's, or both. The place
+    turned and not the pick turns the held object with the hand: its centre, not the TCP, stays over
+    the place (the TCP moves to the other side of it)."""
+    turn: dict[str, object] = {}
     if pick:
         turn.update(pregrasp=_half_turn(plan.pregrasp), grasp=_half_turn(plan.grasp), lift=_half_turn(plan.lift))
     if place:
+        ox, oy = plan.place_offset_xy
+        shift = np.array([-2.0 * ox, -2.0 * oy, 0.0]) if not pick else np.zeros(3)
         turn.update(
-            place_above=_half_turn(plan.place_above), place=_half_turn(plan.place), retreat=_half_turn(plan.retreat)
+            place_above=_half_turn(plan.place_above, shift),
+            place=_half_turn(plan.place, shift),
+            retreat=_half_turn(plan.retreat, shift),
         )
+        if not pick:
+            turn["place_offset_xy"] = (-ox, -oy)
     hand = plan.hand_yaw_rad + np.pi if pick else plan.hand_yaw_rad
     return dataclasses.replace(plan, hand_yaw_rad=float(hand), **turn)

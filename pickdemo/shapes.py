@@ -354,14 +354,15 @@ class Mesh:
         proj = v @ np.vstack([_DIRECTIONS, np.eye(3), axes.T]).T
         return min(float(np.min(proj.max(axis=0) - proj.min(axis=0))), self.grasp_width_m)
 
-    def top_down_width_m(self, levels: int = 12, min_pad_z_m: float = 0.003) -> float:
+    def top_down_width_m(self, levels: int = 12, min_pad_z_m: float = 0.003, pad_height_m: float = 0.0185) -> float:
         """The narrowest width a top-down grasp of it standing upright could close across: of the part
-        above each pad height (from ``min_pad_z_m`` over its base to near its top), the narrowest
-        caliper width of its footprint (the fingers pass everything above the pads on their way down)."""
+        above each height of the pads' lower edge (from ``min_pad_z_m`` over its base to a pad's height
+        below its top: the pads close on it, not on its tip), the narrowest caliper width of its
+        footprint (the fingers pass everything above the pads on their way down)."""
         v = self.vertices
         z = v[:, 2] - v[:, 2].min()
         best = np.inf
-        for h in np.linspace(min_pad_z_m, max(float(z.max()) - 0.005, min_pad_z_m), levels):
+        for h in np.linspace(min_pad_z_m, max(float(z.max()) - pad_height_m, min_pad_z_m), levels):
             above = v[z >= h, :2]
             if len(above) >= 3:
                 best = min(best, caliper_widths(above)[0])

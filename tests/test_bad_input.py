@@ -412,7 +412,15 @@ MESH_CASES: list[tuple[str, str, dict[str, str], str]] = [
     ("a box with a urdf", _edit("mass = 0.1", 'mass = 0.1\nurdf = "pybullet_data:duck_vhacd.urdf"'), {},
      'objects.cube: urdf is for a mesh (shape = "mesh"), not a box'),
     ("a box without a colour", _edit("color = [0.85, 0.1, 0.1]\n", ""), {}, "objects.cube: a box needs a color"),
-    ("a mesh target", GOOD.replace("target = true\n", "") + MESH + "target = true\n", {}, "a mesh is not yet a target"),
+    ("a mesh target validates", GOOD.replace("target = true\n", "") + MESH + "target = true\n", {}, ""),
+    ("a mesh target no grasp can hold", GOOD.replace("target = true\n", "") + MESH + "target = true\nscale = 1.6\n",
+     {}, "objects.duck.urdf: no top-down grasp can hold it: at scale 1.6 it is "),
+    ("a glob of meshes none of which a grasp can hold",
+     GOOD.replace("target = true\n", "") + MESH.replace('urdf = "pybullet_data:duck_vhacd.urdf"',
+                                                      'urdf_choice = "pybullet_data:random_urdfs/00[0-2]/*.urdf"')
+     + "target = true\n", {}, "objects.duck.urdf_choice: no top-down grasp can hold it: at scale 1 each of its 3 files"),
+    ("upright not a bool", _edit("lift_height = 0.05", 'lift_height = 0.05\nupright = "yes"'), {},
+     "success.upright: Input should be a valid boolean"),
 ]  # fmt: skip
 
 

@@ -34,7 +34,7 @@ from pickdemo.perception.segmentation import (
     unoccluded,
     world_heights,
 )
-from pickdemo.shapes import Box, Cylinder
+from pickdemo.shapes import Box, Cylinder, Unknown
 
 #: The outline's shared shift (px) per unit of RGB noise (8-bit sigma) and of edge dropout (fraction).
 OUTLINE_PX_PER_RGB_SIGMA = 0.0103
@@ -45,8 +45,13 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
     """The target's pose from one frame (see the module docstring for the method).
 
     Raises :class:`PerceptionError` with the reason when the target cannot be measured, a degenerate
-    fit included (too little of it visible: a singular system); nothing else escapes.
+    fit included (too little of it visible: a singular system); nothing else escapes. An object
+    nobody described (:class:`~pickdemo.shapes.Unknown`) goes to :func:`~pickdemo.perception.unknown.estimate_unknown`.
     """
+    if isinstance(model.geometry, Unknown):
+        from pickdemo.perception.unknown import estimate_unknown
+
+        return estimate_unknown(frame, model, params)
     try:
         return _estimate_pose(frame, model, params or PerceptionParams())
     except (np.linalg.LinAlgError, cv2.error, ValueError, IndexError) as exc:

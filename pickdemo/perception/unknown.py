@@ -241,7 +241,9 @@ def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPa
     # mean moves with the view: measured up to 40 mm on a duck seen from two places).
     c, s = np.cos(yaw), np.sin(yaw)
     axes = np.array([[c, -s], [s, c]])
-    along = (surface[:, :2] - mean[:2]) @ axes
+    seen = pts[mask]
+    seen = seen[np.all(np.isfinite(seen), axis=1)]  # every pixel's own point, to its silhouette
+    along = (seen[:, :2] - mean[:2]) @ axes
     lo, hi = np.quantile(along, FOOTPRINT_QUANTILE, axis=0), np.quantile(along, 1.0 - FOOTPRINT_QUANTILE, axis=0)
     extents = hi - lo
     # Its height: it stands on the table (z = 0) up to its top seen; its centre halfway.

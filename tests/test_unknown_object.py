@@ -1,0 +1,193 @@
+"""An object nobody described: segmentation by geometry, its pose from the paper's point model, and
+top-down grasps sampled on its cloud, on frames ray-cast here (boxes on a table, no simulator)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from pickdemo.camera import Intrinsics, RGBDFrame, look_at_pose
+from pickdemo.geometry import Pose
+from pickdemo.grasp import GraspParams, GraspPlanningError
+from pickdemo.grasp_cloud import CloudGrasps, sample_grasps
+from pickdemo.grasp_selection import GraspRequest
+from pickdemo.perception import ObjectCloud, PerceptionError, PerceptionParams, TargetModel
+from pickdemo.perception.unknown import estimate_unknown, hidden_in_part, principal_yaw, segment_objects
+from pickdemo.shapes import Unknown
+
+K = Intrinsics.from_fov(320, 240, 57.0, 43.0)
+T_CAM = look_at_pose(np.array([1.0, 0.0, 0.7]), np.array([0.5, 0.0, 0.0]))
+MODEL = TargetModel(Unknown(), None)
+MODEL_PARAMS = PerceptionParams()
+
+
+@dataclasses.dataclass(frozen=True)
+class Block:
+    centre_xy: tuple[float, float]
+    size: tuple[float, float, float]
+    yaw_deg: float = 0.0
+    rgb: tuple[int, int, int] = (200, 180, 40)
+
+
+def render(blocks: list[Block], *, T: Pose = T_CAM, noise: float = 0.0, seed: int = 0) -> RGBDFrame:
+    """Ray-cast boxes standing on the table (z = 0) and the table itself: RGB and z-depth."""
+    v, u = np.mgrid[0 : K.height, 0 : K.width].astype(float)
+    dirs_cam = np.stack([(u - K.cx) / K.fx, (v - K.cy) / K.fy, np.ones_like(u)], axis=-1)
+    dirs = dirs_cam @ T.rotation.T
+    o = T.position
+    t_best = np.where(dirs[..., 2] < 0, -o[2] / np.minimum(dirs[..., 2], -1e-12), np.inf)
+    rgb = np.zeros((*u.shape, 3), dtype=np.uint8)
+    rgb[...] = (140, 100, 70)
+    for b in blocks:
+        c, s = np.cos(np.radians(b.yaw_deg)), np.sin(np.radians(b.yaw_deg))
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        centre = np.array([*b.centre_xy, b.size[2] / 2.0])
+        ol = R.T @ (o - centre)
+        dl = dirs @ R  # each ray in the box's frame
+        half = np.array(b.size) / 2.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = (-half - ol) / dl
+            t2 = (half - ol) / dl
+        t_near = np.max(np.minimum(t1, t2), axis=-1)
+        t_far = np.min(np.maximum(t1, t2), axis=-1)
+        hit = (t_near <= t_far) & (t_near > 0) & (t_near < t_best)
+        t_best = np.where(hit, t_near, t_best)
+        rgb[hit] = b.rgb
+    depth = t_best * dirs_cam[..., 2]  # z-depth
+    if noise > 0:
+        depth = depth + np.random.default_rng(seed).normal(0.0, noise * depth**2)
+    return RGBDFrame(rgb=rgb, depth_m=depth, intrinsics=K, T_world_cam=T, time_s=0.0)
+
+
+def test_objects_apart_are_two_clusters_and_one_hiding_part_of_itself_is_one() -> None:
+    frame = render([Block((0.45, -0.08), (0.05, 0.05, 0.04)), Block((0.55, 0.08), (0.04, 0.06, 0.03))])
+    clusters = segment_objects(frame, MODEL_PARAMS)
+    assert sorted(a > 30 for a in clusters.areas).count(True) == 2
+    # Two parts of one object with a gap of 6 mm seen between them (a duck's head and body, the neck
+    # hidden) are one; 40 mm apart, two.
+    parts = [Block((0.5, 0.0), (0.03, 0.03, 0.06)), Block((0.5, 0.036), (0.04, 0.04, 0.03))]
+    assert len(segment_objects(render(parts), MODEL_PARAMS).areas) == 1
+    parts[1] = Block((0.5, 0.075), (0.04, 0.04, 0.03))
+    assert len(segment_objects(render(parts), MODEL_PARAMS).areas) == 2
+
+
+def test_the_pose_of_an_unknown_box_is_its_centre_and_its_long_axis() -> None:
+    for seed, (x, y, yaw) in enumerate([(0.45, -0.05, 20.0), (0.55, 0.1, -60.0), (0.5, 0.0, 75.0)]):
+        size = (0.07, 0.035, 0.04)
+        est = estimate_unknown(render([Block((x, y), size, yaw)], noise=1.45e-3, seed=seed), MODEL)
+        np.testing.assert_allclose(est.pose.position[:2], [x, y], atol=0.004)
+        assert est.pose.position[2] == pytest.approx(0.02, abs=0.002)  # half its height
+        turn = (float(np.degrees(est.pose.rpy[2])) - yaw + 90.0) % 180.0 - 90.0
+        assert abs(turn) < 3.0
+        assert sorted(est.top_face_size_m, reverse=True) == pytest.approx([0.07, 0.035], abs=0.004)
+        assert est.cloud is not None and len(est.cloud.points) > 100 and not est.occluded
+        sd = np.sqrt(np.diag(est.position_cov))
+        assert np.all(sd > 0.0) and np.all(sd < 0.003)
+
+
+def test_a_colour_named_by_the_task_is_a_cue_among_clusters() -> None:
+    dark, light = (20, 20, 20), (235, 235, 235)
+    frame = render(
+        [Block((0.45, -0.1), (0.05, 0.05, 0.05), rgb=dark), Block((0.55, 0.1), (0.05, 0.05, 0.05), rgb=light)]
+    )
+    black = estimate_unknown(frame, TargetModel(Unknown(), (0.1, 0.1, 0.1)))
+    white = estimate_unknown(frame, TargetModel(Unknown(), (0.9, 0.9, 0.9)))
+    assert black.pose.position[1] == pytest.approx(-0.1, abs=0.005)
+    assert white.pose.position[1] == pytest.approx(0.1, abs=0.005)
+
+
+def test_a_part_hidden_by_something_nearer_is_a_partial_view() -> None:
+    depth = np.full((60, 80), 1.2)
+    mask = np.zeros(depth.shape, dtype=bool)
+    mask[20:40, 20:50] = True
+    depth[mask] = 1.0
+    assert not hidden_in_part(depth, mask)  # the table behind it all round
+    depth[25:35, 50:56] = 0.9  # something nearer beside it: the hand over it
+    assert hidden_in_part(depth, mask)
+    depth[25:35, 50:56] = 1.1  # something beside it but farther: it hides nothing
+    assert not hidden_in_part(depth, mask)
+
+
+def test_nothing_in_view_is_a_perception_error() -> None:
+    with pytest.raises(PerceptionError, match="nothing stands on the table"):
+        estimate_unknown(render([]), MODEL)
+
+
+def test_a_principal_axis_of_a_round_spread_has_no_direction_to_speak_of() -> None:
+    _, var_round = principal_yaw(np.eye(2), 1000)
+    assert var_round == pytest.approx(np.pi**2 / 12.0)
+    yaw, var_long = principal_yaw(np.diag([4.0, 1.0]), 1000)
+    assert abs(np.sin(yaw)) < 1e-9 and var_long < 1e-3
+
+
+def _cloud(block: Block, *, obstacles: list[Block] = (), frame: RGBDFrame | None = None) -> ObjectCloud:
+    """The points a camera right above would see of a block (its top), and of the obstacles'."""
+
+    def top(b: Block) -> np.ndarray:
+        g = np.stack(np.meshgrid(np.linspace(-0.5, 0.5, 25), np.linspace(-0.5, 0.5, 25)), axis=-1).reshape(-1, 2)
+        c, s = np.cos(np.radians(b.yaw_deg)), np.sin(np.radians(b.yaw_deg))
+        xy = (g * np.array(b.size[:2])) @ np.array([[c, s], [-s, c]]) + np.array(b.centre_xy)
+        return np.column_stack([xy, np.full(len(xy), b.size[2])])
+
+    obs = np.vstack([top(o) for o in obstacles]) if obstacles else np.zeros((0, 3))
+    if frame is None:
+        return ObjectCloud(points=top(block), obstacles=obs, time_s=0.0)
+    return ObjectCloud(top(block), obs, 0.0, frame.depth_m, frame.intrinsics, frame.T_world_cam)
+
+
+def test_a_grasp_closes_across_the_narrow_side_through_the_middle() -> None:
+    for yaw in (0.0, 30.0, -70.0):
+        block = Block((0.5, 0.05), (0.09, 0.04, 0.05), yaw)
+        best = sample_grasps(_cloud(block), 0.0)[0]
+        np.testing.assert_allclose(best.position[:2], block.centre_xy, atol=0.004)
+        closing = np.array([np.sin(best.hand_yaw_rad), -np.cos(best.hand_yaw_rad)])
+        narrow = np.array([-np.sin(np.radians(yaw)), np.cos(np.radians(yaw))])  # the block's y axis
+        assert abs(float(closing @ narrow)) > 0.98
+        assert best.width_m == pytest.approx(0.04, abs=0.004)
+        assert 0.012 <= best.above_surface_m <= 0.05 - 0.002  # between the table and its top
+
+
+def test_no_grasp_of_an_object_wider_than_the_hand_every_way() -> None:
+    assert sample_grasps(_cloud(Block((0.5, 0.0), (0.09, 0.09, 0.05))), 0.0) == []
+    selector = CloudGrasps(GraspParams())
+    request = GraspRequest(Pose.from_xyz_rpy(np.array([0.5, 0.0, 0.025])), MODEL, (0.45, 0.3),
+                           cloud=_cloud(Block((0.5, 0.0), (0.09, 0.09, 0.05))))  # fmt: skip
+    with pytest.raises(GraspPlanningError, match="wider than the open hand"):
+        selector.hand_yaws(request)
+
+
+def test_a_grasp_keeps_its_fingers_off_a_neighbour() -> None:
+    block = Block((0.5, 0.0), (0.04, 0.04, 0.05))
+    alone = sample_grasps(_cloud(block), 0.0)
+    beside = sample_grasps(_cloud(block, obstacles=[Block((0.5, 0.055), (0.06, 0.03, 0.05))]), 0.0)
+    assert len(beside) < len(alone)
+    closing = np.array([[np.sin(g.hand_yaw_rad), -np.cos(g.hand_yaw_rad)] for g in beside])
+    assert abs(closing[0, 1]) < 0.2  # the best closes along x, its fingers clear of the neighbour
+    assert np.all(np.abs(closing[:, 1]) < 0.9)  # none closes towards it
+
+
+def test_fingers_go_down_where_the_camera_saw_free_space_first() -> None:
+    """Seen from the side (the camera at +x), an object's far side is hidden: the grasp that puts no
+    finger behind it (closing across the line of sight) is preferred to one as good that does."""
+    block = Block((0.5, 0.0), (0.045, 0.045, 0.05))
+    frame = render([block])
+    best = sample_grasps(_cloud(block, frame=frame), 0.0)[0]
+    closing = np.array([np.sin(best.hand_yaw_rad), -np.cos(best.hand_yaw_rad)])
+    assert abs(closing[1]) > 0.9  # across the camera's line of sight (which runs along x)
+
+
+def test_the_grasp_is_planned_once_and_carried_with_the_tracked_pose() -> None:
+    block = Block((0.5, 0.0), (0.08, 0.04, 0.05))
+    selector = CloudGrasps(GraspParams())
+    pose = Pose.from_xyz_rpy(np.array([0.5, 0.0, 0.025]))
+    first = next(selector.candidates(GraspRequest(pose, MODEL, (0.45, 0.3), cloud=_cloud(block), plan_id=1)))
+    moved = Pose.from_xyz_rpy(np.array([0.52, 0.01, 0.025]), yaw=np.radians(90.0))
+    # The same plan, carried: a newer cloud (here: none) does not re-plan it.
+    carried = next(selector.candidates(GraspRequest(moved, MODEL, (0.45, 0.3), cloud=None, plan_id=1)))
+    dx, dy = first.grasp.position[:2] - pose.position[:2]
+    np.testing.assert_allclose(carried.grasp.position[:2] - moved.position[:2], [-dy, dx], atol=1e-9)  # turned 90 deg
+    turn = (np.degrees(carried.hand_yaw_rad - first.hand_yaw_rad) + 90.0) % 180.0 - 90.0  # modulo the hand's half turn
+    assert abs(turn) == pytest.approx(90.0, abs=1e-6)
+    assert carried.place.position[2] == pytest.approx(first.place.position[2])
