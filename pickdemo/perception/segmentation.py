@@ -22,6 +22,10 @@ from pickdemo.camera import (
 )
 from pickdemo.perception.model import PerceptionError, PerceptionParams, TargetModel
 
+#: A blob of the target's colour at least this fraction of the largest one's size is a rival to it: the
+#: nearer colour wins.
+RIVAL_AREA_FRACTION = 0.25
+
 
 def world_heights(frame: RGBDFrame) -> np.ndarray:
     """(H, W) world z of every pixel (nan where there is no depth): z is linear in the depth."""
@@ -87,7 +91,8 @@ def robot_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
 
 def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParams, z_world: np.ndarray) -> np.ndarray:
     """Binary mask of the target: above the table, of its colour, not the robot's own body (its
-    links where its joint states put them), the largest such blob.
+    links where its joint states put them): the largest such blob, or of those not much smaller the one
+    whose colour is nearest the target's.
 
     ``z_world`` is the (H, W) world height of every pixel (:func:`world_heights`).
     """
@@ -97,9 +102,20 @@ def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n <= 1:
         raise PerceptionError("no pixel above the table has the target's colour")
-    best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    best = 1 + int(np.argmax(areas))
     if stats[best, cv2.CC_STAT_AREA] < params.min_target_px:
         raise PerceptionError(f"target blob too small ({stats[best, cv2.CC_STAT_AREA]} px)")
+    # The colour's direction matches every grey alike (a black cube, a white mesh beside it): of the
+    # blobs not much smaller than the largest, the one whose colour is nearest the target's.
+    rivals = [k + 1 for k in np.flatnonzero(areas >= RIVAL_AREA_FRACTION * areas.max()) if k + 1 != best]
+    if rivals:
+        cue = 255.0 * np.asarray(model.color, dtype=np.float64)
+
+        def distance(label: int) -> float:
+            return float(np.linalg.norm(np.median(frame.rgb[labels == label].astype(np.float64), axis=0) - cue))
+
+        best = min([best, *rivals], key=distance)
     return labels == best
 
 
