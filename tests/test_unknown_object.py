@@ -191,3 +191,25 @@ def test_the_grasp_is_planned_once_and_carried_with_the_tracked_pose() -> None:
     turn = (np.degrees(carried.hand_yaw_rad - first.hand_yaw_rad) + 90.0) % 180.0 - 90.0  # modulo the hand's half turn
     assert abs(turn) == pytest.approx(90.0, abs=1e-6)
     assert carried.place.position[2] == pytest.approx(first.place.position[2])
+
+
+@pytest.mark.sim
+def test_objects_nobody_described_are_picked_and_put_down() -> None:
+    """The closed loop on a duck and on held-out test-split objects: found, measured at their centre
+    and picked (the success rates themselves are measured by the bench, ``tests/mesh_split.py``)."""
+    from episodes import at_least, episodes
+
+    for name in ("pick_duck", "pick_mesh_test"):
+        rs = episodes(name, (0, 1, 2, 3))
+        for r in at_least(rs, 3):
+            assert r.perception is not None and r.perception.yaw_error_deg is None  # principal axes: no body yaw
+            assert r.perception.position_error_mm < 25.0  # the centre of what the camera sees of it
+            assert r.place_error_mm is not None and r.place_error_mm <= 20.0
+
+
+@pytest.mark.sim
+def test_another_perception_method_needs_a_model() -> None:
+    from episodes import episodes
+
+    (r,) = episodes("pick_duck", (0,), method="icp")
+    assert r.failure is not None and r.failure.stage.value == "perception" and "needs its model" in r.failure.reason
