@@ -142,7 +142,7 @@ class TargetBelief:
         p = est.pose.position
         if not (np.all(np.isfinite(p)) and np.all(np.isfinite(est.position_cov))):
             return "estimate not finite"
-        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(est.position_cov)), 0.0)))
+        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(est.frame_cov)), 0.0)))
         if sigma > self.gate.max_sigma_m:
             return f"estimate too uncertain ({sigma * 1e3:.1f} mm)"
         surface = self.surface_z(float(p[0]), float(p[1]))

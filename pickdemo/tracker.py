@@ -189,7 +189,7 @@ class TargetTracker:
             yaw = float(self._x[3] + wrap_angle(yaw - self._x[3], self.symmetry))
         z[3] = yaw
         R = np.zeros((8, 8))
-        w, V = np.linalg.eigh(est.position_cov)
+        w, V = np.linalg.eigh(est.frame_cov)
         R[:3, :3] = V @ np.diag((np.sqrt(np.maximum(w, 0.0)) + floor_factor * p.position_floor_m) ** 2) @ V.T
         R[3, 3] = (np.sqrt(max(float(est.rpy_cov[2, 2]), 0.0)) + floor_factor * p.yaw_floor_rad) ** 2
         return z, R

@@ -177,6 +177,16 @@ class PoseEstimate:
     cloud: ObjectCloud | None = field(repr=False, default=None)
     #: something nearer the camera (the hand, another object) hides part of it: a partial view
     occluded: bool = False
+    #: the part of ``position_cov`` that every frame from this view shares (m^2; an object nobody
+    #: described: what the view hides of its shape), a bias rather than noise: it does not average
+    #: away over frames, and it does not move when the object does (None: nothing shared)
+    shared_cov: np.ndarray | None = field(repr=False, default=None)
+
+    @property
+    def frame_cov(self) -> np.ndarray:
+        """The position's covariance from one frame to the next (what a tracker fuses): ``position_cov``
+        less what every frame shares."""
+        return self.position_cov if self.shared_cov is None else self.position_cov - self.shared_cov
 
     def to_dict(self) -> dict[str, object]:
         d = self.pose.to_dict()
