@@ -83,8 +83,10 @@ def test_the_pose_of_an_unknown_box_is_its_centre_and_its_long_axis() -> None:
         assert abs(turn) < 3.0
         assert sorted(est.top_face_size_m, reverse=True) == pytest.approx([0.07, 0.035], abs=0.004)
         assert est.cloud is not None and len(est.cloud.points) > 100 and not est.occluded
-        sd = np.sqrt(np.diag(est.position_cov))
-        assert np.all(sd > 0.0) and np.all(sd < 0.003)
+        sd = np.sqrt(np.diag(est.position_cov))  # what its view hides of its shape included: a few mm
+        assert np.all(sd > 0.001) and np.all(sd < 0.005)
+        frame_sd = np.sqrt(np.diag(est.frame_cov))  # from one frame to the next: a fraction of a mm
+        assert np.all(frame_sd > 0.0) and np.all(frame_sd < 0.001)
 
 
 def test_a_colour_named_by_the_task_is_a_cue_among_clusters() -> None:

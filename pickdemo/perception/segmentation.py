@@ -110,13 +110,18 @@ def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     # blobs not much smaller than the largest, the one whose colour is nearest the target's.
     rivals = [k + 1 for k in np.flatnonzero(areas >= RIVAL_AREA_FRACTION * areas.max()) if k + 1 != best]
     if rivals:
-        cue = 255.0 * np.asarray(model.color, dtype=np.float64)
-
-        def distance(label: int) -> float:
-            return float(np.linalg.norm(np.median(frame.rgb[labels == label].astype(np.float64), axis=0) - cue))
-
-        best = min([best, *rivals], key=distance)
+        best = nearest_in_colour(frame.rgb, labels, [best, *rivals], model.color)
     return labels == best
+
+
+def nearest_in_colour(
+    rgb: np.ndarray, labels: np.ndarray, candidates: list[int], color: tuple[float, float, float]
+) -> int:
+    """Of the labelled regions ``candidates``, the one whose median colour is nearest ``color`` (0-1)."""
+    cue = 255.0 * np.asarray(color, dtype=np.float64)
+    return min(
+        candidates, key=lambda k: float(np.linalg.norm(np.median(rgb[labels == k].astype(np.float64), axis=0) - cue))
+    )
 
 
 def top_face_mask(frame: RGBDFrame, mask: np.ndarray, z_world: np.ndarray, params: PerceptionParams) -> np.ndarray:

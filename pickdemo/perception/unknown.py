@@ -47,7 +47,7 @@ from pickdemo.geometry import Pose
 from pickdemo.perception.equations import mixture_moments, point_covariance
 from pickdemo.perception.features import measure_features, shi_tomasi_features
 from pickdemo.perception.model import ObjectCloud, PerceptionError, PerceptionParams, PoseEstimate, TargetModel
-from pickdemo.perception.segmentation import crop_frame, robot_pixels, world_points
+from pickdemo.perception.segmentation import crop_frame, nearest_in_colour, robot_pixels, world_points
 from pickdemo.shapes import Unknown
 
 #: The grid on the table in which points above it are clustered (m): objects this far apart are two.
@@ -129,12 +129,7 @@ def choose_cluster(
     if len(big) == 1:
         return big[0]
     if model.color is not None:
-        cue = 255.0 * np.asarray(model.color, dtype=np.float64)
-        dist = [
-            float(np.linalg.norm(np.median(frame.rgb[clusters.labels == k].astype(np.float64), axis=0) - cue))
-            for k in big
-        ]
-        return big[int(np.argmin(dist))]
+        return nearest_in_colour(frame.rgb, clusters.labels, big, model.color)
     if centre_uv is not None:
         d = []
         for k in big:
