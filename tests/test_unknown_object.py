@@ -215,3 +215,16 @@ def test_another_perception_method_needs_a_model() -> None:
 
     (r,) = episodes("pick_duck", (0,), method="icp")
     assert r.failure is not None and r.failure.stage.value == "perception" and "needs its model" in r.failure.reason
+
+
+def test_a_box_of_black_is_not_taken_for_a_larger_white_object() -> None:
+    """Grey, black and white point the same way in RGB: the segmentation of a box or cylinder by its
+    colour leaves out a blob far brighter (or darker) than the target's colour."""
+    from pickdemo.perception import segment_target, world_heights
+    from pickdemo.shapes import Box
+
+    frame = render([Block((0.45, -0.1), (0.04, 0.04, 0.04), rgb=(22, 22, 22)),
+                    Block((0.55, 0.1), (0.07, 0.07, 0.06), rgb=(250, 232, 232))])  # fmt: skip
+    black = TargetModel(Box((0.04, 0.04, 0.04)), (0.1, 0.1, 0.1))
+    mask = segment_target(frame, black, MODEL_PARAMS, world_heights(frame))
+    assert np.all(frame.rgb[mask].astype(int).max(axis=1) < 60)  # the black one, not the larger white one

@@ -22,9 +22,10 @@ from pickdemo.camera import (
 )
 from pickdemo.perception.model import PerceptionError, PerceptionParams, TargetModel
 
-#: A blob of the target's colour at least this fraction of the largest one's size is a rival to it: the
-#: nearer colour wins.
-RIVAL_AREA_FRACTION = 0.25
+#: A blob of the target's colour is the target only if its brightness (the norm of its median RGB) is
+#: within these factors of the target colour's: shade darkens a face to a third or so, and no light
+#: makes black white.
+BRIGHTNESS_RATIO = (0.2, 4.0)
 
 
 def world_heights(frame: RGBDFrame) -> np.ndarray:
@@ -91,8 +92,8 @@ def robot_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
 
 def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParams, z_world: np.ndarray) -> np.ndarray:
     """Binary mask of the target: above the table, of its colour, not the robot's own body (its
-    links where its joint states put them): the largest such blob, or of those not much smaller the one
-    whose colour is nearest the target's.
+    links where its joint states put them): the largest such blob as bright as the target's colour
+    may look (else the largest).
 
     ``z_world`` is the (H, W) world height of every pixel (:func:`world_heights`).
     """
@@ -102,15 +103,19 @@ def segment_target(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n <= 1:
         raise PerceptionError("no pixel above the table has the target's colour")
-    areas = stats[1:, cv2.CC_STAT_AREA]
+    areas = stats[1:, cv2.CC_STAT_AREA].astype(np.int64)
+    # The colour's direction matches every grey alike (a black cube, a white mesh beside it): a blob
+    # far brighter or darker than the target's colour, whatever the light, is something else.
+    cue = float(np.linalg.norm(255.0 * np.asarray(model.color, dtype=np.float64)))
+    for k in np.argsort(-areas, kind="stable"):
+        if areas[k] < params.min_target_px:
+            break
+        bright = float(np.linalg.norm(np.median(frame.rgb[labels == k + 1].astype(np.float64), axis=0)))
+        if BRIGHTNESS_RATIO[0] * cue <= bright <= BRIGHTNESS_RATIO[1] * cue:
+            return labels == k + 1
     best = 1 + int(np.argmax(areas))
     if stats[best, cv2.CC_STAT_AREA] < params.min_target_px:
         raise PerceptionError(f"target blob too small ({stats[best, cv2.CC_STAT_AREA]} px)")
-    # The colour's direction matches every grey alike (a black cube, a white mesh beside it): of the
-    # blobs not much smaller than the largest, the one whose colour is nearest the target's.
-    rivals = [k + 1 for k in np.flatnonzero(areas >= RIVAL_AREA_FRACTION * areas.max()) if k + 1 != best]
-    if rivals:
-        best = nearest_in_colour(frame.rgb, labels, [best, *rivals], model.color)
     return labels == best
 
 
