@@ -396,7 +396,8 @@ class Mesh:
 @dataclass(frozen=True)
 class Unknown:
     """What the robot is told of an object nobody described: nothing of its shape, only a bound on its
-    size (the task's: the largest object it expects, m), which sizes the regions it looks at. Its
+    size (the task's: the largest object it expects, m), which sizes the regions it looks at, and
+    perhaps its rough size as a cue among other objects (a pick order's "the 3 cm brick"). Its
     extents, its yaw and its grasps are what the camera sees of it (:mod:`pickdemo.perception.unknown`).
 
     Its pose is its features' mean and the principal axes of their spread, as the paper describes;
@@ -404,6 +405,9 @@ class Unknown:
     is a box, a cylinder or a mesh."""
 
     max_extent_m: float = 0.15
+    #: a size the task names, as a cue to tell it from other objects (not a model to fit): its height,
+    #: its footprint's longer and shorter side (m); None: not named
+    size_cue_m: tuple[float, float, float] | None = None
     kind: ClassVar[str] = "unknown"
     n_sizes: ClassVar[int] = 0
     size_text: ClassVar[str] = "nothing (its size is seen)"

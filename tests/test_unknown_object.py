@@ -100,6 +100,14 @@ def test_a_colour_named_by_the_task_is_a_cue_among_clusters() -> None:
     assert white.pose.position[1] == pytest.approx(0.1, abs=0.005)
 
 
+def test_a_size_named_by_the_task_is_a_cue_among_clusters() -> None:
+    brick, bear = Block((0.45, 0.1), (0.03, 0.02, 0.03)), Block((0.55, -0.1), (0.07, 0.06, 0.09))
+    frame = render([brick, bear])
+    assert estimate_unknown(frame, MODEL).pose.position[1] == pytest.approx(-0.1, abs=0.01)  # no cue: the largest
+    cued = TargetModel(Unknown(size_cue_m=(0.03, 0.03, 0.02)), None)
+    assert estimate_unknown(frame, cued).pose.position[1] == pytest.approx(0.1, abs=0.01)
+
+
 def test_a_part_hidden_by_something_nearer_is_a_partial_view() -> None:
     depth = np.full((60, 80), 1.2)
     mask = np.zeros(depth.shape, dtype=bool)

@@ -11,7 +11,8 @@ Pure: arrays in, dataclasses out; no simulator. Steps:
    in it.
 2. Which cluster: a colour the task names is a cue (the cluster whose median colour is nearest
    it), not a requirement; else, on a region the robot asked for around its belief, the cluster
-   nearest that region's centre; on the whole image, the largest.
+   nearest that region's centre; on the whole image, the one whose size seen is nearest a size the
+   task names (:attr:`~pickdemo.shapes.Unknown.size_cue_m`), else the largest.
 3. The paper's method on it: Shi-Tomasi features on the cluster, each with the 3x3 mixture's depth
    and colour (eqs. 9-12), back-projected (eqs. 5-7) with eq. (14)'s covariance. Features whose
    window spans a depth step (the object's silhouette against the table behind it) are left out:
@@ -117,10 +118,16 @@ def segment_objects(frame: RGBDFrame, params: PerceptionParams, pts: np.ndarray 
 
 
 def choose_cluster(
-    frame: RGBDFrame, clusters: Clusters, model: TargetModel, min_px: int, *, centre_uv: np.ndarray | None
+    frame: RGBDFrame,
+    clusters: Clusters,
+    model: TargetModel,
+    min_px: int,
+    *,
+    centre_uv: np.ndarray | None,
+    pts: np.ndarray | None = None,
 ) -> int:
     """The label of the target's cluster (see the module docstring); raises :class:`PerceptionError`
-    when no cluster is large enough."""
+    when no cluster is large enough. ``pts``: the frame's world points (for a size the task names)."""
     big = [k + 1 for k, a in enumerate(clusters.areas) if a >= min_px]
     if not big:
         raise PerceptionError(
@@ -136,7 +143,24 @@ def choose_cluster(
             ys, xs = np.nonzero(clusters.labels == k)
             d.append(float(np.min(np.hypot(xs - centre_uv[0], ys - centre_uv[1]))))
         return big[int(np.argmin(d))]
+    cue = getattr(model.geometry, "size_cue_m", None)
+    if cue is not None and pts is not None:
+        return big[int(np.argmin([_size_mismatch(pts[clusters.labels == k], cue) for k in big]))]
     return big[int(np.argmax([clusters.areas[k - 1] for k in big]))]
+
+
+def _size_mismatch(points: np.ndarray, cue: tuple[float, float, float]) -> float:
+    """How far a cluster's size seen (its height, and its footprint's extents along its principal axes)
+    is from the size the task names (height, longer and shorter side), as a sum of log ratios."""
+    p = points[np.all(np.isfinite(points), axis=1)]
+    if len(p) < 3:
+        return np.inf
+    xy = p[:, :2] - p[:, :2].mean(axis=0)
+    _, axes = np.linalg.eigh(np.cov(xy.T))
+    along = xy @ axes
+    extents = np.quantile(along, 1.0 - FOOTPRINT_QUANTILE, axis=0) - np.quantile(along, FOOTPRINT_QUANTILE, axis=0)
+    seen = np.array([np.quantile(p[:, 2], 1.0 - FOOTPRINT_QUANTILE), extents.max(), extents.min()])
+    return float(np.sum(np.abs(np.log(np.maximum(seen, 1e-3) / np.maximum(np.asarray(cue), 1e-3)))))
 
 
 def object_roi(
@@ -149,10 +173,12 @@ def object_roi(
         depth_m=holes_as_nan(frame.depth_m[::stride, ::stride]),
         intrinsics=strided_intrinsics(frame.intrinsics, stride),
     )
-    clusters = segment_objects(sub, params)
+    pts = world_points(sub)
+    clusters = segment_objects(sub, params, pts)
     h, w = frame.rgb.shape[:2]
     centre = None if frame.roi is None else np.array([w, h], dtype=np.float64) / (2.0 * stride)
-    label = choose_cluster(sub, clusters, model, max(params.min_target_px // (stride * stride), 2), centre_uv=centre)
+    min_px = max(params.min_target_px // (stride * stride), 2)
+    label = choose_cluster(sub, clusters, model, min_px, centre_uv=centre, pts=pts)
     ys, xs = np.nonzero(clusters.labels == label)
     return (
         max(int(xs.min()) * stride - pad, 0),
@@ -192,7 +218,7 @@ def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPa
     clusters = segment_objects(f, params, pts)
     h, w = frame.rgb.shape[:2]
     centre = None if frame.roi is None else np.array([w / 2.0 - x0, h / 2.0 - y0])
-    label = choose_cluster(f, clusters, model, params.min_target_px, centre_uv=centre)
+    label = choose_cluster(f, clusters, model, params.min_target_px, centre_uv=centre, pts=pts)
     mask = clusters.labels == label
 
     depth = f.depth_m  # holes are NaN in a crop
