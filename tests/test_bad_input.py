@@ -418,7 +418,7 @@ MESH_CASES: list[tuple[str, str, dict[str, str], str]] = [
     ("a glob of meshes none of which a grasp can hold",
      GOOD.replace("target = true\n", "") + MESH.replace('urdf = "pybullet_data:duck_vhacd.urdf"',
                                                       'urdf_choice = "pybullet_data:random_urdfs/00[0-2]/*.urdf"')
-     + "target = true\n", {}, "objects.duck.urdf_choice: no top-down grasp can hold it: at scale 1 each of its 3 files"),
+     + "target = true\n", {}, "objects.duck.urdf_choice: no top-down grasp can hold it: at scale 1 each of its 3"),
     ("upright not a bool", _edit("lift_height = 0.05", 'lift_height = 0.05\nupright = "yes"'), {},
      "success.upright: Input should be a valid boolean"),
 ]  # fmt: skip
