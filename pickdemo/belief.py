@@ -81,8 +81,8 @@ class TargetBelief:
         self.tracker = TargetTracker(symmetry_rad, tracker_params)
         self._velocity_cache: tuple[tuple, np.ndarray | None] | None = None
         self.unknown = isinstance(model.geometry, Unknown)
-        #: an object nobody described: the newest cloud seen of it whole with the hand away (grasps are
-        #: planned from it); its extents as first seen on this track
+        #: an object nobody described: the newest cloud seen of it whole with the hand away, or the
+        #: first seen at all until then (grasps are planned from it); its extents as first seen on this track
         self.cloud: ObjectCloud | None = None
         self._extents: tuple[float, float] | None = None
 
@@ -131,7 +131,7 @@ class TargetBelief:
         if up.accepted and self.unknown and result.cloud is not None and not hand_over_target:
             if self._extents is None or up.jumped:
                 self._extents = result.top_face_size_m
-            if self.complete_view(result):
+            if self.complete_view(result) or self.cloud is None:  # a partial view until a whole one comes
                 self.cloud = result.cloud
         return Offered(Verdict.ACCEPTED if up.accepted else Verdict.REJECTED, jumped=up.jumped)
 

@@ -45,12 +45,14 @@ import numpy as np
 
 from pickdemo.camera import RGBDFrame, holes_as_nan, strided_intrinsics
 from pickdemo.geometry import Pose
-from pickdemo.perception.equations import mixture_moments, point_covariance
+from pickdemo.perception.equations import MIXTURE_KERNEL, mixture_moments, point_covariance
 from pickdemo.perception.features import measure_features, shi_tomasi_features
 from pickdemo.perception.model import ObjectCloud, PerceptionError, PerceptionParams, PoseEstimate, TargetModel
 from pickdemo.perception.segmentation import crop_frame, nearest_in_colour, robot_pixels, world_points
 from pickdemo.shapes import Unknown
 
+#: The noise of the 3x3 mixture's mean (eq. 9) against one pixel's: sqrt(sum of the squared weights).
+MIXTURE_NOISE_FRACTION = float(np.sqrt(np.sum(MIXTURE_KERNEL**2)))
 #: The grid on the table in which points above it are clustered (m): objects this far apart are two.
 CLUSTER_CELL_M = 0.005
 #: ... and at least this many of a pixel's footprints on the table, seen straight on.
@@ -93,7 +95,12 @@ def segment_objects(frame: RGBDFrame, params: PerceptionParams, pts: np.ndarray 
     world points (:func:`world_points`), if already computed."""
     pts = world_points(frame) if pts is None else pts
     z = pts[..., 2]
-    above = np.nan_to_num(z, nan=-1.0) > params.min_height_m
+    # Above the table by more than the depth noise can put a table pixel: its height as the 3x3
+    # mixture sees it (eq. 9: the noise of a weighted mean of nine, 0.375 of one pixel's), 4 sigma.
+    z_mix = cv2.filter2D(np.nan_to_num(z, nan=-1.0), cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    depth = np.nan_to_num(frame.depth_m, nan=0.0, posinf=0.0)
+    noise = MIXTURE_NOISE_FRACTION * np.sqrt(frame.depth_variance(depth))
+    above = (np.nan_to_num(z, nan=-1.0) > params.min_height_m) & (z_mix > np.maximum(params.min_height_m, 4.0 * noise))
     above &= ~robot_pixels(frame, above)
     labels = np.zeros(above.shape, dtype=np.int32)
     if not above.any():
