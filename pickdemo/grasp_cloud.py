@@ -78,9 +78,6 @@ class CloudGrasp:
     width_m: float
     above_surface_m: float  # the TCP's height over what the object rests on
     cost: float
-    #: the span seen within the pads' band: the fingers may close that far before they touch (where
-    #: the object is narrower at the pads than above them, or its far side is hidden)
-    band_width_m: float = 0.0
 
     @property
     def held_width_m(self) -> float:
@@ -110,7 +107,7 @@ def sample_grasps(
     levels = np.arange(grasp.min_tcp_height_m, top - 0.002 + 1e-9, p.height_step_m)
     if len(levels) == 0:
         levels = np.array([grasp.min_tcp_height_m])
-    found: list[tuple[float, float, float, float, float, float, float]] = []  # psi, mid, cb, z, w, band, cost
+    found: list[tuple[float, float, float, float, float, float]] = []  # psi, mid, cb, z, w, cost
     for psi in np.arange(p.yaw_steps) * (np.pi / p.yaw_steps):
         a = np.array([np.sin(psi), -np.cos(psi)])  # the closing axis: the hand's y
         b = np.array([np.cos(psi), np.sin(psi)])  # along the finger's width: the hand's x
@@ -157,16 +154,16 @@ def sample_grasps(
                     + abs(z - z_pref) / p.height_scale_m
                     + max(0.0, w - p.wide_m) / p.width_scale_m
                 )
-                found.append((float(psi), mid, cb, float(z), w, b_max - b_min, cost))
+                found.append((float(psi), mid, cb, float(z), w, cost))
     if not found:
         return []
     c = np.array(found)
     # Where the open fingers go down, what the camera did not see free (behind the object's far side,
     # or behind something else) may be the object: a finger there may land on it.
-    c[:, 6] += _unseen_fraction(cloud, c, surface_z, top) / p.unseen_scale
+    c[:, 5] += _unseen_fraction(cloud, c, surface_z, top) / p.unseen_scale
     out = [
-        CloudGrasp(np.array([*(mid * _axis_a(psi) + cb * _axis_b(psi)), surface_z + z]), psi, w, z, cost, band)
-        for psi, mid, cb, z, w, band, cost in c
+        CloudGrasp(np.array([*(mid * _axis_a(psi) + cb * _axis_b(psi)), surface_z + z]), psi, w, z, cost)
+        for psi, mid, cb, z, w, cost in c
     ]
     out.sort(key=lambda g: g.cost)
     return out

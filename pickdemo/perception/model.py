@@ -154,10 +154,6 @@ class ObjectCloud:
         free = np.isfinite(seen) & (seen >= z - tolerance_m)
         return (~free).reshape(points.shape[:-1])
 
-    @property
-    def top_z(self) -> float:
-        return float(np.max(self.points[:, 2]))
-
 
 @dataclass(frozen=True)
 class PoseEstimate:

@@ -84,9 +84,6 @@ class Clusters:
     labels: np.ndarray
     areas: np.ndarray  # (n,) for labels 1..n
 
-    def mask(self, label: int) -> np.ndarray:
-        return self.labels == label
-
 
 def segment_objects(frame: RGBDFrame, params: PerceptionParams, pts: np.ndarray | None = None) -> Clusters:
     """The frame's pixels above the table, the robot's own body left out, in clusters: pixels whose
