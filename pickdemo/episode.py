@@ -321,12 +321,12 @@ class Episode:
         self.target_name = sc.target.name
         drawn = world.placement(self.target_name).geometry
         widest = 2.0 * rm.FINGER_MAX_M - GraspParams().width_margin_m
-        if isinstance(drawn, Mesh) and drawn.top_down_width_m() > widest:  # refused before it runs
+        width = drawn.top_down_width_m() if isinstance(drawn, Mesh) else 0.0
+        if width > widest:  # a mesh no top-down grasp can hold: refused before it runs
             raise EpisodeFailure(
                 Stage.GRASP_PLANNING,
                 f"this seed drew {drawn.urdf} at scale {drawn.scale:.3g}: no top-down grasp can hold it (it is "
-                f"{drawn.top_down_width_m() * 1e3:.0f} mm across where the fingers would close; "
-                f"at most {widest * 1e3:.0f} mm)",
+                f"{width * 1e3:.0f} mm across where the fingers would close; at most {widest * 1e3:.0f} mm)",
             )
         self.model = target_model(sc, world.placement(self.target_name))
         method = self.options.perception_method
