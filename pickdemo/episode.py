@@ -39,7 +39,7 @@ from pickdemo.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX,
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
 from pickdemo.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
 from pickdemo.rate_limit import ReflexError
-from pickdemo.referee import PERCEPTION_OFF_MM, Referee, diagnose
+from pickdemo.referee import PERCEPTION_OFF_MM, ClearReferee, Referee, diagnose
 from pickdemo.result import (
     EpisodeFailure,
     EpisodeResult,
@@ -72,6 +72,7 @@ __all__ = [
 PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each note), as it happens
 
 SETTLE_MAX_S = 2.0  # the objects come to rest before the first look, within this
+SETTLE_CLEAR_MAX_S = 4.0  # ... a clear round's (a pile falls into its heap)
 CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
 
 
@@ -216,6 +217,7 @@ class Episode:
         self._sim_time_s = 0.0
         self._wall_s = 0.0
         self._result: EpisodeResult | None = None
+        self._clear: dict | None = None
 
     # ================================================================================ stepping
     @property
@@ -309,15 +311,94 @@ class Episode:
         from pickdemo.sim.controller import RobotInterface  # simulator side, imported late
 
         sc = self.scenario
-        if len(sc.targets) != 1:
+        clear = sc.task == "clear"
+        if not clear and len(sc.targets) != 1:
             raise EpisodeFailure(Stage.ERROR, f"a pick needs exactly one target; the scenario has {len(sc.targets)}")
         try:
             world = World(sc, self.seed)  # the layout
         except LayoutError as exc:
             raise EpisodeFailure(Stage.ERROR, str(exc)) from None
         self.world = world
-        from pickdemo.estimators import EstimatorError, resolve_estimator
+        if clear:
+            self._build_clear_task()
+        else:
+            self._build_pick_task(world)
+        with self.timer("scene"):
+            world.open(gui=self.options.gui)
+            kin = panda_kinematics()
+        scene = world.scene
+        dt = scene.time_step_s
+        self.substeps = max(1, round(1.0 / (sc.control.control_rate_hz * dt)))
+        self.dt_ctl = self.substeps * dt
+        self.robot = RobotInterface(scene, self.dt_ctl)
+        self.max_steps = int(round(sc.sim.max_sim_time_s / dt))
+        self.frame_ticks = max(1, round(1.0 / (sc.control.perception_rate_hz * self.dt_ctl)))
+        self.video_ticks = max(1, round(1.0 / (self.options.video_fps * self.dt_ctl)))
+        self.referee = ClearReferee(sc, world) if clear else Referee(sc, world, self.target_name)
+        self._add_observers()
+        with self.timer("settle"):
+            scene.settle(int((SETTLE_CLEAR_MAX_S if clear else SETTLE_MAX_S) / dt))
+        scene.start_belt()  # a conveyor runs from the robot's first tick
+        self.referee.started()  # truth: for scoring only
+        params = self.options.machine
+        if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
+            params = params.on_a_belt()
+        m = sc.motion
+        scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
+        if scales != (1.0, 1.0, 1.0):
+            params = dataclasses.replace(
+                params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales)
+            )
+        params = dataclasses.replace(params, joint_transfers=m.transfers == "joint")
+        camera = world.camera
+        if clear:
+            from pickdemo.clear import ClearSequencer
 
+            assert sc.clear is not None and world.tray is not None
+            self.machine = ClearSequencer(
+                kin=kin,
+                tray=world.tray,
+                camera=CameraModel(camera.intrinsics, camera.T_world_cam),
+                q0=self.robot.observe().arm_q,
+                dt_s=self.dt_ctl,
+                rng=world.rngs["ik"],
+                max_consecutive_failures=sc.clear.max_consecutive_failures,
+                params=params,
+                on_pick_end=self.referee.pick_ended,  # truth: for scoring only
+            )
+            return
+        self.machine = PickMachine(
+            kin=kin,
+            model=self.model,
+            symmetry_rad=self.model.geometry.yaw_symmetry_rad,
+            place_xy=world.place_xy,
+            camera=CameraModel(camera.intrinsics, camera.T_world_cam),
+            q0=self.robot.observe().arm_q,
+            dt_s=self.dt_ctl,
+            rng=world.rngs["ik"],
+            max_attempts=sc.control.max_attempts,
+            place_tolerance_m=sc.success.place_tolerance,
+            open_loop=self.options.open_loop,
+            params=params,
+            surface_z=sc.surface_z,
+        )
+
+    def _build_clear_task(self) -> None:
+        """A clear round: every object is one nobody described, found by its geometry (the paper's method)."""
+        method = self.options.perception_method
+        if method != "paper":
+            raise EpisodeFailure(
+                Stage.PERCEPTION, f"a clear round finds its objects by their geometry: perception {method!r} cannot"
+            )
+        if self.options.open_loop:
+            raise EpisodeFailure(Stage.ERROR, "a clear round runs closed loop only (--open-loop is for a pick)")
+        perception = self.options.perception
+        self.model = TargetModel(Unknown(), color=None)
+        self.estimator = lambda frame, model: estimate_pose(frame, model, perception)
+
+    def _build_pick_task(self, world: World) -> None:
+        """A pick: its target, what the robot is told of it, and how it is seen."""
+        sc = self.scenario
         self.target_name = sc.target.name
         drawn = world.placement(self.target_name).geometry
         widest = 2.0 * rm.FINGER_MAX_M - GraspParams().width_margin_m
@@ -338,53 +419,12 @@ class Episode:
         if method == "paper":  # (an object nobody described: estimate_pose sends it to estimate_unknown)
             self.estimator = lambda frame, model: estimate_pose(frame, model, perception)
         else:
+            from pickdemo.estimators import EstimatorError, resolve_estimator
+
             try:
                 self.estimator = resolve_estimator(method)
             except EstimatorError as exc:
                 raise EpisodeFailure(Stage.PERCEPTION, str(exc)) from None
-        with self.timer("scene"):
-            world.open(gui=self.options.gui)
-            kin = panda_kinematics()
-        scene = world.scene
-        dt = scene.time_step_s
-        self.substeps = max(1, round(1.0 / (sc.control.control_rate_hz * dt)))
-        self.dt_ctl = self.substeps * dt
-        self.robot = RobotInterface(scene, self.dt_ctl)
-        self.max_steps = int(round(sc.sim.max_sim_time_s / dt))
-        self.frame_ticks = max(1, round(1.0 / (sc.control.perception_rate_hz * self.dt_ctl)))
-        self.video_ticks = max(1, round(1.0 / (self.options.video_fps * self.dt_ctl)))
-        self.referee = Referee(sc, world, self.target_name)
-        self._add_observers()
-        with self.timer("settle"):
-            scene.settle(int(SETTLE_MAX_S / dt))
-        scene.start_belt()  # a conveyor runs from the robot's first tick
-        self.referee.started()  # truth: for scoring only
-        params = self.options.machine
-        if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
-            params = params.on_a_belt()
-        m = sc.motion
-        scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
-        if scales != (1.0, 1.0, 1.0):
-            params = dataclasses.replace(
-                params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales)
-            )
-        params = dataclasses.replace(params, joint_transfers=m.transfers == "joint")
-        camera = world.camera
-        self.machine = PickMachine(
-            kin=kin,
-            model=self.model,
-            symmetry_rad=self.model.geometry.yaw_symmetry_rad,
-            place_xy=world.place_xy,
-            camera=CameraModel(camera.intrinsics, camera.T_world_cam),
-            q0=self.robot.observe().arm_q,
-            dt_s=self.dt_ctl,
-            rng=world.rngs["ik"],
-            max_attempts=sc.control.max_attempts,
-            place_tolerance_m=sc.success.place_tolerance,
-            open_loop=self.options.open_loop,
-            params=params,
-            surface_z=sc.surface_z,
-        )
 
     def _add_observers(self) -> None:
         """The observers the options ask for, in this order: the trace, the video, the debug
@@ -482,10 +522,22 @@ class Episode:
             frame = world.camera.capture(world.scene, request.roi)
         obs = self.observation  # the joint states when the frame was taken: where the arm is in it
         if obs is not None:
-            frame = dataclasses.replace(frame, robot_boxes=robot_body().boxes(obs.arm_q, obs.fingers_m))
+            boxes = robot_body().boxes(obs.arm_q, obs.fingers_m)
+            if world.tray is not None:  # the cell's tray, and what is in it, is no object on the table
+                boxes = (*boxes, world.tray.box())
+            frame = dataclasses.replace(frame, robot_boxes=boxes)
+        if request.survey:  # a clear round's look at the whole table
+            from pickdemo.perception.unknown import survey_objects
+
+            with self.timer("perceive"):
+                survey = survey_objects(frame, self.options.perception)
+            self.counts.frames += 1
+            self._pending.append(_InFlight(now + self.scenario.control.perception_latency_s, now, survey, None))
+            self._notify("frame", now, frame, survey)
+            return
         with self.timer("perceive"):
             try:
-                result: PoseEstimate | PerceptionError = self.estimator(frame, self.model)
+                result: PoseEstimate | PerceptionError = self.estimator(frame, self.machine.model)
                 if not isinstance(result, PoseEstimate):
                     raise TypeError(f"the perception method returned {type(result).__name__}, not a PoseEstimate")
             except PerceptionError as exc:
@@ -523,6 +575,7 @@ class Episode:
         try:
             if self.referee is not None:
                 self.referee.ended()
+                self._clear = self._clear_score()  # (the truth is read before the scene closes)
             phases = self.counts.phases
             if failure is not None and not (phases and phases[-1].phase == State.FAILED.value):
                 reason = f"{failure.stage.value}: {failure.reason}"
@@ -590,8 +643,15 @@ class Episode:
             limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded)),
             peak_joint_limit_ratio=_peak_ratios(counts.commanded),
             place_position_m=None if self.world is None else self.world.place_xy,
+            clear=self._clear,
             trace=self.trace.freeze() if self.trace is not None else None,
         )
+
+    def _clear_score(self) -> dict | None:
+        """A clear round's figures (truth: scored by the referee), or None."""
+        if not isinstance(self.referee, ClearReferee) or self.referee.in_round is None or self.machine is None:
+            return None
+        return self.referee.clear_score(self.machine.picks, self.machine.attempts)
 
 
 def _commanded_arrays(commanded: list[tuple[float, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:

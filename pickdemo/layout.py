@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pickdemo.geometry import Pose
+from pickdemo.geometry import OrientedBox, Pose
 from pickdemo.meshes import MeshFileError
 from pickdemo.schema import CameraSpec, ObjectSpec, Scenario
 from pickdemo.shapes import Shape
@@ -46,6 +46,70 @@ class Placement:
     @property
     def height_m(self) -> float:
         return self.geometry.height_m
+
+
+@dataclass(frozen=True)
+class Tray:
+    """A clear round's tray, fixed to the table: what the robot knows of it (the cell's layout) and
+    what the referee scores by. Its size is its URDF's collision geometry's bounding box at its scale."""
+
+    urdf: str
+    scale: float
+    position: tuple[float, float]  # m, its centre on the table
+    yaw_rad: float
+    half_extents: tuple[float, float]  # m, of its footprint in its own frame
+    rim_z: float  # m, its top edge above the table
+
+    #: drop spots in the tray, as shares of its half extents: spread so that objects do not stack
+    SPOTS = ((0.0, 0.0), (-0.4, -0.4), (0.4, 0.4), (-0.4, 0.4), (0.4, -0.4))
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> Tray | None:
+        """The scenario's tray (None without one); reads its URDF (a
+        :class:`~pickdemo.meshes.MeshFileError` for a bad one)."""
+        place = scenario.place
+        if place.tray is None:
+            return None
+        from pickdemo.meshes import read_urdf
+
+        v = read_urdf(place.tray).vertices * place.tray_scale
+        lo, hi = v.min(axis=0), v.max(axis=0)
+        assert place.position is not None  # the schema asks a tray for its position
+        # its footprint about its origin (symmetric: a tray's origin is its middle)
+        half = np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))
+        z0 = float(lo[2])  # the body frame sits on the table where its lowest point does
+        return cls(place.tray, place.tray_scale, (float(place.position[0]), float(place.position[1])),
+                   float(np.radians(place.yaw_deg)), (float(half[0]), float(half[1])), float(hi[2] - z0))  # fmt: skip
+
+    @property
+    def base_z(self) -> float:
+        """Its body frame's height above the table (its lowest point on the table)."""
+        from pickdemo.meshes import read_urdf
+
+        return float(-read_urdf(self.urdf).vertices[:, 2].min() * self.scale)
+
+    @property
+    def pose(self) -> Pose:
+        return Pose.from_xyz_rpy(np.array([*self.position, 0.0]), yaw=self.yaw_rad)
+
+    def holds(self, xy: np.ndarray) -> bool:
+        """Whether a point seen from above lies over its footprint."""
+        local = (np.asarray(xy, dtype=float)[:2] - np.asarray(self.position)) @ self.pose.rotation[:2, :2]
+        return bool(np.all(np.abs(local) <= np.asarray(self.half_extents)))
+
+    def spot(self, k: int) -> tuple[float, float]:
+        """Where the ``k``-th object is dropped (the spots in turn)."""
+        sx, sy = self.SPOTS[k % len(self.SPOTS)]
+        local = np.array([sx * self.half_extents[0], sy * self.half_extents[1]])
+        xy = np.asarray(self.position) + self.pose.rotation[:2, :2] @ local
+        return (float(xy[0]), float(xy[1]))
+
+    def box(self, margin_m: float = 0.01, height_m: float = 1.0) -> OrientedBox:
+        """Its footprint, ``margin_m`` wider, from just under the table to ``height_m`` above it: what
+        lies there is the tray or in it (segmentation leaves it out, as it leaves out the robot)."""
+        hx, hy = self.half_extents
+        return OrientedBox(self.pose, np.array([-hx - margin_m, -hy - margin_m, -0.01]),
+                           np.array([hx + margin_m, hy + margin_m, height_m]))  # fmt: skip
 
 
 def _angle(fixed: float | None, rng_range: tuple[float, float] | None, rng: np.random.Generator) -> float:
@@ -154,3 +218,63 @@ def camera_position(spec: CameraSpec, rng: np.random.Generator) -> np.ndarray:
     az = np.radians(rng.uniform(*spec.azimuth_range_deg))  # type: ignore[misc]
     offset = d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
     return np.asarray(spec.look_at, dtype=float) + offset
+
+
+def sample_round(
+    scenario: Scenario, rng: np.random.Generator, placed: tuple[Placement, ...] | list[Placement] = ()
+) -> tuple[Placement, ...]:
+    """A clear round's drawn objects (``[clear]``), from the seed's ``clear`` stream: ``count`` files of
+    ``objects_from`` (without repeats while there are enough), each at a scale from ``scale_range`` and
+    a yaw drawn in full, standing as its file stands it.
+
+    ``packed``: side by side in the region, apart by the layout's clearance (and clear of the objects
+    ``placed`` already). ``pile``: anywhere in the region, each above what it would fall on (the
+    footprints drawn before it that it overlaps), ``drop_height_m`` higher: the scene lets them fall
+    into a heap before the robot's first look."""
+    from pickdemo.schema import DRAWN_NAME
+
+    spec = scenario.clear
+    assert spec is not None
+    files = spec.files
+    if not files:
+        raise LayoutError(f"clear.objects_from: {spec.objects_from!r} matches no file")
+    picks = rng.choice(len(files), size=spec.count, replace=spec.count > len(files))
+    lo, hi = spec.scale_range
+    (x0, x1), (y0, y1) = spec.region
+    taken: list[tuple[np.ndarray, float, float]] = [  # (xy, footprint radius, top z)
+        (p.pose.position[:2], p.geometry.footprint_radius_m, float(p.pose.position[2] + p.height_m / 2.0))
+        for p in placed
+    ]
+    out: list[Placement] = []
+    for i, k in enumerate(picks):
+        name = DRAWN_NAME.format(i + 1)
+        scale = float(rng.uniform(lo, hi)) if hi > lo else lo
+        try:
+            from pickdemo.meshes import read_urdf
+            from pickdemo.shapes import Mesh
+
+            shape = Mesh(files[int(k)], scale, read_urdf(files[int(k)]).vertices * scale)
+        except MeshFileError as exc:
+            raise LayoutError(f"clear.objects_from: {exc}") from None
+        r = shape.footprint_radius_m
+        yaw = float(rng.uniform(-np.pi, np.pi))
+        rotation = Pose.from_xyz_rpy(np.zeros(3), yaw=yaw).rotation
+        rest = shape.resting_height_m(rotation)
+        for _ in range(MAX_DRAWS):
+            xy = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
+            under = [top for q, rq, top in taken if np.linalg.norm(xy - q) < r + rq]
+            if spec.layout == "pile":
+                break
+            if not under and all(np.linalg.norm(xy - q) >= r + rq + scenario.layout.clearance_m for q, rq, _ in taken):
+                break
+        else:
+            raise LayoutError(
+                f"clear.region: no room for {spec.count} objects packed "
+                f"{scenario.layout.clearance_m * 1e3:.0f} mm apart "
+                f"({name} found no free spot in {MAX_DRAWS} draws): a larger region or fewer objects"
+            )
+        base = max(under, default=0.0) + (spec.drop_height_m if under else 0.0)
+        z = base + rest
+        taken.append((xy, r, z + shape.height_m - rest))
+        out.append(Placement(name, Pose(np.array([xy[0], xy[1], z]), rotation), shape))
+    return tuple(out)

@@ -159,6 +159,12 @@ class MachineParams:
     goals: GoalParams = GoalParams()  # how a transfer's IK goal is chosen
     transfer_scale: float = 0.5  # transfers in joint space, the hand empty: this share of the datasheet's limits
     carry_scale: float = 0.25  # ... carrying the target (a retry after a drop slows it further)
+    #: after the place, home, look at the place (a target seen put down off it is picked up again);
+    #: off: done once home (a clear round looks at the whole table next)
+    verify_place: bool = True
+    #: let go from the carry's height over the place (at least ``place_z_m`` up), then straight home: a
+    #: drop into a tray (no lowering onto the place, no retreat from it)
+    drop_place: bool = False
 
     def on_a_belt(self) -> MachineParams:
         """For a cell with a conveyor: a target may move at any speed the belt runs (up to 0.5 m/s),
@@ -190,6 +196,7 @@ class FrameRequest:
     """A frame perception wants now: the whole image (``roi`` None) or a region of it."""
 
     roi: tuple[int, int, int, int] | None
+    survey: bool = False  # every object on the table (a clear round's look), not the target's pose
 
 
 Transition = tuple[State, str] | None  # the next state and what it says, or stay
@@ -215,13 +222,18 @@ class PickMachine:
         params: MachineParams | None = None,
         surface_z: Callable[[float, float], float] | None = None,
         selector: GraspSelector | None = None,
+        place_z_m: float = 0.0,
+        look_at: np.ndarray | None = None,
     ) -> None:
         """``surface_z(x, y)``: the height of what a target at (x, y) rests on, as the cell's layout
         says (a belt's top, or the table at 0). ``selector``: where grasps come from (default: a
         top-down grasp across the target's narrower side). ``place_tolerance_m``: the task's; a target
         the camera sees put down farther than this from the place position is picked up again (within
-        ``max_attempts``)."""
+        ``max_attempts``). ``place_z_m``: the height above the table the target's bottom is let go at
+        (a tray's rim: it drops in). ``look_at``: where the target was seen last (a survey of the table
+        chose it among others): the first look is at a region around it."""
         self.p = params or MachineParams()
+        self.look_at = None if look_at is None else np.asarray(look_at, dtype=float)
         self.kin = kin
         self.model = model
         self.symmetry = symmetry_rad
@@ -233,6 +245,8 @@ class PickMachine:
         self.open_loop = open_loop
         self.dt_s = dt_s
         self.selector: GraspSelector = selector or selector_for(model, self.p.grasp)
+        if place_z_m != 0.0 or self.p.drop_place:
+            self.selector = PlacedHigher(self.selector, place_z_m, from_carry=self.p.drop_place)
         # The parts: the hand's motion, the fingers, the belief about the target.
         self.motion = OnlineMotion(kin, q0, dt_s, self.p.free)
         self.move = Move(self.motion, chase_fraction=self.p.chase_fraction, meet_horizon_s=self.p.meet_horizon_s)
@@ -313,7 +327,11 @@ class PickMachine:
         if self.state is State.LOOK:  # the whole image, then around the first estimate
             if not (self._entered and self._motion_finished):
                 return None
-            return FrameRequest(self._roi(now_s) if self.belief.initialised else None)
+            if self.belief.initialised:
+                return FrameRequest(self._roi(now_s))
+            if self.look_at is not None:  # where a survey saw it: the region about it
+                return FrameRequest(self._roi_at(self.look_at, self.p.roi_margin_m))
+            return FrameRequest(None)
         if self.state is State.VERIFY:  # around where it was put down
             wait_over = now_s - self._since_s >= self.p.verify_wait_s
             if not wait_over or self._verify_asked:
@@ -1175,6 +1193,8 @@ class PickMachine:
         if opened or stopped or obs.time_s - self._since_s > self.p.close_timeout_s:
             self._end_attempt("placed", "")
             p = self.plan.place.position
+            if self.p.drop_place:  # (let go from above: nothing to back away from)
+                return State.HOME, f"dropped at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})"
             return State.RETREAT, f"released at ({p[0]:.3f}, {p[1]:.3f})"
         return None
 
@@ -1193,7 +1213,9 @@ class PickMachine:
             self.move.to(self.home_x4, limits=self.p.free)
 
     def _tick_home(self, obs: Observation) -> Transition:
-        return (State.VERIFY, "arm home") if self._motion_finished else None
+        if not self._motion_finished:
+            return None
+        return (State.VERIFY, "arm home") if self.p.verify_place else (State.DONE, "arm home")
 
     def _enter_verify(self, obs: Observation) -> None:
         self._verify_asked = False
@@ -1303,3 +1325,31 @@ def _turned_plan(plan: GraspPlan, *, pick: bool, place: bool) -> GraspPlan:
             turn["place_offset_xy"] = (-ox, -oy)
     hand = plan.hand_yaw_rad + np.pi if pick else plan.hand_yaw_rad
     return dataclasses.replace(plan, hand_yaw_rad=float(hand), **turn)
+
+
+@dataclass
+class PlacedHigher:
+    """A :class:`~pickdemo.grasp_selection.GraspSelector` whose plans let go of the target ``dz_m``
+    higher (its bottom that far above the table: over a tray's rim, to drop in); ``from_carry``: at
+    least as high as it is carried (no lowering)."""
+
+    inner: GraspSelector
+    dz_m: float
+    from_carry: bool = False
+
+    def hand_yaws(self, request: GraspRequest) -> list[float]:
+        return self.inner.hand_yaws(request)
+
+    def candidates(self, request: GraspRequest):  # noqa: ANN201 - an iterator of GraspPlan
+        up = np.array([0.0, 0.0, self.dz_m])
+        for plan in self.inner.candidates(request):
+            place = Pose(plan.place.position + up, plan.place.rotation)
+            if self.from_carry:
+                z = max(float(plan.lift.position[2]), float(place.position[2]))
+                place = Pose(np.array([*place.position[:2], z]), place.rotation)
+                z_above = z
+            else:
+                z_above = max(float(plan.place_above.position[2]), float(place.position[2]) + 0.05)
+            above = Pose(np.array([*place.position[:2], z_above]), plan.place_above.rotation)
+            retreat = Pose(plan.retreat.position + up, plan.retreat.rotation)
+            yield dataclasses.replace(plan, place=place, place_above=above, retreat=retreat)

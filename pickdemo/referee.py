@@ -139,3 +139,143 @@ class Referee:
         if self.start_pose is None:
             return None
         return (self.max_z_m - float(self.start_pose.position[2])) * 1e3
+
+
+#: An object whose centre rests over the tray's footprint no higher than this above its rim is in it.
+IN_TRAY_ABOVE_RIM_M = 0.03
+
+
+@dataclass
+class ClearReferee:
+    """The truth's view of a clear round: which objects the round started with (those on the table once
+    they came to rest), which ended in the tray and by which pick. It has the calls of a pick's
+    :class:`Referee` (those about one target do nothing here)."""
+
+    scenario: Scenario
+    world: World
+    in_round: list[str] | None = None
+    off_table_at_start: list[str] | None = None
+    cleared_by: dict[str, tuple[int, float]] | None = None  # name -> (pick, simulated time)
+    tried: dict[str, int] | None = None  # name -> grasp attempts at it
+    start_s: float = 0.0
+    perception = None
+    place_error_mm = None
+    tracking_error_mm = None
+    tracking_yaw_deg = None
+    wrong_estimates = 0
+    wrong_estimates_accepted = 0
+    wrong_estimates_self_rejected = 0
+    off_table: bool | None = None
+
+    def _on_table(self, name: str) -> bool:
+        x, y, z = self.world.true_pose(name).position
+        return bool(z > -0.005 and self.scenario.table.holds(float(x), float(y)))
+
+    def in_tray(self, name: str) -> bool:
+        tray = self.world.tray
+        assert tray is not None
+        p = self.world.true_pose(name).position
+        return tray.holds(p[:2]) and float(p[2]) <= tray.rim_z + IN_TRAY_ABOVE_RIM_M
+
+    def started(self) -> None:
+        names = [p.name for p in self.world.layout]
+        self.in_round = [n for n in names if self._on_table(n) and not self.in_tray(n)]
+        self.off_table_at_start = [n for n in names if n not in self.in_round]
+        self.cleared_by = {}
+        self.tried = {}
+        self.start_s = self.world.sim_time_s
+
+    def pick_ended(self, record) -> None:  # noqa: ANN001 - a pickdemo.clear.PickRecord
+        """A pick is over: the objects now in the tray were cleared by it; its attempts were at the
+        object nearest where the survey saw the one chosen (or at the one it cleared)."""
+        assert self.in_round is not None and self.cleared_by is not None and self.tried is not None
+        now = self.world.sim_time_s
+        new = [n for n in self.in_round if n not in self.cleared_by and self.in_tray(n)]
+        for n in new:
+            self.cleared_by[n] = (record.index, now)
+        left = [n for n in self.in_round if n not in self.cleared_by]
+        if new:
+            at = new[0]
+        elif left:
+            seen = np.asarray(record.seen_at[:2])
+            at = min(left, key=lambda n: float(np.linalg.norm(self.world.true_pose(n).position[:2] - seen)))
+        else:
+            return
+        self.tried[at] = self.tried.get(at, 0) + max(len(record.attempts), 1)
+
+    def first_estimate(self, result) -> None:  # noqa: ANN001
+        pass
+
+    def error_mm(self, result) -> None:  # noqa: ANN001
+        return None
+
+    def delivered(self, result, error_mm, status) -> None:  # noqa: ANN001
+        pass
+
+    def committed(self, predicted, symmetry_rad) -> None:  # noqa: ANN001
+        pass
+
+    def carried(self) -> None:
+        pass
+
+    def lifted_mm(self) -> None:
+        return None
+
+    def ended(self) -> None:
+        if self.in_round is not None:
+            self.off_table = any(not self._on_table(n) and not self.in_tray(n) for n in self.in_round)
+
+    def left(self) -> list[str]:
+        assert self.in_round is not None and self.cleared_by is not None
+        return [n for n in self.in_round if not self.in_tray(n)]
+
+    def score(self) -> None:
+        """Success: every object of the round in the tray (raises the failure)."""
+        left = self.left()
+        if left:
+            names = ", ".join(left)
+            raise EpisodeFailure(Stage.PERCEPTION, f"the round ended with {len(left)} object(s) left: {names}")
+
+    def clear_score(self, picks, attempts) -> dict:  # noqa: ANN001 - PickRecords, AttemptRecords
+        """``result.json``'s ``clear``: each object's fate, the round's figures."""
+        assert self.in_round is not None and self.cleared_by is not None and self.tried is not None
+        end = self.world.sim_time_s
+        objects = []
+        for p in self.world.layout:
+            name = p.name
+            if name not in self.in_round:
+                outcome = "not in the round (off the table once at rest)"
+            elif self.in_tray(name):
+                outcome = "cleared"
+            elif self._on_table(name):
+                outcome = "left on the table"
+            else:
+                outcome = "knocked off the table"
+            by = self.cleared_by.get(name)
+            g = p.geometry
+            objects.append({
+                "name": name,
+                "urdf": getattr(g, "urdf", None),
+                "scale": getattr(g, "scale", None),
+                "outcome": outcome,
+                "attempts": self.tried.get(name, 0),
+                "pick": None if by is None else by[0],
+                "cleared_at_s": None if by is None else round(by[1], 4),
+            })  # fmt: skip
+        cleared = sum(1 for o in objects if o["outcome"] == "cleared")
+        total = len(self.in_round)
+        successes = len({by[0] for by in self.cleared_by.values()})
+        n_attempts = len(attempts)
+        duration = max(end - self.start_s, 1e-9)
+        return {
+            "objects": objects,
+            "picks": [r.to_dict() for r in picks],
+            "cleared": cleared,
+            "total": total,
+            "percent_cleared": 100.0 * cleared / total if total else 100.0,
+            "grasp_attempts": n_attempts,
+            "successful_grasps": successes,
+            "grasp_success_rate": successes / n_attempts if n_attempts else None,
+            "round_time_s": round(duration, 4),
+            "picks_per_hour": 3600.0 * cleared / duration,
+        }

@@ -197,6 +197,9 @@ class EpisodeResult:
     #: joints and ticks (at most 1.0: within); None when nothing was commanded
     peak_joint_limit_ratio: dict[str, float] | None = None
     place_position_m: tuple[float, float] | None = None  # where it was to be put down (drawn per seed from a range)
+    #: a clear round's figures: each object's fate, its picks, cleared, percent_cleared, grasp_success_rate,
+    #: picks_per_hour (simulated time); None for a pick
+    clear: dict[str, Any] | None = None
     trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
     @classmethod
@@ -268,6 +271,7 @@ class EpisodeResult:
                 "peak_joint_limit_ratio": None
                 if self.peak_joint_limit_ratio is None
                 else dict(self.peak_joint_limit_ratio),
+                **({} if self.clear is None else {"clear": self.clear}),
             }
         )
 

@@ -29,6 +29,7 @@ from pickdemo.schema import (
     SENSOR_PRESETS,
     BeltSlab,
     CameraSpec,
+    ClearSpec,
     ControlSpec,
     ConveyorSpec,
     DisturbanceSpec,
@@ -53,9 +54,9 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 __all__ = [
     "BELT_ACCELERATION_M_S2", "BELT_REWIND_M", "MAX_FILE_BYTES", "MAX_TIME_STEP_S", "NAME_PATTERN", "RESERVED_NAMES",
-    "SENSOR_PRESETS", "BeltSlab", "CameraSpec", "ControlSpec", "ConveyorSpec", "DisturbanceSpec", "LayoutSpec",
-    "MotionSpec", "ObjectSpec", "PlaceSpec", "ReferenceSpec", "Scenario", "ScenarioError", "SimSpec", "SuccessSpec",
-    "TableSpec", "builtin_scenario_dirs", "list_scenarios", "load_scenario", "parse_scenario",
+    "SENSOR_PRESETS", "BeltSlab", "CameraSpec", "ClearSpec", "ControlSpec", "ConveyorSpec", "DisturbanceSpec",
+    "LayoutSpec", "MotionSpec", "ObjectSpec", "PlaceSpec", "ReferenceSpec", "Scenario", "ScenarioError", "SimSpec",
+    "SuccessSpec", "TableSpec", "builtin_scenario_dirs", "list_scenarios", "load_scenario", "parse_scenario",
     "resolve_scenario_path", "suite_scenarios",
 ]  # fmt: skip
 

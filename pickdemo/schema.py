@@ -41,7 +41,9 @@ Vec3 = tuple[Coord, Coord, Coord]
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}$"
 Name = Annotated[str, Field(pattern=NAME_PATTERN)]
 #: Bodies of the scene that an object may not be named after.
-RESERVED_NAMES = frozenset({"robot", "table", "world", "camera", "conveyor"})
+RESERVED_NAMES = frozenset({"robot", "table", "world", "camera", "conveyor", "tray"})
+#: The names a clear round gives the objects it draws (``drawn_1``, ...): a listed object may not take one.
+DRAWN_NAME = "drawn_{}"
 MAX_NESTING = 16
 
 
@@ -151,6 +153,18 @@ class ReferenceSpec(_Model):
     roll_error_deg: Annotated[float, Field(ge=0.0)] = 0.0
 
 
+def _resolve_path(spec: str | None, info: ValidationInfo) -> str | None:
+    """A path relative to the scenario file made absolute (``pybullet_data:`` ones are kept: another
+    machine finds its own copy)."""
+    if spec is None or spec.startswith(PYBULLET_DATA):
+        return spec
+    if not spec.isprintable():
+        raise ValueError("a path of printable characters")
+    base = (info.context or {}).get("base_dir")
+    path = Path(spec).expanduser()
+    return str(path if path.is_absolute() or base is None else Path(base) / path)
+
+
 class ObjectSpec(_Model):
     """One object on the table: a box or a cylinder (upright unless tilted), or a mesh from a URDF file
     (as the file stands it, turned about z)."""
@@ -204,15 +218,7 @@ class ObjectSpec(_Model):
     @field_validator("urdf", "urdf_choice")
     @classmethod
     def _resolve(cls, spec: str | None, info: ValidationInfo) -> str | None:
-        """A path relative to the scenario file is made absolute (``pybullet_data:`` ones are kept:
-        another machine finds its own copy)."""
-        if spec is None or spec.startswith(PYBULLET_DATA):
-            return spec
-        if not spec.isprintable():
-            raise ValueError("a path of printable characters")
-        base = (info.context or {}).get("base_dir")
-        path = Path(spec).expanduser()
-        return str(path if path.is_absolute() or base is None else Path(base) / path)
+        return _resolve_path(spec, info)
 
     @model_validator(mode="after")
     def _check(self) -> ObjectSpec:
@@ -314,10 +320,20 @@ class ObjectSpec(_Model):
 
 class PlaceSpec(_Model):
     """Where the target is to be put down: a fixed spot, or one drawn per seed from a region (the
-    seed's ``place`` stream), clear of where the objects start."""
+    seed's ``place`` stream), clear of where the objects start. A clear round (``task = "clear"``)
+    puts its objects into a ``tray`` (a URDF, fixed to the table at ``position``, turned by ``yaw_deg``)."""
 
     position: Vec2 | None = None  # m, x, y on the table
     position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
+    #: a tray's URDF ("pybullet_data:tray/traybox.urdf", or a path relative to the scenario file)
+    tray: Annotated[str, Field(min_length=1, max_length=500)] | None = None
+    tray_scale: Scale = 0.5  # times the URDF's own size (pybullet_data's traybox is 0.6 m square at 1)
+    yaw_deg: Angle = 0.0  # the tray's turn about z
+
+    @field_validator("tray")
+    @classmethod
+    def _resolve_tray(cls, spec: str | None, info: ValidationInfo) -> str | None:
+        return _resolve_path(spec, info)
 
     @model_validator(mode="after")
     def _one_of(self) -> PlaceSpec:
@@ -325,6 +341,8 @@ class PlaceSpec(_Model):
             raise ValueError("give exactly one of position, position_range")
         if self.position_range is not None and any(lo > hi for lo, hi in self.position_range):
             raise ValueError("position_range bounds must be [min, max]")
+        if self.tray is not None and self.position is None:
+            raise ValueError("a tray stands at a position: give position, not position_range")
         return self
 
     @property
@@ -529,6 +547,43 @@ class ConveyorSpec(_Model):
         return x0 - radius < x < x1 + radius and y0 - radius < y < y1 + radius
 
 
+class ClearSpec(_Model):
+    """A clear round (``task = "clear"``): ``count`` objects drawn per seed from ``objects_from`` (a glob,
+    as ``urdf_choice``) at a scale from ``scale_range``, laid out in ``region`` as a ``pile`` (dropped in
+    a heap) or ``packed`` (standing side by side), join the ``[[objects]]`` listed; the robot puts them
+    all into the tray. The round ends when the table is clear, when no grasp is found, or after
+    ``max_consecutive_failures`` failed attempts in a row (VGN's clutter-removal protocol)."""
+
+    layout: Literal["pile", "packed"] = "packed"
+    region: tuple[Vec2, Vec2]  # ((x_min, x_max), (y_min, y_max)) in m: where the round is laid out
+    count: Annotated[int, Field(ge=1, le=20)] = 5  # objects drawn a round
+    objects_from: Annotated[str, Field(min_length=1, max_length=500)]
+    scale_range: tuple[Scale, Scale] = (1.0, 1.0)
+    max_consecutive_failures: Annotated[int, Field(ge=1, le=10)] = 2
+    #: a pile: each object is dropped from this far above what is under it
+    drop_height_m: Annotated[float, Field(ge=0.0, le=0.3)] = 0.02
+
+    @field_validator("objects_from")
+    @classmethod
+    def _resolve_glob(cls, spec: str, info: ValidationInfo) -> str:
+        return _resolve_path(spec, info)  # type: ignore[return-value]
+
+    @model_validator(mode="after")
+    def _check(self) -> ClearSpec:
+        if any(lo > hi for lo, hi in self.region):
+            raise ValueError("region bounds must be [min, max]")
+        if self.scale_range[0] > self.scale_range[1]:
+            raise ValueError("scale_range must be [min, max]")
+        return self
+
+    @property
+    def files(self) -> tuple[str, ...]:
+        """The files ``objects_from`` matches that can be read (reads the disk)."""
+        from pickdemo.meshes import usable
+
+        return usable(self.objects_from)
+
+
 class SimSpec(_Model):
     # 1/1000 s at the finest: a finer step multiplies the work and changes nothing a user would see.
     time_step_s: Annotated[float, Field(ge=1.0 / 1000.0, le=1.0 / 240.0)] = 1.0 / 240.0
@@ -541,10 +596,11 @@ class Scenario(_Model):
     name: Name
     description: Annotated[str, Field(max_length=300)] = ""
     tags: tuple[Name, ...] = ()  # e.g. "suite": run by `pickdemo bench` when no scenario is named
-    task: Literal["pick", "perceive"] = "pick"  # "perceive": for `pickdemo perceive` only (any number of targets)
+    #: "perceive": for `pickdemo perceive` only (any number of targets); "clear": every object into the tray
+    task: Literal["pick", "perceive", "clear"] = "pick"
     camera: CameraSpec = CameraSpec()
     table: TableSpec = TableSpec()
-    objects: tuple[ObjectSpec, ...]
+    objects: tuple[ObjectSpec, ...] = ()
     place: PlaceSpec
     success: SuccessSpec = SuccessSpec()
     layout: LayoutSpec = LayoutSpec()
@@ -553,13 +609,16 @@ class Scenario(_Model):
     control: ControlSpec = ControlSpec()
     disturbances: tuple[DisturbanceSpec, ...] = ()
     conveyor: ConveyorSpec | None = None
+    clear: ClearSpec | None = None  # a clear round's objects (task = "clear")
 
     @model_validator(mode="after")
     def _check(self) -> Scenario:
-        if not self.objects:
+        if self.task == "clear":
+            self._check_clear()
+        elif not self.objects:
             raise ValueError("at least one object is needed")
         targets = [o for o in self.objects if o.target]
-        if not targets:
+        if not targets and self.task != "clear":
             raise ValueError("one object must have target = true")
         names = [o.name for o in self.objects]
         if len(set(names)) != len(names):
@@ -578,6 +637,21 @@ class Scenario(_Model):
                 )
         return self
 
+    def _check_clear(self) -> None:
+        if self.clear is None:
+            raise ValueError('clear: a clear round (task = "clear") needs a [clear] table')
+        if self.place.tray is None:
+            raise ValueError('place.tray: a clear round (task = "clear") puts its objects into a tray: give one')
+        if self.conveyor is not None:
+            raise ValueError('conveyor: a clear round (task = "clear") is laid out on the table, not on a belt')
+        if any(o.target for o in self.objects):
+            raise ValueError('objects: target = true is for a pick; a clear round (task = "clear") clears every object')
+        taken = {DRAWN_NAME.format(i + 1) for i in range(self.clear.count)} & {o.name for o in self.objects}
+        if taken:
+            raise ValueError(f"objects.{sorted(taken)[0]}: the name of an object the clear round draws; choose another")
+        if any(o.static for o in self.objects):
+            raise ValueError('objects: a clear round (task = "clear") clears every object: none can be static')
+
     def surface_z(self, x: float, y: float) -> float:
         """Height of what an object standing at (x, y) rests on: the belt's top, or the table (0)."""
         c = self.conveyor
@@ -590,7 +664,10 @@ class Scenario(_Model):
 
     @property
     def targets(self) -> tuple[ObjectSpec, ...]:
-        """Every object marked as a target (perception evaluates them all; a pick needs exactly one)."""
+        """Every object marked as a target (perception evaluates them all; a pick needs exactly one; a
+        clear round's are all its listed objects)."""
+        if self.task == "clear":
+            return self.objects
         return tuple(o for o in self.objects if o.target)
 
 

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pickdemo.camera import calibration_error
-from pickdemo.layout import Placement, camera_position, sample_layout, sample_place
+from pickdemo.layout import Placement, Tray, camera_position, sample_layout, sample_place, sample_round
 from pickdemo.scenario import Scenario
 from pickdemo.streams import spawn_rngs
 
@@ -34,8 +34,12 @@ class World:
         self.scenario = scenario
         self.seed = seed
         self.rngs: dict[str, np.random.Generator] = spawn_rngs(seed)
-        self.layout: list[Placement] = sample_layout(scenario, self.rngs["layout"], self.rngs["objects"])
-        #: where the target is to be put down (the scenario's spot, or drawn for this seed)
+        self.layout: list[Placement] = list(sample_layout(scenario, self.rngs["layout"], self.rngs["objects"]))
+        if scenario.clear is not None:  # a clear round: its objects drawn and laid out
+            self.layout.extend(sample_round(scenario, self.rngs["clear"], self.layout))
+        #: a clear round's tray (None: no tray)
+        self.tray: Tray | None = Tray.of(scenario)
+        #: where the target is to be put down (the scenario's spot, or drawn for this seed; the tray's middle)
         self.place_xy: tuple[float, float] = sample_place(scenario, self.layout, self.rngs["place"])
         self.scene: Scene | None = None
         self.camera: Camera | None = None
@@ -52,7 +56,7 @@ class World:
         from pickdemo.sim.scene import Scene
 
         sc = self.scenario
-        self.scene = Scene(sc, self.layout, gui=gui)
+        self.scene = Scene(sc, self.layout, gui=gui, tray=self.tray)
         where = camera_position(sc.camera, self.rngs["camera_pose"])
         error = calibration_error(*sc.camera.extrinsic_error, self.rngs["calibration"])
         self.camera = Camera(sc.camera, self.rngs["camera"], position=where, calibration_error=error)

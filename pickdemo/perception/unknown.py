@@ -321,3 +321,67 @@ def hidden_in_part(
     nearest_own = cv2.erode(own, k)  # the object's nearest depth within the ring's reach
     d = np.where(np.isfinite(depth), depth, np.inf)
     return int(np.sum(ring & np.isfinite(nearest_own) & (d < nearest_own - step_m))) >= min_px
+
+
+@dataclasses.dataclass(frozen=True)
+class SeenObject:
+    """One object a survey of the table found: where it stands, its size seen, its points."""
+
+    centre: np.ndarray  # (3,) m: the middle of its footprint seen from above, at half its top
+    size_m: tuple[float, float, float]  # its top's height, its footprint's longer and shorter side
+    n_px: int
+    cloud: ObjectCloud
+
+
+@dataclasses.dataclass(frozen=True)
+class Survey:
+    """What stands on the table in one frame (a clear round looks so after every place)."""
+
+    objects: tuple[SeenObject, ...]
+    time_s: float
+
+
+def survey_objects(frame: RGBDFrame, params: PerceptionParams | None = None) -> Survey:
+    """Every object on the table in the frame: segmentation by geometry (:func:`segment_objects`; the
+    robot and the cell's fixtures in the frame's ``robot_boxes`` left out), each cluster large enough
+    with its points and the other clusters' points near it as obstacles (an
+    :class:`~pickdemo.perception.model.ObjectCloud`), largest first."""
+    params = params or PerceptionParams()
+    pts = world_points(frame)
+    clusters = segment_objects(frame, params, pts)
+    depth = holes_as_nan(frame.depth_m)
+    labelled = clusters.labels > 0
+    out = []
+    for k in np.argsort(-clusters.areas, kind="stable"):
+        if clusters.areas[k] < params.min_target_px:
+            break
+        mask = clusters.labels == k + 1
+        p = pts[mask]
+        p = p[np.all(np.isfinite(p), axis=1)]
+        if len(p) < params.min_target_px:
+            continue
+        if len(p) > MAX_CLOUD_POINTS:
+            p = p[:: int(np.ceil(len(p) / MAX_CLOUD_POINTS))]
+        centre_xy, extents = _footprint(p)
+        top = float(np.quantile(p[:, 2], 1.0 - FOOTPRINT_QUANTILE))
+        # obstacles: the other clusters' points within reach of a hand about this one
+        o = pts[labelled & ~mask]
+        o = o[np.all(np.isfinite(o), axis=1)]
+        o = o[np.hypot(o[:, 0] - centre_xy[0], o[:, 1] - centre_xy[1]) < 0.25]
+        if len(o) > MAX_CLOUD_POINTS:
+            o = o[:: int(np.ceil(len(o) / MAX_CLOUD_POINTS))]
+        cloud = ObjectCloud(points=p, obstacles=o, time_s=frame.time_s, depth_m=depth,
+                            intrinsics=frame.intrinsics, T_world_cam=frame.T_world_cam)  # fmt: skip
+        out.append(SeenObject(np.array([*centre_xy, 0.5 * top]), (top, float(extents.max()), float(extents.min())),
+                              int(clusters.areas[k]), cloud))  # fmt: skip
+    return Survey(tuple(out), frame.time_s)
+
+
+def _footprint(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The middle of the points' footprint along its principal axes seen from above, and its extents."""
+    xy = points[:, :2]
+    mean = xy.mean(axis=0)
+    _, axes = np.linalg.eigh(np.cov((xy - mean).T))
+    along = (xy - mean) @ axes
+    lo, hi = np.quantile(along, FOOTPRINT_QUANTILE, axis=0), np.quantile(along, 1.0 - FOOTPRINT_QUANTILE, axis=0)
+    return mean + axes @ (0.5 * (lo + hi)), hi - lo

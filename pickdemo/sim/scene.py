@@ -16,11 +16,14 @@ from pybullet_utils.bullet_client import BulletClient
 
 from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose
-from pickdemo.layout import Placement
+from pickdemo.layout import Placement, Tray
 from pickdemo.meshes import resolve
 from pickdemo.scenario import ObjectSpec, Scenario
 from pickdemo.shapes import Box, Cylinder, Mesh
 from pickdemo.sim import quiet_c_stdout
+
+#: The scene's bodies that are not objects on the table.
+FIXTURES = ("robot", "table", "conveyor", "tray")
 
 TABLE_THICKNESS_M = 0.05
 FINGER_FRICTION = 1.0  # measured: 1.0 with 20 N holds a 5 cm cube with ~1 mm slip
@@ -74,7 +77,9 @@ class JointState:
 class Scene:
     """A PyBullet world built from a scenario and a sampled layout."""
 
-    def __init__(self, scenario: Scenario, layout: tuple[Placement, ...], *, gui: bool = False) -> None:
+    def __init__(
+        self, scenario: Scenario, layout: tuple[Placement, ...], *, gui: bool = False, tray: Tray | None = None
+    ) -> None:
         self.scenario = scenario
         self.gui = gui
         with quiet_c_stdout():
@@ -106,9 +111,15 @@ class Scene:
         if self.belt is not None:
             self.belt.ignore(self.bodies["table"])
         self._build_robot()
+        if tray is not None:
+            self._build_tray(tray)
         specs = {o.name: o for o in scenario.objects}
         for placement in layout:
-            self._build_object(specs[placement.name], placement)
+            spec = specs.get(placement.name)
+            if spec is None:  # drawn by a clear round: a mesh as its file has it
+                xy = (float(placement.pose.position[0]), float(placement.pose.position[1]))
+                spec = ObjectSpec(name=placement.name, shape="mesh", urdf=placement.geometry.urdf, position=xy)
+            self._build_object(spec, placement)
 
     # ----------------------------------------------------------------------------------- building
     def _build_table(self) -> None:
@@ -119,6 +130,18 @@ class Scene:
         body = c.createMultiBody(0.0, col, vis, basePosition=[t.center[0], t.center[1], -TABLE_THICKNESS_M / 2.0])
         c.changeDynamics(body, -1, lateralFriction=t.friction)
         self.bodies["table"] = body
+
+    def _build_tray(self, tray: Tray) -> None:
+        """A clear round's tray, fixed to the table where the scenario puts it."""
+        c = self.client
+        pose = tray.pose
+        position = [*tray.position, tray.base_z]
+        with quiet_c_stdout():
+            body = c.loadURDF(
+                str(resolve(tray.urdf, None)), basePosition=position, baseOrientation=list(pose.quaternion_xyzw),
+                globalScaling=tray.scale, useFixedBase=True,
+            )  # fmt: skip
+        self.bodies["tray"] = body
 
     def _build_robot(self) -> None:
         c = self.client
@@ -222,7 +245,7 @@ class Scene:
             return
         riders = [
             b for n, b in self.bodies.items()
-            if n not in ("robot", "table", "conveyor") and self.scenario.conveyor.holds(*self.true_pose(n).position[:2])
+            if n not in FIXTURES and self.scenario.conveyor.holds(*self.true_pose(n).position[:2])
         ]  # fmt: skip
         self.belt.start(self.sim_time_s, riders)
 
@@ -261,7 +284,7 @@ class Scene:
 
     def objects_at_rest(self, speed_m_s: float = 2e-3) -> bool:
         """Whether every movable object is (nearly) still: for setting the world up, never for control."""
-        robotless = (b for n, b in self.bodies.items() if n not in ("robot", "table", "conveyor"))
+        robotless = (b for n, b in self.bodies.items() if n not in FIXTURES)
         return all(np.linalg.norm(self.client.getBaseVelocity(b)[0]) < speed_m_s for b in robotless)
 
     def settle(self, max_steps: int) -> int:

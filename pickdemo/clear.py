@@ -1,0 +1,326 @@
+"""Clearing a table: a sequencer above the pick skill, for ``task = "clear"``.
+
+Pure: no simulator. :class:`ClearSequencer` looks at the whole table (a survey: every object found by
+its geometry, :func:`~pickdemo.perception.unknown.survey_objects`), chooses the next object (the best
+top-down grasp over all of them, collision-free against the rest: :func:`~pickdemo.grasp_cloud.sample_grasps`,
+reachable by IK), and hands it to a :class:`~pickdemo.pick.PickMachine` told only where the object was
+seen and its rough size; the pick's closed loop tracks it from there (a neighbour's pick may have
+moved it), drops it into the tray and comes home; then it looks at the table again. The round ends
+when the table is clear, when no grasp is found, or after ``max_consecutive_failures`` failed
+attempts in a row (VGN's clutter-removal protocol).
+
+To the episode it is a controller like a pick's: the same calls (:meth:`update`, :meth:`on_estimate`,
+:meth:`frame_request`), the events and attempts of all its picks in one list, and what observers
+read of the pick under way.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pickdemo import robot_model as rm
+from pickdemo.belief import Verdict
+from pickdemo.grasp import GraspParams, top_down
+from pickdemo.grasp_cloud import sample_grasps
+from pickdemo.interfaces import Command, Observation
+from pickdemo.kinematics import PandaKinematics
+from pickdemo.layout import Tray
+from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
+from pickdemo.perception.unknown import SeenObject, Survey
+from pickdemo.pick import CameraModel, Event, FrameRequest, MachineParams, PickMachine, State
+from pickdemo.result import AttemptRecord, Failure, Stage
+from pickdemo.shapes import Unknown
+
+#: Let go of an object this far above the tray's rim (its bottom): it drops in.
+TRAY_DROP_M = 0.02
+
+
+@dataclass(frozen=True)
+class PickRecord:
+    """One pick of a round: the object chosen (as seen), what became of it, when."""
+
+    index: int
+    seen_at: tuple[float, float, float]  # m: where the survey saw the object chosen
+    seen_size_m: tuple[float, float, float]  # its top's height, its footprint's sides, as seen
+    grasp_cost: float
+    attempts: tuple[AttemptRecord, ...]
+    outcome: str  # "placed" (let go over the tray) or "failed"
+    reason: str
+    start_s: float
+    end_s: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "index": self.index,
+            "seen_at": [round(v, 4) for v in self.seen_at],
+            "seen_size_mm": [round(v * 1e3, 1) for v in self.seen_size_m],
+            "grasp_cost": round(self.grasp_cost, 3),
+            "attempts": [a.to_dict() for a in self.attempts],
+            "outcome": self.outcome,
+            "reason": self.reason,
+            "start_s": round(self.start_s, 4),
+            "end_s": round(self.end_s, 4),
+        }
+
+
+@dataclass(frozen=True)
+class Choice:
+    """The object a survey chose and its best grasp's cost."""
+
+    seen: SeenObject
+    cost: float
+
+
+class ClearSequencer:
+    """Picks every object on the table into the tray, one after another; see the module docstring."""
+
+    def __init__(
+        self,
+        *,
+        kin: PandaKinematics,
+        tray: Tray,
+        camera: CameraModel,
+        q0: np.ndarray,
+        dt_s: float,
+        rng: np.random.Generator,
+        max_consecutive_failures: int = 2,
+        params: MachineParams | None = None,
+        on_pick_end: Callable[[PickRecord], None] | None = None,
+    ) -> None:
+        self.kin = kin
+        self.tray = tray
+        self.camera = camera
+        self.dt_s = dt_s
+        self.rng = rng
+        self.max_consecutive_failures = max_consecutive_failures
+        self.p = dataclasses.replace(params or MachineParams(), verify_place=False, drop_place=True)
+        self.on_pick_end = on_pick_end
+        self.events: list[Event] = []
+        self.picks: list[PickRecord] = []
+        self.failure: Failure | None = None
+        self.consecutive_failures = 0
+        self.surveys = 0
+        self.last_survey: Survey | None = None
+        self._done = False
+        self._surveying = True
+        self._survey_asked = False
+        self._seen_events = 0
+        self._choice: Choice | None = None
+        self._pick_start_s = 0.0
+        self._now_s = 0.0
+        self.current = self._machine(q0, TargetModel(Unknown(), color=None))  # at home: surveys from there
+        self.events.append(Event(State.LOOK, 0.0, "looking at the table", note=True))
+
+    # ================================================================================ interface
+    @property
+    def finished(self) -> bool:
+        return self._done
+
+    @property
+    def state(self) -> State:
+        if self._done:
+            return State.FAILED if self.failure is not None else State.DONE
+        return State.LOOK if self._surveying else self.current.state
+
+    @property
+    def model(self) -> TargetModel:
+        """The target model of the pick under way (what perception looks for)."""
+        return self.current.model
+
+    @property
+    def attempts(self) -> list[AttemptRecord]:
+        """Every grasp attempt of the round, in order (numbered within their pick)."""
+        out = [a for rec in self.picks for a in rec.attempts]
+        if not self._surveying and not self._done:
+            out.extend(self.current.attempts)
+        return out
+
+    def __getattr__(self, name: str) -> Any:
+        """What observers read of the pick under way (its tracker, plan, motion, ...)."""
+        if name == "current":
+            raise AttributeError(name)
+        return getattr(self.current, name)
+
+    def frame_request(self, now_s: float) -> FrameRequest | None:
+        if self._done:
+            return None
+        if self._surveying:
+            if self._survey_asked or not (self.current._entered and self.current._motion_finished):
+                return None
+            self._survey_asked = True  # (asked only when a frame is due: the episode takes it now)
+            return FrameRequest(None, survey=True)
+        return self.current.frame_request(now_s)
+
+    def on_estimate(self, result: PoseEstimate | PerceptionError | Survey, frame_time_s: float) -> Verdict:
+        if self._done:
+            return Verdict.UNUSED
+        if isinstance(result, Survey):
+            if self._surveying and self._survey_asked:
+                self._surveyed(result)
+                return Verdict.ACCEPTED
+            return Verdict.UNUSED
+        if self._surveying:
+            return Verdict.UNUSED
+        return self.current.on_estimate(result, frame_time_s)
+
+    def update(self, obs: Observation) -> Command:
+        self._now_s = obs.time_s
+        cmd = self.current.update(obs)
+        self._take_events()
+        if self._done:
+            return cmd
+        if not self._surveying and self.current.finished:
+            self._pick_ended(obs)
+        return cmd
+
+    def abort(self, stage: Stage, reason: str) -> None:
+        """End the round from outside (the step budget is spent)."""
+        if not self._surveying and not self.current.finished:
+            self.current.abort(stage, reason)
+            self._take_events()
+            self._record_pick()
+        self._fail(stage, reason)
+
+    # ================================================================================== internals
+    def _machine(self, q0: np.ndarray, model: TargetModel, **kw: Any) -> PickMachine:
+        return PickMachine(
+            kin=self.kin,
+            model=model,
+            symmetry_rad=model.geometry.yaw_symmetry_rad,
+            place_xy=kw.pop("place_xy", self.tray.position),
+            camera=self.camera,
+            q0=q0,
+            dt_s=self.dt_s,
+            rng=self.rng,
+            params=self.p,
+            place_tolerance_m=None,
+            **kw,
+        )
+
+    def _take_events(self) -> None:
+        new = self.current.events[self._seen_events :]
+        self._seen_events = len(self.current.events)
+        if not self._surveying:  # (the machine that only takes the arm home to survey says nothing)
+            self.events.extend(new)
+
+    def _fail(self, stage: Stage, reason: str) -> None:
+        if self._done:
+            return
+        self.failure = Failure(stage, reason)
+        self._done = True
+        self.events.append(Event(State.FAILED, self._now_s, f"{stage.value}: {reason}"))
+
+    def _finish(self, message: str) -> None:
+        self._done = True
+        self.events.append(Event(State.DONE, self._now_s, message))
+
+    def _surveyed(self, survey: Survey) -> None:
+        """A survey's frame came in: choose the next object, or end the round."""
+        self.surveys += 1
+        self.last_survey = survey
+        if not survey.objects:
+            self._finish(f"the table is clear: {self._placed()} object(s) put into the tray")
+            return
+        choice = self._choose(survey)
+        if choice is None:
+            n = len(survey.objects)
+            self._fail(Stage.GRASP_PLANNING, f"no grasp found for the {n} object(s) left on the table")
+            return
+        self._choice = choice
+        seen = choice.seen
+        h, wide, narrow = seen.size_m
+        q0 = self.current._command_hold().arm_q
+        attempts_left = self.max_consecutive_failures - self.consecutive_failures
+        k = len([r for r in self.picks if r.outcome == "placed"])
+        self.current = self._machine(
+            q0,
+            TargetModel(Unknown(size_cue_m=seen.size_m), color=None),
+            place_xy=self.tray.spot(k),
+            place_z_m=self.tray.rim_z + TRAY_DROP_M,
+            look_at=seen.centre,
+            max_attempts=max(attempts_left, 1),
+        )
+        self._seen_events = 0
+        self._surveying = False
+        self._pick_start_s = self._now_s
+        c = seen.centre
+        self.events.append(
+            Event(State.LOOK, self._now_s,
+                  f"{len(survey.objects)} object(s) on the table; the next: at ({c[0]:.3f}, {c[1]:.3f}), "
+                  f"{h * 1e3:.0f} mm tall, {wide * 1e3:.0f} x {narrow * 1e3:.0f} mm (grasp cost {choice.cost:.2f})",
+                  note=True)
+        )  # fmt: skip
+
+    def _choose(self, survey: Survey) -> Choice | None:
+        """The object with the best reachable top-down grasp (its cloud's, clear of the others' points)."""
+        best: Choice | None = None
+        params = self.p.grasp
+        for seen in survey.objects:
+            grasps = sample_grasps(seen.cloud, 0.0, params)
+            for g in grasps[:3]:  # the best few: the first that IK reaches
+                if best is not None and g.cost >= best.cost:
+                    break
+                if self._reachable(g.position, g.hand_yaw_rad, params):
+                    best = Choice(seen, g.cost)
+                    break
+        return best
+
+    def _reachable(self, position: np.ndarray, hand_yaw: float, params: GraspParams) -> bool:
+        for yaw in (hand_yaw, hand_yaw + np.pi):
+            for p in (position, position + np.array([0.0, 0.0, params.pregrasp_height_m])):
+                res = self.kin.solve(top_down(p, yaw), rm.HOME_Q, self.rng, self.p.goals.ik)
+                if not res.success:
+                    break
+            else:
+                return True
+        return False
+
+    def _placed(self) -> int:
+        return sum(1 for r in self.picks if r.outcome == "placed")
+
+    def _record_pick(self) -> PickRecord:
+        m, choice = self.current, self._choice
+        assert choice is not None
+        placed = m.failure is None and any(a.outcome == "placed" for a in m.attempts)
+        rec = PickRecord(
+            index=len(self.picks),
+            seen_at=tuple(float(v) for v in choice.seen.centre),  # type: ignore[arg-type]
+            seen_size_m=choice.seen.size_m,
+            grasp_cost=choice.cost,
+            attempts=tuple(m.attempts),
+            outcome="placed" if placed else "failed",
+            reason="" if m.failure is None else f"{m.failure.stage.value}: {m.failure.reason}",
+            start_s=self._pick_start_s,
+            end_s=self._now_s,
+        )
+        self.picks.append(rec)
+        if self.on_pick_end is not None:
+            self.on_pick_end(rec)
+        return rec
+
+    def _pick_ended(self, obs: Observation) -> None:
+        """The pick under way is over: count its attempts, then look at the table again (or stop)."""
+        rec = self._record_pick()
+        attempts = rec.attempts or (None,)  # a pick that never tried a grasp failed one all the same
+        for a in attempts:
+            if a is not None and a.outcome == "placed":
+                self.consecutive_failures = 0
+            else:
+                self.consecutive_failures += 1
+        if self.consecutive_failures >= self.max_consecutive_failures:
+            f = self.current.failure
+            stage = f.stage if f is not None else Stage.GRASP
+            last = rec.reason or "failed"
+            self._fail(stage, f"{self.consecutive_failures} failed attempts in a row; the last: {last}")
+            return
+        q0 = self.current._command_hold().arm_q
+        self.current = self._machine(q0, TargetModel(Unknown(), color=None))
+        self._seen_events = 0
+        self._surveying = True
+        self._survey_asked = False
+        self._choice = None
