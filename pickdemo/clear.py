@@ -38,6 +38,10 @@ from pickdemo.shapes import Unknown
 
 #: Let go of an object this far above the tray's rim (its bottom): it drops in.
 TRAY_DROP_M = 0.02
+#: After a failed pick, an object seen within this of where it was tried (m) ...
+TRIED_RADIUS_M = 0.03
+#: ... comes after the others: its grasp's cost is raised by this
+TRIED_PENALTY = 10.0
 
 
 @dataclass(frozen=True)
@@ -111,6 +115,7 @@ class ClearSequencer:
         self._survey_asked = False
         self._seen_events = 0
         self._choice: Choice | None = None
+        self._tried: list[np.ndarray] = []  # where picks failed since the last that placed an object
         self._pick_start_s = 0.0
         self._now_s = 0.0
         self.current = self._machine(q0, TargetModel(Unknown(), color=None))  # at home: surveys from there
@@ -235,15 +240,14 @@ class ClearSequencer:
         seen = choice.seen
         h, wide, narrow = seen.size_m
         q0 = self.current._command_hold().arm_q
-        attempts_left = self.max_consecutive_failures - self.consecutive_failures
         k = len([r for r in self.picks if r.outcome == "placed"])
         self.current = self._machine(
             q0,
-            TargetModel(Unknown(size_cue_m=seen.size_m), color=None),
+            TargetModel(Unknown(size_cue_m=seen.size_m, heap=True), color=None),
             place_xy=self.tray.spot(k),
             place_z_m=self.tray.rim_z + TRAY_DROP_M,
             look_at=seen.centre,
-            max_attempts=max(attempts_left, 1),
+            max_attempts=1,  # a failed attempt: the table is looked at again, and the next object chosen
         )
         self._seen_events = 0
         self._surveying = False
@@ -261,12 +265,13 @@ class ClearSequencer:
         best: Choice | None = None
         params = self.p.grasp
         for seen in survey.objects:
-            grasps = sample_grasps(seen.cloud, 0.0, params)
-            for g in grasps[:3]:  # the best few: the first that IK reaches
-                if best is not None and g.cost >= best.cost:
+            tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in self._tried)
+            for g in sample_grasps(seen.cloud, 0.0, params)[:3]:  # the best few: the first that IK reaches
+                cost = g.cost + (TRIED_PENALTY if tried else 0.0)
+                if best is not None and cost >= best.cost:
                     break
                 if self._reachable(g.position, g.hand_yaw_rad, params):
-                    best = Choice(seen, g.cost)
+                    best = Choice(seen, cost)
                     break
         return best
 
@@ -310,8 +315,11 @@ class ClearSequencer:
         for a in attempts:
             if a is not None and a.outcome == "placed":
                 self.consecutive_failures = 0
+                self._tried.clear()
             else:
                 self.consecutive_failures += 1
+        if rec.outcome != "placed":
+            self._tried.append(np.asarray(rec.seen_at[:2]))
         if self.consecutive_failures >= self.max_consecutive_failures:
             f = self.current.failure
             stage = f.stage if f is not None else Stage.GRASP

@@ -74,6 +74,9 @@ SILHOUETTE_FLOOR_M = 0.0005
 HIDDEN_SHAPE_PER_HEIGHT = (0.079, 0.054, 0.083)
 #: The footprint's ends are taken at these quantiles of its points (a stray pixel does not move them).
 FOOTPRINT_QUANTILE = 0.01
+#: In a heap, objects touching one another are told apart where the depth between neighbouring pixels
+#: steps by more than this (and than 4 sigma of the 3x3 mixture's noise of a difference)
+DEPTH_STEP_M = 0.01
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,6 +122,49 @@ def segment_objects(frame: RGBDFrame, params: PerceptionParams, pts: np.ndarray 
     labels[above] = cells[cell[:, 0], cell[:, 1]]
     areas = np.bincount(labels[above], minlength=n)[1:].astype(np.int64)
     return Clusters(labels, areas)
+
+
+def split_at_depth_steps(frame: RGBDFrame, clusters: Clusters, min_px: int) -> Clusters:
+    """The clusters split where the depth steps between neighbouring pixels (``DEPTH_STEP_M``, seen
+    through the 3x3 mixture): objects in a heap, touching one another, are seen so, one in front of
+    or on top of another. The step's own pixels join the part beside them; parts smaller than
+    ``min_px`` are left out."""
+    labels = clusters.labels
+    if not len(clusters.areas):
+        return clusters
+    depth = np.nan_to_num(np.asarray(frame.depth_m, dtype=np.float64), nan=0.0, posinf=0.0)
+    smooth = cv2.filter2D(depth, cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    noise = MIXTURE_NOISE_FRACTION * np.sqrt(frame.depth_variance(depth))
+    thr = np.maximum(DEPTH_STEP_M, 4.0 * np.sqrt(2.0) * noise)
+    step = depth <= 0.0
+    dx = np.abs(np.diff(smooth, axis=1)) > np.minimum(thr[:, 1:], thr[:, :-1])
+    dy = np.abs(np.diff(smooth, axis=0)) > np.minimum(thr[1:, :], thr[:-1, :])
+    step[:, 1:] |= dx
+    step[:, :-1] |= dx
+    step[1:, :] |= dy
+    step[:-1, :] |= dy
+    core = (labels > 0) & ~step
+    _, cc = cv2.connectedComponents(core.astype(np.uint8), connectivity=4)
+    key = np.where(core, labels.astype(np.int64) * (int(cc.max()) + 1) + cc, 0)
+    uniq, inverse = np.unique(key, return_inverse=True)
+    parts = inverse.reshape(key.shape).astype(np.int32)  # 0 stays 0 (the smallest key)
+    counts = np.bincount(parts.ravel())
+    small = counts < max(min_px // 2, 1)
+    small[0] = False
+    parts[small[parts]] = 0
+    # the steps' pixels (and the small parts') join the part beside them, within their cluster
+    todo = (labels > 0) & (parts == 0)
+    for _ in range(4):
+        if not todo.any():
+            break
+        grown = cv2.dilate(parts.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int32)
+        take = todo & (grown > 0)
+        parts[take] = grown[take]
+        todo &= ~take
+    uniq, inverse = np.unique(parts, return_inverse=True)
+    parts = inverse.reshape(parts.shape).astype(np.int32)
+    areas = np.bincount(parts.ravel())[1:].astype(np.int64)
+    return Clusters(parts, areas)
 
 
 def choose_cluster(
@@ -220,6 +266,8 @@ def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPa
     f = crop_frame(frame, x0, y0, x1, y1)
     pts = world_points(f)
     clusters = segment_objects(f, params, pts)
+    if getattr(model.geometry, "heap", False):  # objects may touch one another: apart where the depth steps
+        clusters = split_at_depth_steps(f, clusters, params.min_target_px)
     h, w = frame.rgb.shape[:2]
     centre = None if frame.roi is None else np.array([w / 2.0 - x0, h / 2.0 - y0])
     label = choose_cluster(f, clusters, model, params.min_target_px, centre_uv=centre, pts=pts)
@@ -341,14 +389,17 @@ class Survey:
     time_s: float
 
 
-def survey_objects(frame: RGBDFrame, params: PerceptionParams | None = None) -> Survey:
+def survey_objects(frame: RGBDFrame, params: PerceptionParams | None = None, *, heap: bool = True) -> Survey:
     """Every object on the table in the frame: segmentation by geometry (:func:`segment_objects`; the
-    robot and the cell's fixtures in the frame's ``robot_boxes`` left out), each cluster large enough
+    robot and the cell's fixtures in the frame's ``robot_boxes`` left out; ``heap``: objects touching
+    one another told apart where the depth steps, :func:`split_at_depth_steps`), each cluster large enough
     with its points and the other clusters' points near it as obstacles (an
     :class:`~pickdemo.perception.model.ObjectCloud`), largest first."""
     params = params or PerceptionParams()
     pts = world_points(frame)
     clusters = segment_objects(frame, params, pts)
+    if heap:
+        clusters = split_at_depth_steps(frame, clusters, params.min_target_px)
     depth = holes_as_nan(frame.depth_m)
     labelled = clusters.labels > 0
     out = []
