@@ -223,7 +223,7 @@ def _writable_dir(path: Path, flag: str) -> None:
 
 def _pick_scenario(name: str) -> Scenario:
     scenario = load_scenario(name)
-    if scenario.task != "pick":
+    if scenario.task == "perceive":
         raise UsageError(f'{name}: a perception-only scenario (task = "{scenario.task}"); use `pickdemo perceive`')
     return scenario
 
