@@ -13,7 +13,7 @@ import numpy as np
 from pickdemo import robot_model as rm
 from pickdemo.camera import look_at_pose, project, rendered_intrinsics
 from pickdemo.grasp import GraspParams, top_down
-from pickdemo.layout import LayoutError, sample_layout, sample_place
+from pickdemo.layout import LayoutError, Tray, sample_layout, sample_place, sample_round
 from pickdemo.schema import ConveyorSpec, ObjectSpec, PlaceSpec, Scenario, ScenarioError
 from pickdemo.streams import spawn_rngs
 
@@ -25,6 +25,8 @@ GRIPPER_CLEARANCE_M = GraspParams().width_margin_m
 MAX_PAYLOAD_KG = 3.0
 #: Seeds whose layouts must be possible (a range that leaves no room fails on most seeds).
 LAYOUT_SEEDS = range(3)
+#: A clear round's pile is at most this many objects deep (their footprints over its region's).
+PILE_LAYERS = 3
 #: Pixels the pick region keeps from the image's edges.
 VIEW_MARGIN_PX = 2.0
 
@@ -51,6 +53,8 @@ def check_scenario(sc: Scenario) -> None:
     _check_conveyor(sc)
     if sc.task == "pick":
         _check_pick(sc)
+    if sc.task == "clear":
+        _check_clear(sc)
     _check_camera(sc)
     _check_layout(sc)
 
@@ -310,6 +314,107 @@ def _check_layout(sc: Scenario) -> None:
             layout = sample_layout(sc, rngs["layout"], rngs["objects"])
             if sc.task == "pick":
                 sample_place(sc, layout, rngs["place"])
+            if sc.task == "clear":
+                sample_round(sc, rngs["clear"], layout)
         except LayoutError as exc:
-            hint = "widen the position ranges or lower clearance_m"
+            hint = "widen the position ranges or lower clearance_m" + (", or lower clear.count" if sc.clear else "")
             raise ScenarioError(f"layout (seed {seed}): {exc}; {hint}") from None
+
+
+def _corners(box: tuple[tuple[float, float], tuple[float, float]]) -> list[tuple[float, float]]:
+    (x0, x1), (y0, y1) = box
+    return [(x0, y0), (x0, y1), (x1, y0), (x1, y1)]
+
+
+def _check_clear(sc: Scenario) -> None:
+    """A clear round: its objects' files, its region on the table, in reach and in view, room for its
+    count, and a tray on the table, in reach, apart from the region."""
+    from pickdemo.kinematics import IKParams, panda_kinematics  # loads the URDF: only when needed
+    from pickdemo.meshes import MeshFileError, expand, read_urdf
+    from pickdemo.shapes import Mesh
+
+    spec = sc.clear
+    assert spec is not None
+    files = spec.files
+    if not files:
+        matched = expand(spec.objects_from, None)
+        if not matched:
+            raise ScenarioError(f"clear.objects_from: {spec.objects_from!r} matches no file")
+        try:
+            read_urdf(matched[0])
+        except MeshFileError as exc:
+            raise ScenarioError(f"clear.objects_from: none of its {len(matched)} matches can be read; {exc}") from None
+    table, region = sc.table, spec.region
+    for x, y in _corners(region):
+        if not table.holds(x, y):
+            raise ScenarioError(f"clear.region: its corner ({x:.3f}, {y:.3f}) m is off the table")
+        if np.hypot(x, y) < ROBOT_BASE_RADIUS_M:
+            raise ScenarioError(f"clear.region: its corner ({x:.3f}, {y:.3f}) m is inside the robot's base")
+    small = min(files, key=lambda f: Mesh(f, 1.0, read_urdf(f).vertices).footprint_radius_m)
+    r_min = Mesh(small, spec.scale_range[0], read_urdf(small).vertices * spec.scale_range[0]).footprint_radius_m
+    (tx0, tx1), (ty0, ty1) = (table.center[0] - table.size[0] / 2, table.center[0] + table.size[0] / 2), (
+        table.center[1] - table.size[1] / 2, table.center[1] + table.size[1] / 2)  # fmt: skip
+    table_area = (tx1 - tx0) * (ty1 - ty0)
+    if spec.count * np.pi * r_min**2 > table_area:
+        raise ScenarioError(
+            f"clear.count: {spec.count} objects of at least {2e3 * r_min:.0f} mm across do not fit on the table "
+            f"({table.size[0]:.2f} x {table.size[1]:.2f} m)"
+        )
+    (x0, x1), (y0, y1) = region
+    room = (x1 - x0 + 2.0 * r_min) * (y1 - y0 + 2.0 * r_min)
+    if spec.layout == "pile" and spec.count * np.pi * r_min**2 > PILE_LAYERS * room:
+        raise ScenarioError(
+            f"clear.region: a pile of {spec.count} objects of at least {2e3 * r_min:.0f} mm across cannot be laid "
+            f"out in {1e3 * (x1 - x0):.0f} x {1e3 * (y1 - y0):.0f} mm (at most {PILE_LAYERS} deep); a larger region "
+            "or fewer objects"
+        )
+    try:
+        tray = Tray.of(sc)
+    except MeshFileError as exc:
+        raise ScenarioError(f"place.tray: {exc}") from None
+    assert tray is not None
+    corners = [tray.pose.transform_points(np.array([[sx * tray.half_extents[0], sy * tray.half_extents[1], 0.0]]))[0]
+               for sx in (-1, 1) for sy in (-1, 1)]  # fmt: skip
+    for c in corners:
+        if not table.holds(float(c[0]), float(c[1])):
+            raise ScenarioError(
+                f"place.position: the tray ({2e3 * tray.half_extents[0]:.0f} x {2e3 * tray.half_extents[1]:.0f} mm) "
+                f"reaches off the table at ({c[0]:.3f}, {c[1]:.3f}) m"
+            )
+    region_mm = (np.array(_corners(region))[[0, 1, 3, 2]] * 1e3).astype(np.float32)
+    tray_mm = (np.array([c[:2] for c in corners])[[0, 1, 3, 2]] * 1e3).astype(np.float32)
+    area, _ = cv2.intersectConvexConvex(region_mm, tray_mm)
+    if area > 0.0:
+        raise ScenarioError("place.position: the tray overlaps clear.region (where the round is laid out)")
+    kin = panda_kinematics()
+    rng = np.random.default_rng(0)
+    grasp = GraspParams()
+    spots = [(f"clear.region's corner ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m) for x, y in _corners(region)]
+    spots += [(f"place.position: the tray's drop spot ({x:.2f}, {y:.2f})", x, y, tray.rim_z + 0.1)
+              for x, y in (tray.spot(k) for k in range(len(Tray.SPOTS)))]  # fmt: skip
+    for what, x, y, z in spots:
+        for dz in (0.0, grasp.pregrasp_height_m):
+            res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), rm.HOME_Q, rng, IKParams())
+            if not res.success:
+                raise ScenarioError(f"{what}: out of the arm's reach from above ({res.reason})")
+    _check_region_in_view(sc, region)
+
+
+def _check_region_in_view(sc: Scenario, region: tuple[tuple[float, float], tuple[float, float]]) -> None:
+    cam = sc.camera
+    if cam.sampled:
+        return
+    K = rendered_intrinsics(cam.width, cam.height, cam.fov_deg[0], cam.fov_deg[1])
+    T_cam_world = look_at_pose(np.array(cam.position), np.array(cam.look_at)).inverse()
+    pts = np.array([[x, y, z] for x, y in _corners(region) for z in (0.0, 0.1)])
+    p_cam = T_cam_world.transform_points(pts)
+    uv = project(p_cam, K)
+    m = VIEW_MARGIN_PX
+    inside = (p_cam[:, 2] > cam.near_m) & (uv[:, 0] >= m) & (uv[:, 0] <= K.width - 1 - m) & (uv[:, 1] >= m)
+    inside &= uv[:, 1] <= K.height - 1 - m
+    if not inside.all():
+        u, v = uv[~inside][0]
+        raise ScenarioError(
+            f"camera: clear.region is not all in the camera's view (a corner projects to pixel ({u:.0f}, {v:.0f}) "
+            f"of {K.width}x{K.height}); aim look_at at it or widen fov_deg"
+        )

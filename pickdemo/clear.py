@@ -102,7 +102,7 @@ class ClearSequencer:
         self.dt_s = dt_s
         self.rng = rng
         self.max_consecutive_failures = max_consecutive_failures
-        self.p = dataclasses.replace(params or MachineParams(), verify_place=False, drop_place=True)
+        self.p = dataclasses.replace(params or MachineParams(), verify_place=False, drop_place=True, end_at_rest=True)
         self.on_pick_end = on_pick_end
         self.events: list[Event] = []
         self.picks: list[PickRecord] = []
@@ -179,7 +179,7 @@ class ClearSequencer:
         self._take_events()
         if self._done:
             return cmd
-        if not self._surveying and self.current.finished:
+        if not self._surveying and self.current.finished and self.current.at_rest:
             self._pick_ended(obs)
         return cmd
 

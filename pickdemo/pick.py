@@ -165,6 +165,9 @@ class MachineParams:
     #: let go from the carry's height over the place (at least ``place_z_m`` up), then straight home: a
     #: drop into a tray (no lowering onto the place, no retreat from it)
     drop_place: bool = False
+    #: the machine ends with the arm at rest: a last failed attempt backs off first (straight up, the
+    #: fingers open), any other failure brakes the motion under way (a sequencer goes on from there)
+    end_at_rest: bool = False
 
     def on_a_belt(self) -> MachineParams:
         """For a cell with a conveyor: a target may move at any speed the belt runs (up to 0.5 m/s),
@@ -299,11 +302,19 @@ class PickMachine:
         self._verify_asked = False
         self._relooks = 0
         self._plan_id = 0  # counts first plans (the grasp selector's plan_id)
+        self._failing: Failure | None = None  # the last attempt failed: backing off before failing so
+        self._braked = False  # (end_at_rest) the motion under way at a failure has come to rest
+        self._braking = False
 
     # ================================================================================ interface
     @property
     def finished(self) -> bool:
         return self.state in (State.DONE, State.FAILED)
+
+    @property
+    def at_rest(self) -> bool:
+        """Finished, and the arm at rest (with ``end_at_rest`` a failure brakes it first)."""
+        return self.state is State.DONE or (self.state is State.FAILED and (self._braked or not self.p.end_at_rest))
 
     @property
     def tracker(self) -> TargetTracker:
@@ -385,24 +396,54 @@ class PickMachine:
                 break
             self._go(*nxt)
         if self.finished:
-            return self._command_hold()
+            return self._stopped()
         if self._legs and self._leg_finished:  # the next leg of the state's motion (over the top)
             self._legs.popleft()()
             if self.finished:
-                return self._command_hold()
+                return self._stopped()
         if self._joint:
             try:
                 sample = self.joints.step()
             except MotionError as exc:
                 self._fail(Stage.TRAJECTORY, str(exc))
-                return self._command_hold()
+                return self._stopped()
         else:
             sample = self.move.step()
             if sample is None:
                 self._fail(Stage.TRAJECTORY, str(self.move.failure))
-                return self._command_hold()
+                return self._stopped()
         self._sample = sample
         self.counters.retargets = self.motion.retargets + self.joints.retargets
+        q, limited = self.limiter(sample.q)
+        return Command(q, self.limiter.dq.copy() if limited else sample.dq, self.grip.target_m, self.grip.force_n)
+
+    def _stopped(self) -> Command:
+        """The command once finished: held where it is (with ``end_at_rest``, after a failure, braked first)."""
+        if self.state is State.FAILED and self.p.end_at_rest and not self._braked:
+            return self._brake()
+        return self._command_hold()
+
+    def _brake(self) -> Command:
+        """After a failure (``end_at_rest``): the motion under way brought to rest where it is, within
+        its limits; then held there."""
+        if not self._legs and self._motion_finished:
+            self._braked = True
+            return self._command_hold()
+        if not self._braking:
+            self._braking = True
+            self._legs.clear()
+            if self._joint:
+                self.joints.retarget(self.joints.q)
+            else:
+                self.motion.set_target(self.motion.setpoint)
+        try:
+            sample = self.joints.step() if self._joint else self.move.step()
+        except MotionError:
+            sample = None
+        if sample is None:
+            self._braked = True
+            return self._command_hold()
+        self._sample = sample
         q, limited = self.limiter(sample.q)
         return Command(q, self.limiter.dq.copy() if limited else sample.dq, self.grip.target_m, self.grip.force_n)
 
@@ -448,6 +489,10 @@ class PickMachine:
         """End this attempt; start the next (changed by what failed) or fail the episode."""
         self._end_attempt(outcome, reason)
         if self.attempt >= self.max_attempts:
+            if self.p.end_at_rest:  # up and open first: the machine ends with the hand clear of the table
+                self._failing = Failure(stage, f"{reason} (attempt {self.attempt} of {self.max_attempts})")
+                self._after_back_off = State.FAILED
+                return State.BACK_OFF, f"{outcome}: {reason}; no attempt left: backing off"
             self._fail(stage, f"{reason} (attempt {self.attempt} of {self.max_attempts})")
             return None
         self.attempt += 1
@@ -1247,7 +1292,7 @@ class PickMachine:
 
     # ---- BACK_OFF: open, straight up to a safe height, then look or approach again.
     def _enter_back_off(self, obs: Observation) -> None:
-        if self._after_back_off is State.LOOK:
+        if self._after_back_off in (State.LOOK, State.FAILED):
             self.grip.open()
         if self._joint:  # in free space, mid-transfer: on to home from where it is
             self.joints.retarget(rm.HOME_Q)
@@ -1270,6 +1315,10 @@ class PickMachine:
                 self.plan = plan
         if self._motion_finished:
             nxt = self._after_back_off
+            if nxt is State.FAILED and self._failing is not None:
+                self._braked = True  # (at rest already)
+                self._fail(self._failing.stage, self._failing.reason)
+                return None
             return nxt, "clear above the table: " + ("look again" if nxt is State.LOOK else "approach again")
         return None
 

@@ -41,6 +41,18 @@ max_attempts = 3
 SECOND = '\n[[objects]]\nname = "other"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.1, 0.1, 0.9]\n'
 
 
+TRAY = '[place]\ntray = "pybullet_data:tray/traybox.urdf"\ntray_scale = 0.5\nposition = [0.4, 0.4]\n'
+CLEAR = (
+    'name = "c"\ntask = "clear"\n[clear]\nlayout = "packed"\nregion = [[0.4, 0.65], [-0.2, 0.12]]\ncount = 5\n'
+    'objects_from = "pybullet_data:random_urdfs/??0/*.urdf"\nscale_range = [0.5, 0.5]\n' + TRAY
+)
+
+
+def _clear(old: str, new: str) -> str:
+    assert old in CLEAR, old
+    return CLEAR.replace(old, new, 1)
+
+
 def _edit(old: str, new: str) -> str:
     assert old in GOOD, old
     return GOOD.replace(old, new, 1)
@@ -217,7 +229,8 @@ FILE_CASES: list[tuple[str, str, str]] = [
         + "position_range = [[0.49, 0.51], [-0.01, 0.01]]\n",
         "layout (seed 0): objects.other: no free spot found",
     ),
-    ("empty file", "", "name: Field required; objects: Field required; place: Field required"),
+    ("empty file", "", "name: Field required; place: Field required"),
+    ("no objects", _edit(GOOD[GOOD.index("[[objects]]") : GOOD.index("[place]")], ""), "at least one object is needed"),
     (
         "misspelt colour and a bad mass: both said",
         _edit("color = [0.85, 0.1, 0.1]", "colour = [0.85, 0.1, 0.1]").replace("mass = 0.1", 'mass = "0.1"'),
@@ -240,6 +253,63 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "disturbances[0].at_time_s: Input should be greater than or equal to 0",
     ),
     ("invalid TOML", GOOD + "\n[[objects]\n", "invalid TOML"),
+    # ---- a clear round
+    ("clear: count 0", _clear("count = 5", "count = 0"), "clear.count: Input should be greater than or equal to 1"),
+    ("clear: count 21", _clear("count = 5", "count = 21"), "clear.count: Input should be less than or equal to 20"),
+    (
+        "clear: more than the table holds",
+        _clear("count = 5", "count = 20").replace("scale_range = [0.5, 0.5]", "scale_range = [20.0, 20.0]"),
+        "clear.count: 20 objects of at least",
+    ),
+    (
+        "clear: packed beyond its region",
+        _clear("count = 5", "count = 20"),
+        "layout (seed 0): clear.region: no room for 20 objects packed 10 mm apart",
+    ),
+    (
+        "clear: a pile that cannot be laid out",
+        _clear("count = 5", "count = 20")
+        .replace('layout = "packed"', 'layout = "pile"')
+        .replace("[[0.4, 0.65], [-0.2, 0.12]]", "[[0.5, 0.51], [0.0, 0.01]]"),
+        "clear.region: a pile of 20 objects",
+    ),
+    ("clear: an unknown layout", _clear('"packed"', '"heap"'), "clear.layout: Input should be 'pile' or 'packed'"),
+    ("clear: no [clear]", _clear("[clear]", "[other]").split("[other]")[0] + TRAY, "clear: a clear round"),
+    ("clear: no tray", _clear(TRAY, "[place]\nposition = [0.4, 0.4]\n"), "place.tray: a clear round"),
+    (
+        "clear: a tray off the table",
+        _clear("[0.4, 0.4]", "[0.4, 0.55]"),
+        "place.position: the tray (300 x 300 mm) reaches off",
+    ),
+    (
+        "clear: a tray out of reach",
+        _clear("[0.4, 0.4]", "[1.05, 0.45]").replace("tray_scale = 0.5", "tray_scale = 0.2"),
+        "the tray's drop spot (1.05, 0.45): out of the arm's reach",
+    ),
+    (
+        "clear: a tray on the region",
+        _clear("[0.4, 0.4]", "[0.5, 0.0]"),
+        "place.position: the tray overlaps clear.region",
+    ),
+    (
+        "clear: a region off the table",
+        _clear("[-0.2, 0.12]", "[-0.2, 0.72]"),
+        "clear.region: its corner (0.400, 0.720) m is off the table",
+    ),
+    (
+        "clear: no files",
+        _clear("??0/*.urdf", "zz*/*.urdf"),
+        "clear.objects_from: 'pybullet_data:random_urdfs/zz*/*.urdf' matches no file",
+    ),
+    (
+        "clear: a target",
+        _clear(
+            "[place]",
+            '[[objects]]\nname = "c"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [1.0, 0.0, 0.0]\n'
+            "position = [0.6, 0.25]\ntarget = true\n[place]",
+        ),
+        "objects: target = true is for a pick",
+    ),
 ]
 
 
@@ -258,6 +328,8 @@ def test_the_good_scenario_validates(tmp_path: Path, capsys: pytest.CaptureFixtu
     f = tmp_path / "s.toml"
     f.write_text(GOOD)
     assert main(["validate", str(f), "pick_cube"]) == 0
+    f.write_text(CLEAR)
+    assert main(["validate", str(f)]) == 0
     assert capsys.readouterr().out.splitlines() == ["ok t", "ok pick_cube"]
 
 
