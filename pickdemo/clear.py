@@ -38,6 +38,8 @@ from pickdemo.shapes import Unknown
 
 #: Let go of an object this far above the tray's rim (its bottom): it drops in.
 TRAY_DROP_M = 0.02
+#: The regions a pick looks at are this much larger than the object seen (and 2 cm)
+EXTENT_MARGIN = 1.5
 #: After a failed pick, an object seen within this of where it was tried (m) ...
 TRIED_RADIUS_M = 0.03
 #: ... comes after the others: its grasp's cost is raised by this
@@ -102,7 +104,13 @@ class ClearSequencer:
         self.dt_s = dt_s
         self.rng = rng
         self.max_consecutive_failures = max_consecutive_failures
-        self.p = dataclasses.replace(params or MachineParams(), verify_place=False, drop_place=True, end_at_rest=True)
+        self.p = dataclasses.replace(
+            params or MachineParams(),
+            verify_place=False,
+            drop_place=True,
+            end_at_rest=True,
+            retry_misses=False,
+        )
         self.on_pick_end = on_pick_end
         self.events: list[Event] = []
         self.picks: list[PickRecord] = []
@@ -243,11 +251,12 @@ class ClearSequencer:
         k = len([r for r in self.picks if r.outcome == "placed"])
         self.current = self._machine(
             q0,
-            TargetModel(Unknown(size_cue_m=seen.size_m, heap=True), color=None),
+            TargetModel(Unknown(max_extent_m=_extent(seen), size_cue_m=seen.size_m, heap=True), color=None),
             place_xy=self.tray.spot(k),
             place_z_m=self.tray.rim_z + TRAY_DROP_M,
             look_at=seen.centre,
-            max_attempts=1,  # a failed attempt: the table is looked at again, and the next object chosen
+            # a slip is tried again with more force; a miss ends the pick (the next is chosen from a new look)
+            max_attempts=max(self.max_consecutive_failures - self.consecutive_failures, 1),
         )
         self._seen_events = 0
         self._surveying = False
@@ -332,3 +341,9 @@ class ClearSequencer:
         self._surveying = True
         self._survey_asked = False
         self._choice = None
+
+
+def _extent(seen: SeenObject) -> float:
+    """A bound on the size of an object seen (m): what sizes the regions the pick looks at (tight, so
+    that its neighbours stay out of them as far as they can; at most a whole object's default)."""
+    return float(min(Unknown().max_extent_m, EXTENT_MARGIN * max(seen.size_m) + 0.02))

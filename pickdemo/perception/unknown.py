@@ -262,11 +262,15 @@ def estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPar
 
 
 def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionParams) -> PoseEstimate:
-    x0, y0, x1, y1 = object_roi(frame, model, params)
+    heap = getattr(model.geometry, "heap", False)
+    if heap and frame.roi is not None:  # a region about one object of a heap: all of it at full resolution
+        x0, y0, x1, y1 = 0, 0, frame.rgb.shape[1], frame.rgb.shape[0]  # (small objects vanish in a strided one)
+    else:
+        x0, y0, x1, y1 = object_roi(frame, model, params)
     f = crop_frame(frame, x0, y0, x1, y1)
     pts = world_points(f)
     clusters = segment_objects(f, params, pts)
-    if getattr(model.geometry, "heap", False):  # objects may touch one another: apart where the depth steps
+    if heap:  # objects may touch one another: apart where the depth steps
         clusters = split_at_depth_steps(f, clusters, params.min_target_px)
     h, w = frame.rgb.shape[:2]
     centre = None if frame.roi is None else np.array([w / 2.0 - x0, h / 2.0 - y0])
