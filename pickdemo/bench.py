@@ -351,7 +351,33 @@ def summarise(results: Iterable[EpisodeRecord]) -> dict[str, ScenarioSummary]:
             "estimates_off_fit_rejected": sum(r.get("estimates_off_fit_rejected") or 0 for r in rs),
             "failed_off_table": sum(1 for r in rs if not r["success"] and r.get("target_off_table")),
         }
+        rounds = [r["clear"] for r in rs if r.get("clear")]
+        if rounds:
+            out[name]["clear"] = clear_summary(rounds)
     return out
+
+
+def clear_summary(rounds: list[dict]) -> dict:
+    """A clear scenario's rounds together: objects cleared over objects laid out (percent cleared) and
+    successful grasps over attempts (grasp success rate), each with its Wilson 95 % interval (objects
+    and attempts counted as trials), and picks per hour of simulated time."""
+    cleared, total = sum(c["cleared"] for c in rounds), sum(c["total"] for c in rounds)
+    ok, attempts = sum(c["successful_grasps"] for c in rounds), sum(c["grasp_attempts"] for c in rounds)
+    time_s = sum(c["round_time_s"] for c in rounds)
+    return {
+        "rounds": len(rounds),
+        "objects": total,
+        "cleared": cleared,
+        "percent_cleared": 100.0 * cleared / total if total else None,
+        "percent_cleared_wilson95": [100.0 * v for v in wilson_interval(cleared, total)] if total else None,
+        "grasp_attempts": attempts,
+        "successful_grasps": ok,
+        "grasp_success_rate": ok / attempts if attempts else None,
+        "grasp_success_rate_wilson95": list(wilson_interval(ok, attempts)) if attempts else None,
+        "picks_per_hour": 3600.0 * cleared / time_s if time_s > 0 else None,
+        "seconds_per_pick": time_s / cleared if cleared else None,
+        "fully_cleared_rounds": sum(1 for c in rounds if c["cleared"] == c["total"]),
+    }
 
 
 def _seed_ranges(seeds: list[int]) -> str:
@@ -388,7 +414,7 @@ def format_summary(summary: dict[str, ScenarioSummary]) -> str:
                 med, p95, mx = st["median"], st["p95"], st["max"]
                 lines.append(f"  {label}: median {med:.3f} {unit}, p95 {p95:.3f}, max {mx:.3f} (n={st['n']})")
         att = s["attempts_per_episode"]
-        if att:
+        if att and not s.get("clear"):
             lines.append(
                 f"  first attempt: {s['first_attempt_successes']}/{s['episodes']}; attempts per episode: "
                 f"mean {att['mean']:.2f}, max {att['max']:.0f}"
@@ -408,6 +434,20 @@ def format_summary(summary: dict[str, ScenarioSummary]) -> str:
             )
         if s.get("failed_off_table"):
             lines.append(f"  failed episodes that left the target off the table: {s['failed_off_table']}")
+        c = s.get("clear")
+        if c and c["objects"]:
+            clo, chi = c["percent_cleared_wilson95"]
+            lines.append(
+                f"  cleared {c['cleared']}/{c['objects']} objects ({c['percent_cleared']:.1f} %, Wilson 95 % "
+                f"[{clo:.1f}, {chi:.1f}]); {c['fully_cleared_rounds']}/{c['rounds']} rounds cleared whole"
+            )
+            if c["grasp_attempts"]:
+                glo, ghi = c["grasp_success_rate_wilson95"]
+                lines.append(
+                    f"  grasps: {c['successful_grasps']}/{c['grasp_attempts']} succeeded "
+                    f"({100 * c['grasp_success_rate']:.1f} %, Wilson 95 % [{100 * glo:.1f}, {100 * ghi:.1f}]); "
+                    f"{c['picks_per_hour']:.0f} picks per simulated hour ({c['seconds_per_pick']:.2f} s a pick)"
+                )
         wt, rtf = s["wall_time_s"], s["real_time_factor"]
         rtf_text = f"{rtf:.1f}x" if rtf is not None else "n/a"
         tick = s["control_tick_wall_ms"]

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from pickdemo import robot_model as rm
-from pickdemo.belief import Verdict
+from pickdemo.belief import Counters, Verdict
 from pickdemo.grasp import GraspParams, top_down
 from pickdemo.grasp_cloud import sample_grasps
 from pickdemo.interfaces import Command, Observation
@@ -38,6 +38,9 @@ from pickdemo.shapes import Unknown
 
 #: Let go of an object this far above the tray's rim (its bottom): it drops in.
 TRAY_DROP_M = 0.02
+#: A clear round's objects rest on the table: the tracker's prior on their speed and turn rate
+STILL_SPEED_SIGMA_M_S = 0.002
+STILL_YAW_RATE_SIGMA_RAD_S = 0.01
 #: The regions a pick looks at are this much larger than the object seen (and 2 cm)
 EXTENT_MARGIN = 1.5
 #: After a failed pick, an object seen within this of where it was tried (m) ...
@@ -104,12 +107,16 @@ class ClearSequencer:
         self.dt_s = dt_s
         self.rng = rng
         self.max_consecutive_failures = max_consecutive_failures
+        p = params or MachineParams()
+        # The round's objects rest on the table (no belt): tracked as standing still (a push is a jump).
+        still = dataclasses.replace(p.tracker, initial_speed_sigma_m_s=STILL_SPEED_SIGMA_M_S,
+                                    initial_yaw_rate_sigma_rad_s=STILL_YAW_RATE_SIGMA_RAD_S)  # fmt: skip
         self.p = dataclasses.replace(
-            params or MachineParams(),
+            p,
+            tracker=still,
             verify_place=False,
             drop_place=True,
             end_at_rest=True,
-            retry_misses=False,
         )
         self.on_pick_end = on_pick_end
         self.events: list[Event] = []
@@ -123,6 +130,7 @@ class ClearSequencer:
         self._survey_asked = False
         self._seen_events = 0
         self._choice: Choice | None = None
+        self._counted: list[Counters] = []  # the finished picks' counters
         self._tried: list[np.ndarray] = []  # where picks failed since the last that placed an object
         self._pick_start_s = 0.0
         self._now_s = 0.0
@@ -144,6 +152,16 @@ class ClearSequencer:
     def model(self) -> TargetModel:
         """The target model of the pick under way (what perception looks for)."""
         return self.current.model
+
+    @property
+    def counters(self) -> Counters:
+        """What every pick of the round counted of perception and motion, summed."""
+        out = Counters()
+        for c in [*self._counted, *([] if self._surveying or self._done else [self.current.counters])]:
+            for f in ("estimates", "rejected", "perception_errors", "jumps", "retargets"):
+                setattr(out, f, getattr(out, f) + getattr(c, f))
+            out.last_error = c.last_error or out.last_error
+        return out
 
     @property
     def attempts(self) -> list[AttemptRecord]:
@@ -255,8 +273,8 @@ class ClearSequencer:
             place_xy=self.tray.spot(k),
             place_z_m=self.tray.rim_z + TRAY_DROP_M,
             look_at=seen.centre,
-            # a slip is tried again with more force; a miss ends the pick (the next is chosen from a new look)
-            max_attempts=max(self.max_consecutive_failures - self.consecutive_failures, 1),
+            # a failed attempt ends the pick: the next is chosen from a new look, another object first
+            max_attempts=1,
         )
         self._seen_events = 0
         self._surveying = False
@@ -300,6 +318,7 @@ class ClearSequencer:
     def _record_pick(self) -> PickRecord:
         m, choice = self.current, self._choice
         assert choice is not None
+        self._counted.append(m.counters)
         placed = m.failure is None and any(a.outcome == "placed" for a in m.attempts)
         rec = PickRecord(
             index=len(self.picks),

@@ -189,6 +189,15 @@ def summary_line(result: EpisodeResult, yaw_modulus: float | None = None) -> str
         )
     if result.place_error_mm is not None:
         parts.append(f"place error {result.place_error_mm:.1f} mm")
+    c = result.clear
+    if c is not None:
+        rate = c["grasp_success_rate"]
+        parts.append(
+            f"cleared {c['cleared']}/{c['total']} ({c['percent_cleared']:.0f} %), "
+            f"grasps {c['successful_grasps']}/{c['grasp_attempts']}"
+            + (f" ({100 * rate:.0f} %)" if rate is not None else "")
+            + f", {c['picks_per_hour']:.0f} picks/h"
+        )
     if result.attempts:
         parts.append(f"{len(result.attempts)} attempt(s)")
     parts.append(f"{result.perception_frames} frames")

@@ -168,8 +168,6 @@ class MachineParams:
     #: the machine ends with the arm at rest: a last failed attempt backs off first (straight up, the
     #: fingers open), any other failure brakes the motion under way (a sequencer goes on from there)
     end_at_rest: bool = False
-    #: a miss (nothing held) is tried again (off: the pick ends; a sequencer chooses again, from a new look)
-    retry_misses: bool = True
 
     def on_a_belt(self) -> MachineParams:
         """For a cell with a conveyor: a target may move at any speed the belt runs (up to 0.5 m/s),
@@ -490,7 +488,7 @@ class PickMachine:
     def _retry(self, stage: Stage, outcome: str, reason: str) -> Transition:
         """End this attempt; start the next (changed by what failed) or fail the episode."""
         self._end_attempt(outcome, reason)
-        if self.attempt >= self.max_attempts or (outcome == "missed" and not self.p.retry_misses):
+        if self.attempt >= self.max_attempts:
             if self.p.end_at_rest:  # up and open first: the machine ends with the hand clear of the table
                 self._failing = Failure(stage, f"{reason} (attempt {self.attempt} of {self.max_attempts})")
                 self._after_back_off = State.FAILED

@@ -261,6 +261,17 @@ def _cell(st: dict | None, fmt: str = ".2f") -> str:
     return f"{st['median']:{fmt}} ({st['p95']:{fmt}})"
 
 
+def _cleared_cell(c: dict | None) -> str:
+    """A clear scenario's percent cleared (Wilson 95 %), grasp success rate and picks per hour."""
+    if not c or not c["objects"]:
+        return "-"
+    lo, hi = c["percent_cleared_wilson95"]
+    text = f"{c['cleared']}/{c['objects']} ({c['percent_cleared']:.1f} %, {lo:.1f} - {hi:.1f} %)"
+    if c["grasp_success_rate"] is not None:
+        text += f"; grasps {100 * c['grasp_success_rate']:.1f} %; {c['picks_per_hour']:.0f} picks/h"
+    return html.escape(text)
+
+
 def bench_table(summary: dict[str, ScenarioSummary], results: list[EpisodeRecord] | None = None) -> str:
     """The bench's per-scenario table (HTML): episodes, success with its Wilson 95 % interval,
     failures by stage, the pose, yaw, tracking and place errors and the wall time (median and p95),
@@ -270,7 +281,7 @@ def bench_table(summary: dict[str, ScenarioSummary], results: list[EpisodeRecord
         over[summary_name(r)] = over.get(summary_name(r), 0) + bool(r.get("limit_exceedances"))
     head = ["scenario", "episodes", "success", "Wilson 95 %", "failures by stage", "pose error [mm]",
             "yaw error [deg]", "tracking error at the grasp [mm]", "place error [mm]", "wall time per episode [s]",
-            "over joint limits"]  # fmt: skip
+            "over joint limits", "cleared (clear rounds)"]  # fmt: skip
     rows = []
     for name, s in summary.items():
         lo, hi = s["success_rate_wilson95"]
@@ -290,6 +301,7 @@ def bench_table(summary: dict[str, ScenarioSummary], results: list[EpisodeRecord
             _cell(s.get("place_error_mm")),
             _cell(s.get("wall_time_s")),
             "-" if results is None else str(over.get(name, 0)),
+            _cleared_cell(s.get("clear")),
         ]
         rows.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
     heading = "<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"
@@ -305,6 +317,25 @@ def attempt_reason(attempt, phases) -> str:
         return attempt.reason
     said = [p.message for p in phases if abs(p.sim_time_s - attempt.end_s) < 1e-5 and p.message]
     return said[0] if said else attempt.outcome
+
+
+def _clear_rows(c: dict | None) -> list[tuple[str, object]]:
+    """A clear round's figures and each object's fate, as rows of the run report."""
+    if c is None:
+        return []
+    rate = c["grasp_success_rate"]
+    rows: list[tuple[str, object]] = [
+        ("cleared", f"{c['cleared']}/{c['total']} ({c['percent_cleared']:.0f} %)"),
+        (
+            "grasps",
+            f"{c['successful_grasps']}/{c['grasp_attempts']}" + ("" if rate is None else f" ({100 * rate:.0f} %)"),
+        ),
+        ("picks per hour (simulated)", f"{c['picks_per_hour']:.0f} ({c['round_time_s']:.1f} s in all)"),
+    ]
+    for o in c["objects"]:
+        at = "" if o["cleared_at_s"] is None else f" at {o['cleared_at_s']:.1f} s"
+        rows.append((o["name"], f"{o['urdf']} x {o['scale']:g}: {o['outcome']}{at}, {o['attempts']} attempt(s)"))
+    return rows
 
 
 def write_run_report(result: EpisodeResult, out_dir: Path, *, video: Path | None, images: list[Path]) -> Path:
@@ -323,6 +354,7 @@ def write_run_report(result: EpisodeResult, out_dir: Path, *, video: Path | None
         ("tracking error at the grasp", "-" if r.tracking_error_mm is None else f"{r.tracking_error_mm:.3f} mm"),
         ("place error", "-" if r.place_error_mm is None else f"{r.place_error_mm:.2f} mm"),
         ("attempts", len(r.attempts)),
+        *_clear_rows(r.clear),
         (
             "perception",
             f"{r.perception_frames} frames, {r.perception_rate_hz or 0:.1f} Hz while tracking, "
