@@ -80,7 +80,7 @@ def _check_mesh_files(sc: Scenario) -> None:
                 read_urdf(matched[0])
             except MeshFileError as exc:
                 raise ScenarioError(f"{key}: none of its {len(matched)} matches can be read; {exc}") from None
-        if obj.target and sc.task == "pick":
+        if (obj.target and sc.task == "pick") or sc.task == "clear":
             _check_mesh_holdable(obj, f"objects.{obj.name}", 2.0 * rm.FINGER_MAX_M - GRIPPER_CLEARANCE_M)
 
 
@@ -226,7 +226,7 @@ def _check_camera(sc: Scenario) -> None:
     K = rendered_intrinsics(cam.width, cam.height, cam.fov_deg[0], cam.fov_deg[1])
     T_cam_world = look_at_pose(np.array(cam.position), np.array(cam.look_at)).inverse()
     for obj in sc.objects:
-        if not obj.target:
+        if not (obj.target or sc.task == "clear"):  # (a clear round picks every object it lists)
             continue
         shape = obj.largest_shape
         h, r = shape.height_m, shape.footprint_radius_m
@@ -386,10 +386,24 @@ def _check_clear(sc: Scenario) -> None:
     area, _ = cv2.intersectConvexConvex(region_mm, tray_mm)
     if area > 0.0:
         raise ScenarioError("place.position: the tray overlaps clear.region (where the round is laid out)")
+    for obj in sc.objects:  # the listed objects join the round: each must be one the robot can pick
+        key, shape = f"objects.{obj.name}", obj.largest_shape
+        area, _ = cv2.intersectConvexConvex(_grown_mm(_region_mm(obj), shape.footprint_radius_m * 1e3), tray_mm)
+        if area > 0.0:
+            raise ScenarioError(f"{key}: where it may stand reaches under the tray (place.position)")
+        if obj.shape != "mesh" and shape.grasp_width_m > 2.0 * rm.FINGER_MAX_M - GRIPPER_CLEARANCE_M:
+            raise ScenarioError(
+                f"{key}.size: its narrower side is {shape.grasp_width_m * 1e3:.0f} mm; the gripper opens to "
+                f"{2e3 * rm.FINGER_MAX_M:.0f} mm and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance"
+            )
+        if obj.mass > MAX_PAYLOAD_KG:
+            raise ScenarioError(f"{key}.mass: {obj.mass} kg is more than the Panda carries ({MAX_PAYLOAD_KG} kg)")
     kin = panda_kinematics()
     rng = np.random.default_rng(0)
     grasp = GraspParams()
     spots = [(f"clear.region's corner ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m) for x, y in _corners(region)]
+    spots += [(f"objects.{o.name} at ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m)
+              for o in sc.objects for x, y in _region(o)]  # fmt: skip
     spots += [(f"place.position: the tray's drop spot ({x:.2f}, {y:.2f})", x, y, tray.rim_z + 0.1)
               for x, y in (tray.spot(k) for k in range(len(Tray.SPOTS)))]  # fmt: skip
     for what, x, y, z in spots:

@@ -21,10 +21,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
 from pickdemo import robot_model as rm
 from pickdemo.belief import Counters, Verdict
+from pickdemo.camera import project
 from pickdemo.grasp import GraspParams, top_down
 from pickdemo.grasp_cloud import sample_grasps
 from pickdemo.interfaces import Command, Observation
@@ -34,6 +36,7 @@ from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.pick import CameraModel, Event, FrameRequest, MachineParams, PickMachine, State
 from pickdemo.result import AttemptRecord, Failure, Stage
+from pickdemo.robot_geometry import robot_body
 from pickdemo.shapes import Unknown
 
 #: Let go of an object this far above the tray's rim (its bottom): it drops in.
@@ -43,6 +46,9 @@ STILL_SPEED_SIGMA_M_S = 0.002
 STILL_YAW_RATE_SIGMA_RAD_S = 0.01
 #: The regions a pick looks at are this much larger than the object seen (and 2 cm)
 EXTENT_MARGIN = 1.5
+#: The arm's links' boxes, padded by this (m), must project clear of what is on the table for the camera to
+#: look at it with the arm where it let go of an object (else it goes home first)
+ARM_VIEW_PAD_M = 0.03
 #: After a failed pick, an object seen within this of where it was tried (m) ...
 TRIED_RADIUS_M = 0.03
 #: ... comes after the others: its grasp's cost is raised by this
@@ -116,6 +122,7 @@ class ClearSequencer:
             tracker=still,
             verify_place=False,
             drop_place=True,
+            home_after_place=False,
             end_at_rest=True,
         )
         self.on_pick_end = on_pick_end
@@ -131,6 +138,7 @@ class ClearSequencer:
         self._seen_events = 0
         self._choice: Choice | None = None
         self._counted: list[Counters] = []  # the finished picks' counters
+        self._homed = True  # the arm went home for the survey under way (else it looks from where it let go)
         self._tried: list[np.ndarray] = []  # where picks failed since the last that placed an object
         self._pick_start_s = 0.0
         self._now_s = 0.0
@@ -273,6 +281,7 @@ class ClearSequencer:
             place_xy=self.tray.spot(k),
             place_z_m=self.tray.rim_z + TRAY_DROP_M,
             look_at=seen.centre,
+            look_from_here=not self._homed,
             # a failed attempt ends the pick: the next is chosen from a new look, another object first
             max_attempts=1,
         )
@@ -355,11 +364,32 @@ class ClearSequencer:
             self._fail(stage, f"{self.consecutive_failures} failed attempts in a row; the last: {last}")
             return
         q0 = self.current._command_hold().arm_q
-        self.current = self._machine(q0, TargetModel(Unknown(), color=None))
-        self._seen_events = 0
+        self._homed = self._arm_hides(q0)
+        if self._homed:  # home first (a machine that only takes the arm home), then look
+            self.current = self._machine(q0, TargetModel(Unknown(), color=None))
+            self._seen_events = 0
+        # (else the finished pick holds the arm, at rest where it let go, while the camera looks)
         self._surveying = True
         self._survey_asked = False
         self._choice = None
+
+    def _arm_hides(self, q: np.ndarray) -> bool:
+        """Whether the arm, at ``q`` with its fingers open, may hide from the camera any of what the last
+        survey saw on the table (its links' boxes projected over those points): then it looks from home."""
+        if self.last_survey is None or not self.last_survey.objects:
+            return True
+        K, T_cam_world = self.camera.intrinsics, self.camera.T_world_cam.inverse()
+        pts = np.vstack([o.cloud.points[:: max(1, len(o.cloud.points) // 200)] for o in self.last_survey.objects])
+        p_cam = T_cam_world.transform_points(pts)
+        uv = project(p_cam[p_cam[:, 2] > 1e-3], K).astype(np.float32)
+        for box in robot_body().boxes(q, np.full(2, rm.FINGER_MAX_M), pad_m=ARM_VIEW_PAD_M):
+            c = T_cam_world.transform_points(box.corners())
+            if np.any(c[:, 2] <= 1e-3):
+                return True  # a link beside or behind the camera: home, to be sure
+            hull = cv2.convexHull(project(c, K).astype(np.float32))
+            if any(cv2.pointPolygonTest(hull, (float(u), float(v)), False) >= 0 for u, v in uv):
+                return True
+        return False
 
 
 def _extent(seen: SeenObject) -> float:

@@ -165,6 +165,8 @@ class MachineParams:
     #: let go from the carry's height over the place (at least ``place_z_m`` up), then straight home: a
     #: drop into a tray (no lowering onto the place, no retreat from it)
     drop_place: bool = False
+    #: after the place, home (off: done where it let go, at rest; a sequencer goes on from there)
+    home_after_place: bool = True
     #: the machine ends with the arm at rest: a last failed attempt backs off first (straight up, the
     #: fingers open), any other failure brakes the motion under way (a sequencer goes on from there)
     end_at_rest: bool = False
@@ -227,6 +229,7 @@ class PickMachine:
         selector: GraspSelector | None = None,
         place_z_m: float = 0.0,
         look_at: np.ndarray | None = None,
+        look_from_here: bool = False,
     ) -> None:
         """``surface_z(x, y)``: the height of what a target at (x, y) rests on, as the cell's layout
         says (a belt's top, or the table at 0). ``selector``: where grasps come from (default: a
@@ -234,9 +237,11 @@ class PickMachine:
         the camera sees put down farther than this from the place position is picked up again (within
         ``max_attempts``). ``place_z_m``: the height above the table the target's bottom is let go at
         (a tray's rim: it drops in). ``look_at``: where the target was seen last (a survey of the table
-        chose it among others): the first look is at a region around it."""
+        chose it among others): the first look is at a region around it; ``look_from_here``: from where
+        the arm is (it hides nothing of the table from the camera), not from home."""
         self.p = params or MachineParams()
         self.look_at = None if look_at is None else np.asarray(look_at, dtype=float)
+        self._look_here = look_from_here
         self.kin = kin
         self.model = model
         self.symmetry = symmetry_rad
@@ -988,6 +993,9 @@ class PickMachine:
         self._weighed_force_n = 0.0
         self._look_frames = 0
         self._fresh_estimate = False
+        if self._look_here:  # the first look, from where the arm is (at rest)
+            self._look_here = False
+            return
         if self.p.joint_transfers:
             if not self._transfer_over_the_top(rm.HOME_Q, self.p.transfer_scale, self.p.free, rise=True):
                 self._transfer_to(rm.HOME_Q, self.p.transfer_scale)
@@ -1239,7 +1247,8 @@ class PickMachine:
             self._end_attempt("placed", "")
             p = self.plan.place.position
             if self.p.drop_place:  # (let go from above: nothing to back away from)
-                return State.HOME, f"dropped at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})"
+                nxt = State.HOME if self.p.home_after_place else State.DONE
+                return nxt, f"dropped at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})"
             return State.RETREAT, f"released at ({p[0]:.3f}, {p[1]:.3f})"
         return None
 
