@@ -338,7 +338,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         rerun_path=str(args.rerun) if args.rerun is not None else None,
     )
     result = run_episode(scenario, args.seed, options=options, on_phase=on_phase)
-    print(summary_line(result, yaw_modulus_deg(scenario.target)), flush=True)
+    modulus = yaw_modulus_deg(scenario.target) if scenario.task == "pick" else None
+    print(summary_line(result, modulus), flush=True)
     if args.out is not None:
         path = _save_result(result, args.out)
         written = [path] + _run_pictures(result, args.out, video=args.video)

@@ -306,6 +306,18 @@ class Episode:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    @property
+    def truth_name(self) -> str:
+        """The object the viewers label with its true pose: the target, or in a clear round the object
+        nearest where the pick under way looks (truth: for viewers only, never for control)."""
+        if self.target_name or self.world is None:
+            return self.target_name
+        at = getattr(self.machine, "look_at", None) if self.machine is not None else None
+        names = [p.name for p in self.world.layout]
+        if at is None:
+            return names[0]
+        return min(names, key=lambda n: float(np.linalg.norm(self.world.true_pose(n).position[:2] - at[:2])))
+
     # =================================================================================== build
     def _build(self) -> None:
         from pickdemo.sim.controller import RobotInterface  # simulator side, imported late

@@ -154,10 +154,11 @@ class _OverlayObserver(Observer):
             path = tp.position + np.linspace(0.0, 1.0, 11)[:, None] * tp.velocity
         plan = m.plan
         return Overlay(
-            caption=f"{m.state.value}  |  t = {now:5.2f} s  |  attempt {m.attempt}"
+            caption=f"{m.state.value}  |  t = {now:5.2f} s  |  "
+            + (f"pick {len(m.picks) + 1}" if ep.scenario.task == "clear" else f"attempt {m.attempt}")
             + ("  |  open loop" if ep.options.open_loop else ""),
             estimate=self.last_estimate if fresh else None,
-            truth=ep.world.true_pose(ep.target_name),  # a label for the viewer
+            truth=ep.world.true_pose(ep.truth_name),  # a label for the viewer
             tracked=tracked,
             tracked_path=path,
             grasp=None if plan is None or m.state.value not in GRASP_STATES else plan.grasp,

@@ -29,7 +29,7 @@ import numpy as np
 from pickdemo.camera import RGBDFrame
 from pickdemo.observers import Observer
 from pickdemo.perception import PerceptionError, PoseEstimate
-from pickdemo.shapes import Box
+from pickdemo.shapes import Box, Cylinder
 
 if TYPE_CHECKING:
     from pickdemo.episode import Episode
@@ -95,13 +95,15 @@ class RerunRecorder(Observer):
         self.commands: list[tuple[float, np.ndarray]] = []
         self.tracked: list[tuple[float, Pose]] = []
         model = ep.model
-        if isinstance(model.geometry, Box):
-            shape = rr.Boxes3D(half_sizes=[np.asarray(model.geometry.size_m, dtype=float) / 2.0])
-        else:
-            shape = rr.Cylinders3D(lengths=[model.geometry.height_m], radii=[model.geometry.diameter_m / 2.0])
+        g = model.geometry
+        shapes: tuple = ()  # an object nobody described: its axes only (its shape is what the camera sees)
+        if isinstance(g, Box):
+            shapes = (rr.Boxes3D(half_sizes=[np.asarray(g.size_m, dtype=float) / 2.0]),)
+        elif isinstance(g, Cylinder):
+            shapes = (rr.Cylinders3D(lengths=[g.height_m], radii=[g.diameter_m / 2.0]),)
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         for entity in ("world/truth", "world/tracker", "world/estimate", "world/estimate/rejected"):
-            self.rec.log(entity, shape, rr.TransformAxes3D(0.05), static=True)
+            self.rec.log(entity, *shapes, rr.TransformAxes3D(0.05), static=True)
         self.rec.log("world/camera", rr.TransformAxes3D(0.05), static=True)
         place = [*ep.world.place_xy, 0.0]
         self.rec.log("world/place", rr.Points3D([place], radii=0.01, labels=["place"]), static=True)
@@ -120,7 +122,7 @@ class RerunRecorder(Observer):
         m = ep.machine
         self.ticks.append(now)
         self.tcp.append(np.array(ep.world.scene.true_tcp_pose().position, dtype=float))
-        self.truth.append(ep.world.true_pose(ep.target_name))  # for the viewer only
+        self.truth.append(ep.world.true_pose(ep.truth_name))  # for the viewer only
         if m.last_sample is not None:
             self.setpoints.append((now, np.array(m.last_sample.setpoint, dtype=float)))
         if ep.counts.commanded:  # this tick's joint command
@@ -145,8 +147,8 @@ class RerunRecorder(Observer):
         self.rec.log("world/camera/image/rgb", rr.Image(np.ascontiguousarray(frame.rgb)))
         depth = np.where(np.isfinite(frame.depth_m), frame.depth_m, 0.0).astype(np.float32)  # 0: no return
         self.rec.log("world/camera/image/depth", rr.DepthImage(depth, meter=1.0))
-        self.rec.log("world/target/points", rr.Points3D(_target_points(ep, frame), radii=0.001))
-        estimate = result if isinstance(result, PoseEstimate) else result.estimate
+        self.rec.log("world/target/points", rr.Points3D(_target_points(ep, frame, result), radii=0.001))
+        estimate = result if isinstance(result, PoseEstimate) else getattr(result, "estimate", None)
         if estimate is None:
             self.rec.log("world/target/features", rr.Clear(recursive=False))
             return
@@ -217,13 +219,24 @@ class RerunRecorder(Observer):
         poses("world/tracker", self.tracked)
 
 
-def _target_points(ep: Episode, frame: RGBDFrame) -> np.ndarray:
-    """The target's pixels in 3-D, as perception's segmentation finds them (none: an empty set)."""
+def _target_points(ep: Episode, frame: RGBDFrame, result: object = None) -> np.ndarray:
+    """The target's pixels in 3-D, as perception's segmentation finds them (none: an empty set); of an
+    object nobody described, its cloud; of a clear round's survey, every object's."""
     from pickdemo.perception import PerceptionError
     from pickdemo.perception.segmentation import segment_target, world_heights, world_points
+    from pickdemo.perception.unknown import Survey
 
+    none = np.zeros((0, 3))
+    if isinstance(result, Survey):
+        return np.vstack([o.cloud.points for o in result.objects]) if result.objects else none
+    estimate = result if isinstance(result, PoseEstimate) else getattr(result, "estimate", None)
+    if estimate is not None and estimate.cloud is not None:
+        return estimate.cloud.points
+    model = ep.machine.model if ep.machine is not None else ep.model
+    if model.color is None:
+        return none
     try:
-        mask = segment_target(frame, ep.model, ep.options.perception, world_heights(frame))
+        mask = segment_target(frame, model, ep.options.perception, world_heights(frame))
     except PerceptionError:
         return np.zeros((0, 3))
     pts = world_points(frame)[mask]

@@ -258,7 +258,7 @@ FILE_CASES: list[tuple[str, str, str]] = [
     ("clear: count 21", _clear("count = 5", "count = 21"), "clear.count: Input should be less than or equal to 20"),
     (
         "clear: more than the table holds",
-        _clear("count = 5", "count = 20").replace("scale_range = [0.5, 0.5]", "scale_range = [20.0, 20.0]"),
+        _clear("count = 5", "count = 20").replace("scale_range = [0.5, 0.5]", "scale_range = [40.0, 40.0]"),
         "clear.count: 20 objects of at least",
     ),
     (
@@ -328,9 +328,10 @@ def test_the_good_scenario_validates(tmp_path: Path, capsys: pytest.CaptureFixtu
     f = tmp_path / "s.toml"
     f.write_text(GOOD)
     assert main(["validate", str(f), "pick_cube"]) == 0
+    assert capsys.readouterr().out.splitlines() == ["ok t", "ok pick_cube"]
     f.write_text(CLEAR)
     assert main(["validate", str(f)]) == 0
-    assert capsys.readouterr().out.splitlines() == ["ok t", "ok pick_cube"]
+    assert capsys.readouterr().out.splitlines() == ["ok c"]
 
 
 def _bytes_case(tmp_path: Path, name: str, data: bytes) -> Path:
