@@ -514,6 +514,8 @@ class Episode:
                 scene.step()
         if machine.state in CARRY_STATES:  # truth: how high it was carried, for scoring
             self.referee.carried()
+        if isinstance(self.referee, ClearReferee):  # truth: what came into the tray, when
+            self.referee.watch()
         self.tick += 1
         return True
 

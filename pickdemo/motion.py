@@ -23,7 +23,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from ruckig import InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization, Trajectory
+from ruckig import (
+    ControlInterface,
+    InputParameter,
+    OutputParameter,
+    Result,
+    Ruckig,
+    RuckigError,
+    Synchronization,
+    Trajectory,
+)
 
 from pickdemo import robot_model as rm
 from pickdemo.geometry import Pose
@@ -378,6 +387,18 @@ class JointMotion:
         self._inp.current_velocity = [0.0] * 7
         self._inp.current_acceleration = [0.0] * 7
         self._write(q_goal, scale)
+        self._finished = False
+
+    def brake(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> None:
+        """From the arm's state (``q``, ``dq``, ``ddq``: the commands sent) to rest, as soon as the
+        datasheet's share allows (Ruckig's velocity interface: wherever it comes to rest)."""
+        self.q = np.asarray(q, dtype=float).copy()
+        self._inp.current_position = self.q.tolist()
+        self._inp.current_velocity = np.asarray(dq, dtype=float).tolist()
+        self._inp.current_acceleration = np.asarray(ddq, dtype=float).tolist()
+        self._write(self.q, 1.0)
+        self._inp.control_interface = ControlInterface.Velocity
+        self._inp.target_acceleration = [0.0] * 7
         self._finished = False
 
     def retarget(self, q_goal: np.ndarray) -> None:

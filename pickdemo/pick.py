@@ -429,24 +429,23 @@ class PickMachine:
         return self._command_hold()
 
     def _brake(self) -> Command:
-        """After a failure (``end_at_rest``): the motion under way brought to rest where it is, within
-        its limits; then held there."""
-        if not self._legs and self._motion_finished:
-            self._braked = True
-            return self._command_hold()
+        """After a failure (``end_at_rest``): the joints brought to rest from the commands last sent
+        (whatever motion was under way, even one that failed), within their limits; then held there."""
         if not self._braking:
             self._braking = True
             self._legs.clear()
-            if self._joint:
-                self.joints.retarget(self.joints.q)
-            else:
-                self.motion.set_target(self.motion.setpoint)
+            if not np.any(self.limiter.dq) and not np.any(self.limiter.ddq):  # at rest already
+                self._braked = True
+                return self._command_hold()
+            self.joints.brake(self.limiter.q, self.limiter.dq, self.limiter.ddq)
+            self._joint = True
         try:
-            sample = self.joints.step() if self._joint else self.move.step()
+            sample = self.joints.step()
         except MotionError:
             sample = None
-        if sample is None:
+        if sample is None or sample.finished:
             self._braked = True
+        if sample is None:
             return self._command_hold()
         self._sample = sample
         q, limited = self.limiter(sample.q)

@@ -8,7 +8,7 @@ the grasp, how high the target was carried, where it ended, and whether the pick
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -155,9 +155,10 @@ class ClearReferee:
     world: World
     in_round: list[str] | None = None
     off_table_at_start: list[str] | None = None
-    cleared_by: dict[str, tuple[int, float]] | None = None  # name -> (pick, simulated time)
+    entered: dict[str, float] | None = None  # name -> when it came to lie in the tray (watched every tick)
     tried: dict[str, int] | None = None  # name -> grasp attempts at it
     start_s: float = 0.0
+    picks: list = field(default_factory=list)  # the picks' records, as they ended
     perception = None
     place_error_mm = None
     tracking_error_mm = None
@@ -181,27 +182,45 @@ class ClearReferee:
         names = [p.name for p in self.world.layout]
         self.in_round = [n for n in names if self._on_table(n) and not self.in_tray(n)]
         self.off_table_at_start = [n for n in names if n not in self.in_round]
-        self.cleared_by = {}
         self.tried = {}
+        self.entered = {}
         self.start_s = self.world.sim_time_s
 
-    def pick_ended(self, record) -> None:  # noqa: ANN001 - a pickdemo.clear.PickRecord
-        """A pick is over: the objects now in the tray were cleared by it; its attempts were at the
-        object nearest where the survey saw the one chosen (or at the one it cleared)."""
-        assert self.in_round is not None and self.cleared_by is not None and self.tried is not None
+    def watch(self) -> None:
+        """A tick: an object that has come into the tray (and stays there) since the last."""
+        assert self.in_round is not None and self.entered is not None
         now = self.world.sim_time_s
-        new = [n for n in self.in_round if n not in self.cleared_by and self.in_tray(n)]
-        for n in new:
-            self.cleared_by[n] = (record.index, now)
-        left = [n for n in self.in_round if n not in self.cleared_by]
-        if new:
-            at = new[0]
-        elif left:
+        for n in self.in_round:
+            if self.in_tray(n):
+                self.entered.setdefault(n, now)
+            else:
+                self.entered.pop(n, None)  # (bounced out again)
+
+    def pick_ended(self, record) -> None:  # noqa: ANN001 - a pickdemo.clear.PickRecord
+        """A pick is over. One that let go over the tray is credited with the object that comes into
+        the tray after it let go (:meth:`clear_score`); a failed one's attempts were at the object
+        nearest where the survey saw the one chosen."""
+        assert self.in_round is not None and self.tried is not None and self.entered is not None
+        self.picks.append(record)
+        if record.outcome == "placed":
+            return
+        left = [n for n in self.in_round if n not in self.entered]
+        if left:
             seen = np.asarray(record.seen_at[:2])
             at = min(left, key=lambda n: float(np.linalg.norm(self.world.true_pose(n).position[:2] - seen)))
-        else:
-            return
-        self.tried[at] = self.tried.get(at, 0) + max(len(record.attempts), 1)
+            self.tried[at] = self.tried.get(at, 0) + max(len(record.attempts), 1)
+
+    def _credit(self) -> dict[str, int]:
+        """Each object in the tray, the pick that put it there: the last to let go before it came in."""
+        assert self.entered is not None
+        released = [(max(a.end_s for a in r.attempts if a.outcome == "placed"), r.index)
+                    for r in self.picks if r.outcome == "placed"]  # fmt: skip
+        out = {}
+        for n, t in self.entered.items():
+            before = [k for at, k in released if at <= t + 1e-6]
+            if before:
+                out[n] = before[-1]
+        return out
 
     def first_estimate(self, result) -> None:  # noqa: ANN001
         pass
@@ -226,7 +245,7 @@ class ClearReferee:
             self.off_table = any(not self._on_table(n) and not self.in_tray(n) for n in self.in_round)
 
     def left(self) -> list[str]:
-        assert self.in_round is not None and self.cleared_by is not None
+        assert self.in_round is not None
         return [n for n in self.in_round if not self.in_tray(n)]
 
     def score(self) -> None:
@@ -238,8 +257,9 @@ class ClearReferee:
 
     def clear_score(self, picks, attempts) -> dict:  # noqa: ANN001 - PickRecords, AttemptRecords
         """``result.json``'s ``clear``: each object's fate, the round's figures."""
-        assert self.in_round is not None and self.cleared_by is not None and self.tried is not None
+        assert self.in_round is not None and self.entered is not None and self.tried is not None
         end = self.world.sim_time_s
+        credit = self._credit()
         objects = []
         for p in self.world.layout:
             name = p.name
@@ -251,20 +271,21 @@ class ClearReferee:
                 outcome = "left on the table"
             else:
                 outcome = "knocked off the table"
-            by = self.cleared_by.get(name)
+            k = credit.get(name)
+            by = None if k is None or outcome != "cleared" else (k, self.entered[name])
             g = p.geometry
             objects.append({
                 "name": name,
                 "urdf": getattr(g, "urdf", None),
                 "scale": getattr(g, "scale", None),
                 "outcome": outcome,
-                "attempts": self.tried.get(name, 0),
+                "attempts": self.tried.get(name, 0) + (by is not None),
                 "pick": None if by is None else by[0],
                 "cleared_at_s": None if by is None else round(by[1], 4),
             })  # fmt: skip
         cleared = sum(1 for o in objects if o["outcome"] == "cleared")
         total = len(self.in_round)
-        successes = len({by[0] for by in self.cleared_by.values()})
+        successes = len({o["pick"] for o in objects if o["pick"] is not None})
         n_attempts = len(attempts)
         duration = max(end - self.start_s, 1e-9)
         return {
