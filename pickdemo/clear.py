@@ -68,6 +68,7 @@ class PickRecord:
     reason: str
     start_s: float
     end_s: float
+    released_s: float | None = None  # when it began to let go over the tray
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -339,6 +340,7 @@ class ClearSequencer:
             reason="" if m.failure is None else f"{m.failure.stage.value}: {m.failure.reason}",
             start_s=self._pick_start_s,
             end_s=self._now_s,
+            released_s=m.released_at_s if placed else None,
         )
         self.picks.append(rec)
         if self.on_pick_end is not None:

@@ -283,6 +283,7 @@ class PickMachine:
         self.plan: GraspPlan | None = None
         self.grasp_width_m: float | None = None  # finger opening on the object at the last grasp
         self.verify_estimate: PoseEstimate | None = None
+        self.released_at_s: float | None = None  # when it last began to let go of the target
         # Per attempt: what a retry may change.
         self.attempt = 1
         self.grip_force_n = self.p.grip_force_n
@@ -1221,6 +1222,7 @@ class PickMachine:
 
     # ---- RELEASE, RETREAT, HOME, VERIFY.
     def _enter_release(self, obs: Observation) -> None:
+        self.released_at_s = obs.time_s
         self.grip.open()
         self.grip.watch()
         self._forced_open = False

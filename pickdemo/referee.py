@@ -143,6 +143,8 @@ class Referee:
 
 #: An object whose centre rests over the tray's footprint no higher than this above its rim is in it.
 IN_TRAY_ABOVE_RIM_M = 0.03
+#: ... and has come to rest there below this speed (m/s).
+RESTING_SPEED_M_S = 0.02
 
 
 @dataclass
@@ -187,14 +189,15 @@ class ClearReferee:
         self.start_s = self.world.sim_time_s
 
     def watch(self) -> None:
-        """A tick: an object that has come into the tray (and stays there) since the last."""
+        """A tick: an object that has come to rest in the tray since the last (one still held over it,
+        or falling, has not)."""
         assert self.in_round is not None and self.entered is not None
         now = self.world.sim_time_s
         for n in self.in_round:
-            if self.in_tray(n):
-                self.entered.setdefault(n, now)
-            else:
+            if not self.in_tray(n):
                 self.entered.pop(n, None)  # (bounced out again)
+            elif n not in self.entered and self.world.scene.true_speed(n) < RESTING_SPEED_M_S:
+                self.entered[n] = now
 
     def pick_ended(self, record) -> None:  # noqa: ANN001 - a pickdemo.clear.PickRecord
         """A pick is over. One that let go over the tray is credited with the object that comes into
@@ -213,8 +216,7 @@ class ClearReferee:
     def _credit(self) -> dict[str, int]:
         """Each object in the tray, the pick that put it there: the last to let go before it came in."""
         assert self.entered is not None
-        released = [(max(a.end_s for a in r.attempts if a.outcome == "placed"), r.index)
-                    for r in self.picks if r.outcome == "placed"]  # fmt: skip
+        released = [(r.released_s, r.index) for r in self.picks if r.outcome == "placed"]
         out = {}
         for n, t in self.entered.items():
             before = [k for at, k in released if at <= t + 1e-6]
