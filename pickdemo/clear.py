@@ -44,6 +44,8 @@ TRAY_DROP_M = 0.02
 #: A clear round's objects rest on the table: the tracker's prior on their speed and turn rate
 STILL_SPEED_SIGMA_M_S = 0.002
 STILL_YAW_RATE_SIGMA_RAD_S = 0.01
+#: A hold lost this long (s) is a drop (a moment's loss of one finger's contact is not)
+HEAP_DROP_S = 0.1
 #: The regions a pick looks at are this much larger than the object seen (and 2 cm)
 EXTENT_MARGIN = 1.5
 #: The arm's links' boxes, padded by this (m), must project clear of what is on the table for the camera to
@@ -118,9 +120,13 @@ class ClearSequencer:
         # The round's objects rest on the table (no belt): tracked as standing still (a push is a jump).
         still = dataclasses.replace(p.tracker, initial_speed_sigma_m_s=STILL_SPEED_SIGMA_M_S,
                                     initial_yaw_rate_sigma_rad_s=STILL_YAW_RATE_SIGMA_RAD_S)  # fmt: skip
+        # In a heap a held object brushes its neighbours as it rises: a finger may lose its contact a
+        # moment; a drop is the fingers without a hold this long (a real one closes them on nothing).
+        grip = dataclasses.replace(p.grip, drop_ticks=max(p.grip.drop_ticks, round(HEAP_DROP_S / dt_s)))
         self.p = dataclasses.replace(
             p,
             tracker=still,
+            grip=grip,
             verify_place=False,
             drop_place=True,
             home_after_place=False,
@@ -141,6 +147,7 @@ class ClearSequencer:
         self._counted: list[Counters] = []  # the finished picks' counters
         self._homed = True  # the arm went home for the survey under way (else it looks from where it let go)
         self._tried: list[np.ndarray] = []  # where picks failed since the last that placed an object
+        self._slipped: list[np.ndarray] = []  # where objects slipped out of the fingers (this round)
         self._pick_start_s = 0.0
         self._now_s = 0.0
         self.current = self._machine(q0, TargetModel(Unknown(), color=None))  # at home: surveys from there
@@ -227,7 +234,9 @@ class ClearSequencer:
         self._fail(stage, reason)
 
     # ================================================================================== internals
-    def _machine(self, q0: np.ndarray, model: TargetModel, **kw: Any) -> PickMachine:
+    def _machine(
+        self, q0: np.ndarray, model: TargetModel, params: MachineParams | None = None, **kw: Any
+    ) -> PickMachine:
         return PickMachine(
             kin=self.kin,
             model=model,
@@ -237,7 +246,7 @@ class ClearSequencer:
             q0=q0,
             dt_s=self.dt_s,
             rng=self.rng,
-            params=self.p,
+            params=params or self.p,
             place_tolerance_m=None,
             **kw,
         )
@@ -276,9 +285,13 @@ class ClearSequencer:
         h, wide, narrow = seen.size_m
         q0 = self.current._command_hold().arm_q
         k = len([r for r in self.picks if r.outcome == "placed"])
+        # where an object slipped out of the fingers, the next grip there is twice as hard (as a retry's)
+        slipped = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in self._slipped)
+        force = min(2.0 * self.p.grip_force_n, self.p.max_grip_force_n) if slipped else self.p.grip_force_n
         self.current = self._machine(
             q0,
             TargetModel(Unknown(max_extent_m=_extent(seen), size_cue_m=seen.size_m, heap=True), color=None),
+            params=dataclasses.replace(self.p, grip_force_n=force),
             place_xy=self.tray.spot(k),
             place_z_m=self.tray.rim_z + TRAY_DROP_M,
             look_at=seen.centre,
@@ -359,6 +372,8 @@ class ClearSequencer:
                 self.consecutive_failures += 1
         if rec.outcome != "placed":
             self._tried.append(np.asarray(rec.seen_at[:2]))
+        if any(a.outcome.startswith("dropped") for a in rec.attempts):
+            self._slipped.append(np.asarray(rec.seen_at[:2]))
         if self.consecutive_failures >= self.max_consecutive_failures:
             f = self.current.failure
             stage = f.stage if f is not None else Stage.GRASP

@@ -218,7 +218,10 @@ class ClearReferee:
         assert self.entered is not None
         released = [(r.released_s, r.index) for r in self.picks if r.outcome == "placed"]
         out = {}
-        for n, t in self.entered.items():
+        end = self.world.sim_time_s
+        # in the tray at the end but not yet at rest there (the last one dropped): as if now
+        entered = {**{n: end for n in self.in_round if self.in_tray(n)}, **self.entered}
+        for n, t in entered.items():
             before = [k for at, k in released if at <= t + 1e-6]
             if before:
                 out[n] = before[-1]
@@ -274,7 +277,7 @@ class ClearReferee:
             else:
                 outcome = "knocked off the table"
             k = credit.get(name)
-            by = None if k is None or outcome != "cleared" else (k, self.entered[name])
+            by = None if k is None or outcome != "cleared" else (k, self.entered.get(name, end))
             g = p.geometry
             objects.append({
                 "name": name,
