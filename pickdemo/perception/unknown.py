@@ -77,9 +77,6 @@ FOOTPRINT_QUANTILE = 0.01
 #: In a heap, objects touching one another are told apart where the depth between neighbouring pixels
 #: steps by more than this (and than 4 sigma of the 3x3 mixture's noise of a difference)
 DEPTH_STEP_M = 0.01
-#: ... and an object of a heap is seen down to this height above the table (a flat one lying among
-#: others), where the depth noise allows (4 sigma of the 3x3 mixture's, as for any object)
-HEAP_MIN_HEIGHT_M = 0.003
 
 
 @dataclasses.dataclass(frozen=True)
@@ -266,8 +263,6 @@ def estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPar
 
 def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionParams) -> PoseEstimate:
     heap = getattr(model.geometry, "heap", False)
-    if heap:
-        params = dataclasses.replace(params, min_height_m=min(params.min_height_m, HEAP_MIN_HEIGHT_M))
     if heap and frame.roi is not None:  # a region about one object of a heap: all of it at full resolution
         x0, y0, x1, y1 = 0, 0, frame.rgb.shape[1], frame.rgb.shape[0]  # (small objects vanish in a strided one)
     else:
@@ -405,8 +400,6 @@ def survey_objects(frame: RGBDFrame, params: PerceptionParams | None = None, *, 
     with its points and the other clusters' points near it as obstacles (an
     :class:`~pickdemo.perception.model.ObjectCloud`), largest first."""
     params = params or PerceptionParams()
-    if heap:
-        params = dataclasses.replace(params, min_height_m=min(params.min_height_m, HEAP_MIN_HEIGHT_M))
     pts = world_points(frame)
     clusters = segment_objects(frame, params, pts)
     if heap:
