@@ -28,7 +28,7 @@ from pickdemo import robot_model as rm
 from pickdemo.belief import Counters, Verdict
 from pickdemo.camera import project
 from pickdemo.grasp import GraspParams, top_down
-from pickdemo.grasp_cloud import sample_grasps
+from pickdemo.grasp_cloud import CloudGrasps, sample_grasps
 from pickdemo.interfaces import Command, Observation
 from pickdemo.kinematics import PandaKinematics
 from pickdemo.layout import Tray
@@ -148,6 +148,7 @@ class ClearSequencer:
         self._homed = True  # the arm went home for the survey under way (else it looks from where it let go)
         self._tried: list[np.ndarray] = []  # where picks failed since the last that placed an object
         self._slipped: list[np.ndarray] = []  # where objects slipped out of the fingers (this round)
+        self._failed_grasps: list[tuple[np.ndarray, float]] = []  # (TCP position, hand angle) that failed
         self._pick_start_s = 0.0
         self._now_s = 0.0
         self.current = self._machine(q0, TargetModel(Unknown(), color=None))  # at home: surveys from there
@@ -292,6 +293,7 @@ class ClearSequencer:
             q0,
             TargetModel(Unknown(max_extent_m=_extent(seen), size_cue_m=seen.size_m, heap=True), color=None),
             params=dataclasses.replace(self.p, grip_force_n=force),
+            selector=CloudGrasps(self.p.grasp, avoid=tuple(self._failed_grasps)),
             place_xy=self.tray.spot(k),
             place_z_m=self.tray.rim_z + TRAY_DROP_M,
             look_at=seen.centre,
@@ -372,6 +374,9 @@ class ClearSequencer:
                 self.consecutive_failures += 1
         if rec.outcome != "placed":
             self._tried.append(np.asarray(rec.seen_at[:2]))
+        plan = self.current.plan
+        if rec.outcome != "placed" and plan is not None:  # that grasp comes after the others next time
+            self._failed_grasps.append((plan.grasp.position.copy(), float(plan.hand_yaw_rad)))
         if any(a.outcome.startswith("dropped") for a in rec.attempts):
             self._slipped.append(np.asarray(rec.seen_at[:2]))
         if self.consecutive_failures >= self.max_consecutive_failures:

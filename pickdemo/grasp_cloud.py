@@ -49,6 +49,9 @@ FINGER_THICKNESS_M = 0.022
 #: An object nobody described is held at any opening the fingers touch it at above this, less the
 #: grip's hold margin (m): they have not closed on nothing.
 MIN_HELD_M = 0.012
+#: A grasp this near one that failed (its TCP, m; its hand angle, rad) comes after every other
+AVOID_RADIUS_M = 0.015
+AVOID_YAW_RAD = float(np.radians(25.0))
 
 
 @dataclass(frozen=True)
@@ -229,6 +232,8 @@ class CloudGrasps:
 
     params: GraspParams = GraspParams()
     cloud_params: CloudGraspParams = CloudGraspParams()
+    #: grasps tried and failed (TCP position in the world, hand angle): one near either comes after the others
+    avoid: tuple[tuple[np.ndarray, float], ...] = ()
     _planned: tuple[int, list[tuple[np.ndarray, float, float, float]]] | None = field(default=None, repr=False)
 
     def _local(self, request) -> list[tuple[np.ndarray, float, float, float]]:  # noqa: ANN001 - a GraspRequest
@@ -245,6 +250,8 @@ class CloudGrasps:
                 "no top-down grasp fits what was seen: wherever the fingers could close, the object is wider "
                 f"than the open hand ({(2.0 * rm.FINGER_MAX_M - self.params.width_margin_m) * 1e3:.0f} mm)"
             )
+        if self.avoid:
+            grasps.sort(key=lambda g: (self._tried(g), g.cost))
         at = request.pose
         yaw0 = float(at.rpy[2])
         c, s = np.cos(-yaw0), np.sin(-yaw0)
@@ -260,6 +267,15 @@ class CloudGrasps:
         ]
         self._planned = (request.plan_id, local)
         return local
+
+    def _tried(self, g: CloudGrasp) -> bool:
+        """Whether a grasp is near one that was tried and failed (its TCP within ``AVOID_RADIUS_M``, its
+        hand angle within ``AVOID_YAW_RAD``, the hand the same after a half turn)."""
+        return any(
+            np.linalg.norm(g.position[:2] - p[:2]) < AVOID_RADIUS_M
+            and abs(wrap_angle(g.hand_yaw_rad - yaw, np.pi)) < AVOID_YAW_RAD
+            for p, yaw in self.avoid
+        )
 
     def hand_yaws(self, request) -> list[float]:  # noqa: ANN001 - a GraspRequest
         """The best grasp's two hand angles (the hand is the same after a half turn), at the tracked pose."""
