@@ -62,7 +62,7 @@ def check_scenario(sc: Scenario) -> None:
 def _check_mesh_files(sc: Scenario) -> None:
     """Every mesh's files exist and are URDFs pickdemo can read (one line for the first bad one); a
     mesh to pick, some top-down grasp can hold."""
-    from pickdemo.meshes import MeshFileError, expand, read_urdf
+    from pickdemo.meshes import MeshFileError, read_urdf
 
     for obj in sc.objects:
         if obj.shape != "mesh":
@@ -73,15 +73,23 @@ def _check_mesh_files(sc: Scenario) -> None:
             except MeshFileError as exc:
                 raise ScenarioError(f"objects.{obj.name}.urdf: {exc}") from None
         elif not obj.urdf_files:  # urdf_choice: its readable matches (a broken one is left out)
-            key, matched = f"objects.{obj.name}.urdf_choice", expand(obj.urdf_choice or "", None)
-            if not matched:
-                raise ScenarioError(f"{key}: {obj.urdf_choice!r} matches no file")
-            try:
-                read_urdf(matched[0])
-            except MeshFileError as exc:
-                raise ScenarioError(f"{key}: none of its {len(matched)} matches can be read; {exc}") from None
+            _no_usable_file(f"objects.{obj.name}.urdf_choice", obj.urdf_choice or "")
         if (obj.target and sc.task == "pick") or sc.task == "clear":
             _check_mesh_holdable(obj, f"objects.{obj.name}", 2.0 * rm.FINGER_MAX_M - GRIPPER_CLEARANCE_M)
+
+
+def _no_usable_file(key: str, pattern: str) -> None:
+    """Raise for a glob none of whose matches can be used: it matches nothing, or the first can't be read."""
+    from pickdemo.meshes import MeshFileError, expand, read_urdf
+
+    matched = expand(pattern, None)
+    if not matched:
+        raise ScenarioError(f"{key}: {pattern!r} matches no file")
+    try:
+        read_urdf(matched[0])
+    except MeshFileError as exc:
+        raise ScenarioError(f"{key}: none of its {len(matched)} matches can be read; {exc}") from None
+    raise ScenarioError(f"{key}: none of its {len(matched)} matches can be read")
 
 
 def _check_objects(sc: Scenario) -> None:
@@ -330,28 +338,23 @@ def _check_clear(sc: Scenario) -> None:
     """A clear round: its objects' files, its region on the table, in reach and in view, room for its
     count, and a tray on the table, in reach, apart from the region."""
     from pickdemo.kinematics import IKParams, panda_kinematics  # loads the URDF: only when needed
-    from pickdemo.meshes import MeshFileError, expand, read_urdf
+    from pickdemo.meshes import MeshFileError, read_urdf
     from pickdemo.shapes import Mesh
 
     spec = sc.clear
     assert spec is not None
     files = spec.files
     if not files:
-        matched = expand(spec.objects_from, None)
-        if not matched:
-            raise ScenarioError(f"clear.objects_from: {spec.objects_from!r} matches no file")
-        try:
-            read_urdf(matched[0])
-        except MeshFileError as exc:
-            raise ScenarioError(f"clear.objects_from: none of its {len(matched)} matches can be read; {exc}") from None
+        _no_usable_file("clear.objects_from", spec.objects_from)
     table, region = sc.table, spec.region
     for x, y in _corners(region):
         if not table.holds(x, y):
             raise ScenarioError(f"clear.region: its corner ({x:.3f}, {y:.3f}) m is off the table")
         if np.hypot(x, y) < ROBOT_BASE_RADIUS_M:
             raise ScenarioError(f"clear.region: its corner ({x:.3f}, {y:.3f}) m is inside the robot's base")
-    small = min(files, key=lambda f: Mesh(f, 1.0, read_urdf(f).vertices).footprint_radius_m)
-    r_min = Mesh(small, spec.scale_range[0], read_urdf(small).vertices * spec.scale_range[0]).footprint_radius_m
+    radii = np.array([Mesh(f, 1.0, read_urdf(f).vertices).footprint_radius_m for f in files])
+    r_min = float(radii.min()) * spec.scale_range[0]
+    r_median = float(np.median(radii)) * spec.scale_range[0]
     (tx0, tx1), (ty0, ty1) = (table.center[0] - table.size[0] / 2, table.center[0] + table.size[0] / 2), (
         table.center[1] - table.size[1] / 2, table.center[1] + table.size[1] / 2)  # fmt: skip
     table_area = (tx1 - tx0) * (ty1 - ty0)
@@ -361,12 +364,12 @@ def _check_clear(sc: Scenario) -> None:
             f"({table.size[0]:.2f} x {table.size[1]:.2f} m)"
         )
     (x0, x1), (y0, y1) = region
-    room = (x1 - x0 + 2.0 * r_min) * (y1 - y0 + 2.0 * r_min)
-    if spec.layout == "pile" and spec.count * np.pi * r_min**2 > PILE_LAYERS * room:
+    room = (x1 - x0 + 2.0 * r_median) * (y1 - y0 + 2.0 * r_median)
+    if spec.layout == "pile" and spec.count * np.pi * r_median**2 > PILE_LAYERS * room:
         raise ScenarioError(
-            f"clear.region: a pile of {spec.count} objects of at least {2e3 * r_min:.0f} mm across cannot be laid "
-            f"out in {1e3 * (x1 - x0):.0f} x {1e3 * (y1 - y0):.0f} mm (at most {PILE_LAYERS} deep); a larger region "
-            "or fewer objects"
+            f"clear.region: a pile of {spec.count} objects of {2e3 * r_median:.0f} mm across (the median) cannot "
+            f"be laid out in {1e3 * (x1 - x0):.0f} x {1e3 * (y1 - y0):.0f} mm (at most {PILE_LAYERS} deep); "
+            "a larger region or fewer objects"
         )
     try:
         tray = Tray.of(sc)

@@ -363,36 +363,34 @@ class Episode:
             )
         params = dataclasses.replace(params, joint_transfers=m.transfers == "joint")
         camera = world.camera
+        common = dict(  # what the controller is told of its cell and its arm, for either task
+            kin=kin,
+            camera=CameraModel(camera.intrinsics, camera.T_world_cam),
+            q0=self.robot.observe().arm_q,
+            dt_s=self.dt_ctl,
+            rng=world.rngs["ik"],
+            params=params,
+        )
         if clear:
             from pickdemo.clear import ClearSequencer
 
             assert sc.clear is not None and world.tray is not None
             self.machine = ClearSequencer(
-                kin=kin,
                 tray=world.tray,
-                camera=CameraModel(camera.intrinsics, camera.T_world_cam),
-                q0=self.robot.observe().arm_q,
-                dt_s=self.dt_ctl,
-                rng=world.rngs["ik"],
                 max_consecutive_failures=sc.clear.max_consecutive_failures,
-                params=params,
                 on_pick_end=self.referee.pick_ended,  # truth: for scoring only
+                **common,
             )
             return
         self.machine = PickMachine(
-            kin=kin,
             model=self.model,
             symmetry_rad=self.model.geometry.yaw_symmetry_rad,
             place_xy=world.place_xy,
-            camera=CameraModel(camera.intrinsics, camera.T_world_cam),
-            q0=self.robot.observe().arm_q,
-            dt_s=self.dt_ctl,
-            rng=world.rngs["ik"],
             max_attempts=sc.control.max_attempts,
             place_tolerance_m=sc.success.place_tolerance,
             open_loop=self.options.open_loop,
-            params=params,
             surface_z=sc.surface_z,
+            **common,
         )
 
     def _build_clear_task(self) -> None:
