@@ -284,7 +284,7 @@ class ClearSequencer:
         self._choice = choice
         seen = choice.seen
         h, wide, narrow = seen.size_m
-        q0 = self.current._command_hold().arm_q
+        q0 = self.current.commanded_q
         k = len([r for r in self.picks if r.outcome == "placed"])
         # where an object slipped out of the fingers, the next grip there is twice as hard (as a retry's)
         slipped = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in self._slipped)
@@ -385,7 +385,7 @@ class ClearSequencer:
             last = rec.reason or "failed"
             self._fail(stage, f"{self.consecutive_failures} failed attempts in a row; the last: {last}")
             return
-        q0 = self.current._command_hold().arm_q
+        q0 = self.current.commanded_q
         self._homed = self._arm_hides(q0)
         if self._homed:  # home first (a machine that only takes the arm home), then look
             self.current = self._machine(q0, TargetModel(Unknown(), color=None))

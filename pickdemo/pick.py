@@ -472,8 +472,16 @@ class PickMachine:
         self.events.append(Event(State.FAILED, self._now_s, f"{stage.value}: {reason}"))
 
     def _command_hold(self) -> Command:
+        """Hold where the motion is, through the rate limiter (a motion that stopped short of the last
+        command, or an IK that settled elsewhere, is not a jump)."""
         q = self.joints.q if self._joint else self.motion.q
-        return Command(q.copy(), np.zeros(7), self.grip.target_m, self.grip.force_n)
+        sent, limited = self.limiter(q)
+        return Command(sent, self.limiter.dq.copy() if limited else np.zeros(7), self.grip.target_m, self.grip.force_n)
+
+    @property
+    def commanded_q(self) -> np.ndarray:
+        """The joint command last sent (where the next controller takes over)."""
+        return self.limiter.q.copy()
 
     def _end_attempt(self, outcome: str, reason: str) -> None:
         self.attempts.append(
