@@ -217,7 +217,7 @@ class Episode:
         self._sim_time_s = 0.0
         self._wall_s = 0.0
         self._result: EpisodeResult | None = None
-        self._clear: dict | None = None
+        self._round_score: dict | None = None  # a clear round's figures, read before the scene closes
 
     # ================================================================================ stepping
     @property
@@ -587,7 +587,7 @@ class Episode:
         try:
             if self.referee is not None:
                 self.referee.ended()
-                self._clear = self._clear_score()  # (the truth is read before the scene closes)
+                self._round_score = self._clear_score()  # (the truth is read before the scene closes)
             phases = self.counts.phases
             if failure is not None and not (phases and phases[-1].phase == State.FAILED.value):
                 reason = f"{failure.stage.value}: {failure.reason}"
@@ -655,7 +655,7 @@ class Episode:
             limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded)),
             peak_joint_limit_ratio=_peak_ratios(counts.commanded),
             place_position_m=None if self.world is None else self.world.place_xy,
-            clear=self._clear,
+            clear=self._round_score,
             trace=self.trace.freeze() if self.trace is not None else None,
         )
 
