@@ -110,57 +110,13 @@ def sample_grasps(
     levels = np.arange(grasp.min_tcp_height_m, top - 0.002 + 1e-9, p.height_step_m)
     if len(levels) == 0:
         levels = np.array([grasp.min_tcp_height_m])
-    found: list[tuple[float, float, float, float, float, float]] = []  # psi, mid, cb, z, w, cost
+    found: list[np.ndarray] = []  # rows of psi, mid, cb, z, w, cost
     for psi in np.arange(p.yaw_steps) * (np.pi / p.yaw_steps):
-        a = np.array([np.sin(psi), -np.cos(psi)])  # the closing axis: the hand's y
-        b = np.array([np.cos(psi), np.sin(psi)])  # along the finger's width: the hand's x
-        pa, pb = pts[:, :2] @ a, pts[:, :2] @ b
-        oa, ob = obs[:, :2] @ a, obs[:, :2] @ b
-        centre_b = 0.5 * float(pb.min() + pb.max())  # the middle of its footprint across the fingers' width
-        for db in p.offsets_m:
-            cb = centre_b + db
-            in_slab = np.abs(pb - cb) < PAD_HALF_WIDTH_M + p.clearance_m
-            if in_slab.sum() < 5:
-                continue
-            sa, sh, sb = pa[in_slab], h[in_slab], pb[in_slab] - cb
-            in_palm = np.abs(pb - cb) < PALM_HALF_WIDTH_M
-            for z in levels:
-                pad_low = z - FINGER_PAD_HALF_HEIGHT_M
-                above = sh >= pad_low
-                if above.sum() < 5:
-                    continue
-                s_min, s_max = float(sa[above].min()), float(sa[above].max())
-                w = s_max - s_min
-                if w > widest:
-                    continue
-                mid = 0.5 * (s_min + s_max)
-                # The palm above the object's top under it.
-                under_palm = in_palm & (np.abs(pa - mid) < PALM_HALF_LENGTH_M)
-                if np.any(h[under_palm] > z + palm):
-                    continue
-                if len(obs) and _hits_obstacle(oa, ob, oh, mid, cb, z, pad_low, palm, p.clearance_m):
-                    continue
-                band = above & (sh <= z + FINGER_PAD_HALF_HEIGHT_M)
-                b_min, b_max = (float(sa[band].min()), float(sa[band].max())) if band.any() else (mid, mid)
-                contact = (b_min - s_min) + (s_max - b_max)
-                # Antipodal, seen from above: a face square to the closing axis reaches as far at both
-                # edges of the pad; a slanted one (its normal off the axis) does not.
-                left = above & (sb < 0.0)
-                right = above & (sb >= 0.0)
-                if left.any() and right.any():
-                    slant = abs(float(sa[left].max() - sa[right].max())) + abs(float(sa[left].min() - sa[right].min()))
-                else:
-                    slant = 0.0
-                cost = (
-                    abs(db) / p.lever_scale_m
-                    + (contact + slant) / p.contact_scale_m
-                    + abs(z - z_pref) / p.height_scale_m
-                    + max(0.0, w - p.wide_m) / p.width_scale_m
-                )
-                found.append((float(psi), mid, cb, float(z), w, cost))
+        with np.errstate(invalid="ignore"):  # (a height with nothing above its pads: inf - inf, never kept)
+            found.extend(_at_angle(float(psi), pts, h, obs, oh, levels, z_pref, widest, palm, p))
     if not found:
         return []
-    c = np.array(found)
+    c = np.vstack(found)
     # Where the open fingers go down, what the camera did not see free (behind the object's far side,
     # or behind something else) may be the object: a finger there may land on it.
     c[:, 5] += _unseen_fraction(cloud, c, surface_z, top) / p.unseen_scale
@@ -170,6 +126,76 @@ def sample_grasps(
     ]
     out.sort(key=lambda g: g.cost)
     return out
+
+
+def _at_angle(
+    psi: float,
+    pts: np.ndarray,
+    h: np.ndarray,
+    obs: np.ndarray,
+    oh: np.ndarray,
+    levels: np.ndarray,
+    z_pref: float,
+    widest: float,
+    palm: float,
+    p: CloudGraspParams,
+) -> Iterator[np.ndarray]:
+    """The feasible grasps at one hand angle: for each place along the finger's width, rows of (psi, mid,
+    cb, z, w, cost), one a height (every height at once)."""
+    pad_lows = levels - FINGER_PAD_HALF_HEIGHT_M  # (L,)
+    pad_highs = levels + FINGER_PAD_HALF_HEIGHT_M
+    palm_tops = levels + palm
+    a = np.array([np.sin(psi), -np.cos(psi)])  # the closing axis: the hand's y
+    b = np.array([np.cos(psi), np.sin(psi)])  # along the finger's width: the hand's x
+    pa, pb = pts[:, :2] @ a, pts[:, :2] @ b
+    oa, ob = obs[:, :2] @ a, obs[:, :2] @ b
+    centre_b = 0.5 * float(pb.min() + pb.max())  # the middle of its footprint across the fingers' width
+    for db in p.offsets_m:
+        cb = centre_b + db
+        in_slab = np.abs(pb - cb) < PAD_HALF_WIDTH_M + p.clearance_m
+        if in_slab.sum() < 5:
+            continue
+        sa, sh, sb = pa[in_slab], h[in_slab], pb[in_slab] - cb
+        above = sh[None, :] >= pad_lows[:, None]  # (L, N)
+        ok = above.sum(axis=1) >= 5
+        s_min = np.where(above, sa, np.inf).min(axis=1)
+        s_max = np.where(above, sa, -np.inf).max(axis=1)
+        w = s_max - s_min
+        ok &= ~(w > widest)
+        if not ok.any():
+            continue
+        mid = 0.5 * (s_min + s_max)
+        # The palm above the object's top under it.
+        in_palm = np.abs(pb - cb) < PALM_HALF_WIDTH_M
+        ha, hh = pa[in_palm], h[in_palm]
+        under_palm = np.abs(ha[None, :] - mid[:, None]) < PALM_HALF_LENGTH_M
+        ok &= ~np.any(under_palm & (hh[None, :] > palm_tops[:, None]), axis=1)
+        if len(obs):
+            ok &= ~_hits_obstacles(oa, ob, oh, mid, cb, palm_tops, pad_lows, p.clearance_m)
+        if not ok.any():
+            continue
+        above, sa_l = above[ok], sa
+        s_min, s_max, mid, w, z = s_min[ok], s_max[ok], mid[ok], w[ok], levels[ok]
+        band = above & (sh[None, :] <= pad_highs[ok][:, None])
+        has_band = band.any(axis=1)
+        b_min = np.where(has_band, np.where(band, sa_l, np.inf).min(axis=1), mid)
+        b_max = np.where(has_band, np.where(band, sa_l, -np.inf).max(axis=1), mid)
+        contact = (b_min - s_min) + (s_max - b_max)
+        # Antipodal, seen from above: a face square to the closing axis reaches as far at both
+        # edges of the pad; a slanted one (its normal off the axis) does not.
+        left = above & (sb < 0.0)[None, :]
+        right = above & (sb >= 0.0)[None, :]
+        both = left.any(axis=1) & right.any(axis=1)
+        slant = np.abs(np.where(left, sa_l, -np.inf).max(axis=1) - np.where(right, sa_l, -np.inf).max(axis=1))
+        slant = slant + np.abs(np.where(left, sa_l, np.inf).min(axis=1) - np.where(right, sa_l, np.inf).min(axis=1))
+        slant = np.where(both, slant, 0.0)
+        cost = (
+            abs(db) / p.lever_scale_m
+            + (contact + slant) / p.contact_scale_m
+            + np.abs(z - z_pref) / p.height_scale_m
+            + np.maximum(0.0, w - p.wide_m) / p.width_scale_m
+        )
+        yield np.column_stack([np.full(len(z), psi), mid, np.full(len(z), cb), z, w, cost])
 
 
 def _axis_a(psi: float) -> np.ndarray:
@@ -193,33 +219,40 @@ def _unseen_fraction(cloud: ObjectCloud, c: np.ndarray, surface_z: float, top: f
     t = np.linspace(0.0, 1.0, 5)[None, None, None, :]
     n = len(c)
     pts = np.empty((n, 2, 2, 3, 5, 3))
-    for k in range(n):
-        lo = surface_z + z[k] - FINGER_PAD_HALF_HEIGHT_M
-        hi = max(surface_z + top, lo)
-        along = mid[k] + side * out_a  # (2, 2, 1, 1)
-        xy = along[..., None] * a[k] + (cb[k] + across_b)[..., None] * b[k]  # (2, 2, 3, 1, 2)
-        pts[k, ..., :2] = np.broadcast_to(xy, (2, 2, 3, 5, 2))
-        pts[k, ..., 2] = np.broadcast_to(lo + t * (hi - lo), (2, 2, 3, 5))
+    k = (slice(None), None, None, None, None)  # each candidate along the first axis
+    lo = surface_z + z - FINGER_PAD_HALF_HEIGHT_M  # (C,)
+    hi = np.maximum(surface_z + top, lo)
+    along = mid[k] + side * out_a  # (C, 2, 2, 1, 1)
+    xy = (
+        along[..., None] * a[:, None, None, None, None, :]
+        + (cb[k] + across_b)[..., None] * b[:, None, None, None, None, :]
+    )
+    pts[..., :2] = np.broadcast_to(xy, (n, 2, 2, 3, 5, 2))
+    pts[..., 2] = np.broadcast_to(lo[k] + t * (hi - lo)[k], (n, 2, 2, 3, 5))
     unknown = cloud.unknown(pts)
     return unknown.reshape(n, -1).mean(axis=1)
 
 
-def _hits_obstacle(
+def _hits_obstacles(
     oa: np.ndarray,
     ob: np.ndarray,
     oh: np.ndarray,
-    mid: float,
+    mid: np.ndarray,
     cb: float,
-    z: float,
-    pad_low: float,
-    palm: float,
+    palm_tops: np.ndarray,
+    pad_lows: np.ndarray,
     gap: float,
-) -> bool:
-    """Whether another object's points lie where the open fingers go down or under the palm."""
+) -> np.ndarray:
+    """For each height (rows of ``mid``, the palm's underside ``palm_tops`` and the pads' lower edge
+    ``pad_lows``), whether another object's points lie where the open fingers go down or under the palm."""
     finger_reach = rm.FINGER_MAX_M + FINGER_THICKNESS_M + gap
-    in_fingers = (np.abs(ob - cb) < PAD_HALF_WIDTH_M + gap) & (np.abs(oa - mid) < finger_reach) & (oh >= pad_low - gap)
-    under_palm = (np.abs(ob - cb) < PALM_HALF_WIDTH_M) & (np.abs(oa - mid) < PALM_HALF_LENGTH_M) & (oh > z + palm)
-    return bool(np.any(in_fingers) or np.any(under_palm))
+    across = np.abs(ob - cb)
+    da = np.abs(oa[None, :] - mid[:, None])  # (L, O)
+    f = across < PAD_HALF_WIDTH_M + gap
+    in_fingers = f[None, :] & (da < finger_reach) & (oh[None, :] >= (pad_lows - gap)[:, None])
+    u = across < PALM_HALF_WIDTH_M
+    under_palm = u[None, :] & (da < PALM_HALF_LENGTH_M) & (oh[None, :] > palm_tops[:, None])
+    return np.any(in_fingers, axis=1) | np.any(under_palm, axis=1)
 
 
 @dataclass

@@ -94,8 +94,9 @@ class Tray:
 
     def holds(self, xy: np.ndarray) -> bool:
         """Whether a point seen from above lies over its footprint."""
-        local = (np.asarray(xy, dtype=float)[:2] - np.asarray(self.position)) @ self.pose.rotation[:2, :2]
-        return bool(np.all(np.abs(local) <= np.asarray(self.half_extents)))
+        dx, dy = float(xy[0]) - self.position[0], float(xy[1]) - self.position[1]
+        c, s = np.cos(self.yaw_rad), np.sin(self.yaw_rad)  # (into the tray's frame: the yaw's inverse)
+        return abs(c * dx + s * dy) <= self.half_extents[0] and abs(-s * dx + c * dy) <= self.half_extents[1]
 
     def spot(self, k: int) -> tuple[float, float]:
         """Where the ``k``-th object is dropped (the spots in turn)."""

@@ -177,7 +177,7 @@ class ClearReferee:
     def in_tray(self, name: str) -> bool:
         tray = self.world.tray
         assert tray is not None
-        p = self.world.true_pose(name).position
+        p = self.world.true_position(name)
         return tray.holds(p[:2]) and float(p[2]) <= tray.rim_z + IN_TRAY_ABOVE_RIM_M
 
     def started(self) -> None:

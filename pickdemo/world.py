@@ -70,6 +70,11 @@ class World:
         assert self.scene is not None, "the world is not open"
         return self.scene.true_pose(name)
 
+    def true_position(self, name: str) -> np.ndarray:
+        """An object's true position (truth: for scoring only)."""
+        assert self.scene is not None, "the world is not open"
+        return self.scene.true_position(name)
+
     @property
     def sim_time_s(self) -> float:
         return self.scene.sim_time_s if self.scene is not None else 0.0

@@ -278,6 +278,10 @@ class Scene:
         pos, quat = self.client.getBasePositionAndOrientation(self.bodies[name])
         return Pose.from_quaternion_xyzw(np.array(pos), np.array(quat))
 
+    def true_position(self, name: str) -> np.ndarray:
+        """An object's true position alone (no orientation: the referee's cheap per-tick read)."""
+        return np.asarray(self.client.getBasePositionAndOrientation(self.bodies[name])[0], dtype=float)
+
     def true_speed(self, name: str) -> float:
         lin, ang = self.client.getBaseVelocity(self.bodies[name])
         return float(np.linalg.norm(lin))
