@@ -350,6 +350,8 @@ class Episode:
         self._add_observers()
         with self.timer("settle"):
             scene.settle(int((SETTLE_CLEAR_MAX_S if clear else SETTLE_MAX_S) / dt))
+        if clear:  # a round's objects lie still but for the one picked: those at rest leave the solver
+            scene.let_objects_sleep()
         scene.start_belt()  # a conveyor runs from the robot's first tick
         self.referee.started()  # truth: for scoring only
         params = self.options.machine

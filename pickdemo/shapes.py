@@ -408,7 +408,8 @@ class Unknown:
     #: a size the task names, as a cue to tell it from other objects (not a model to fit): its height,
     #: its footprint's longer and shorter side (m); None: not named
     size_cue_m: tuple[float, float, float] | None = None
-    #: objects may touch one another (a heap on a table being cleared): told apart where the depth steps
+    #: objects may touch one another (a heap on a table being cleared): told apart where the depth or the
+    #: colour steps
     heap: bool = False
     kind: ClassVar[str] = "unknown"
     n_sizes: ClassVar[int] = 0

@@ -3,6 +3,7 @@ steps, the sequencer's choices and ends, the bench's figures, and rounds run in 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -16,7 +17,7 @@ from pickdemo.interfaces import Observation
 from pickdemo.kinematics import panda_kinematics
 from pickdemo.layout import Tray, sample_round
 from pickdemo.perception import PerceptionParams
-from pickdemo.perception.unknown import SeenObject, Survey, segment_objects, split_at_depth_steps, survey_objects
+from pickdemo.perception.unknown import SeenObject, Survey, segment_objects, split_heap, survey_objects
 from pickdemo.pick import CameraModel, State
 from pickdemo.result import Stage
 from pickdemo.scenario import Scenario, load_scenario, parse_scenario
@@ -79,17 +80,37 @@ def test_the_tray_is_its_urdf_at_its_scale_and_its_spots_lie_in_it() -> None:
     assert box.contains(np.array([[*tray.position, 0.2]]))[0]  # what is in it is left out of a survey
 
 
-def test_a_heap_is_told_apart_where_the_depth_steps_and_one_box_stays_one() -> None:
+def test_a_heap_is_told_apart_where_the_colour_steps_and_shading_does_not_split_one() -> None:
+    # two boxes of one height side by side, touching: no depth step between them, but their colours differ
+    pair = [Block((0.5, 0.0), (0.05, 0.05, 0.04), rgb=(200, 60, 50)),
+            Block((0.5, 0.05), (0.05, 0.05, 0.04), rgb=(60, 160, 200))]  # fmt: skip
+    frame = render(pair)
+    clusters = segment_objects(frame, PARAMS)
+    assert len(clusters.areas) == 1
+    assert len(split_heap(frame, clusters, PARAMS.min_target_px).areas) == 2
+    same = render([dataclasses.replace(b, rgb=(200, 60, 50)) for b in pair])
+    assert len(split_heap(same, segment_objects(same, PARAMS), PARAMS.min_target_px).areas) == 1
+    # one box, half of it in shade (its colour darker, not another), and a noisy colour image: one part
+    one = render([Block((0.5, 0.02), (0.06, 0.09, 0.04), rgb=(200, 60, 50))])
+    rgb = one.rgb.astype(float)
+    rgb[:, : rgb.shape[1] // 2] *= 0.55
+    noisy = np.clip(rgb + np.random.default_rng(0).normal(0.0, 5.0, rgb.shape), 0, 255).astype(np.uint8)
+    for f in (dataclasses.replace(one, rgb=rgb.astype(np.uint8)),
+              dataclasses.replace(one, rgb=noisy, rgb_noise_sigma=5.0)):  # fmt: skip
+        assert len(split_heap(f, segment_objects(f, PARAMS), PARAMS.min_target_px).areas) == 1
+
+
+def test_a_heap_is_told_apart_where_the_depth_steps_and_one_box_stays_one_part() -> None:
     # a tall box in front of a low one that it hides in part, touching: one cluster seen from above, two
     # parts (where the tall one's top edge hides the low one, the depth steps)
     heap = [Block((0.5, 0.0), (0.05, 0.05, 0.07)), Block((0.44, 0.0), (0.06, 0.12, 0.03), rgb=(40, 90, 200))]
     frame = render(heap)
     clusters = segment_objects(frame, PARAMS)
     assert len(clusters.areas) == 1
-    parts = split_at_depth_steps(frame, clusters, PARAMS.min_target_px)
+    parts = split_heap(frame, clusters, PARAMS.min_target_px)
     assert len(parts.areas) == 2
     one = render([Block((0.5, 0.05), (0.06, 0.04, 0.05), yaw_deg=30.0)], noise=1.45e-3)
-    assert len(split_at_depth_steps(one, segment_objects(one, PARAMS), PARAMS.min_target_px).areas) == 1
+    assert len(split_heap(one, segment_objects(one, PARAMS), PARAMS.min_target_px).areas) == 1
     survey = survey_objects(frame, PARAMS)
     assert len(survey.objects) == 2
     tall = max(survey.objects, key=lambda o: o.size_m[0])

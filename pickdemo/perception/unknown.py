@@ -77,6 +77,12 @@ FOOTPRINT_QUANTILE = 0.01
 #: In a heap, objects touching one another are told apart where the depth between neighbouring pixels
 #: steps by more than this (and than 4 sigma of the 3x3 mixture's noise of a difference)
 DEPTH_STEP_M = 0.01
+#: ... or where the colour steps: the chromaticity (r, g over r + g + b, in 1/255; the same under the
+#: light's shading of one colour) of the 3x3 mixture's colour, two pixels apart, by more than this (and
+#: than 4 sigma of the image's noise there)
+COLOUR_STEP = 12.0
+#: (a dark pixel's chromaticity is noisy: its sum is floored by this, 8-bit units)
+CHROMA_DARK_FLOOR = 30.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,19 +130,50 @@ def segment_objects(frame: RGBDFrame, params: PerceptionParams, pts: np.ndarray 
     return Clusters(labels, areas)
 
 
-def split_at_depth_steps(frame: RGBDFrame, clusters: Clusters, min_px: int) -> Clusters:
+def colour_steps(frame: RGBDFrame) -> np.ndarray:
+    """(H, W) bool: the pixels where the colour steps (its chromaticity through the 3x3 mixture, two
+    pixels apart across or down, by more than ``COLOUR_STEP`` and 4 sigma of the noise of such a
+    difference): the edge between two objects of different colours. Shading (one colour lit more or
+    less) keeps the chromaticity, and so does not step."""
+    rgb = cv2.filter2D(np.asarray(frame.rgb[..., :3], dtype=np.float64), cv2.CV_64F, MIXTURE_KERNEL,
+                       borderType=cv2.BORDER_REPLICATE)  # fmt: skip
+    total = np.maximum(rgb.sum(axis=2), CHROMA_DARK_FLOOR)
+    chroma = 255.0 * rgb[..., :2] / total[..., None]
+    # the noise of a difference of two such chromaticities: each channel's (the mixture's share of the
+    # sensor's), over the pixel's sum, about sqrt(2) for the two channels' shares
+    sigma = 255.0 * np.sqrt(2.0) * MIXTURE_NOISE_FRACTION * float(frame.rgb_noise_sigma) * np.sqrt(2.0) / total
+    thr = np.maximum(COLOUR_STEP, 4.0 * sigma)
+    out = np.zeros(total.shape, dtype=bool)
+    dx = np.linalg.norm(chroma[:, 2:] - chroma[:, :-2], axis=2) > np.minimum(thr[:, 2:], thr[:, :-2])
+    dy = np.linalg.norm(chroma[2:] - chroma[:-2], axis=2) > np.minimum(thr[2:], thr[:-2])
+    out[:, 1:-1] |= dx
+    out[1:-1] |= dy
+    return out
+
+
+def split_heap(frame: RGBDFrame, clusters: Clusters, min_px: int) -> Clusters:
     """The clusters split where the depth steps between neighbouring pixels (``DEPTH_STEP_M``, seen
-    through the 3x3 mixture): objects in a heap, touching one another, are seen so, one in front of
-    or on top of another. The step's own pixels join the part beside them; parts smaller than
-    ``min_px`` are left out."""
-    labels = clusters.labels
+    through the 3x3 mixture), or their colour (``COLOUR_STEP``): objects in a heap, touching one
+    another, are seen so, one in front of or on top of another, or beside another of another colour.
+    The steps' own pixels join the part beside them; parts smaller than ``min_px`` are left out."""
     if not len(clusters.areas):
         return clusters
+    # (only about the clusters: the steps need a pixel or two beyond them)
+    ys, xs = np.nonzero(clusters.labels)
+    h, w = clusters.labels.shape
+    y0, y1, x0, x1 = max(ys.min() - 4, 0), min(ys.max() + 5, h), max(xs.min() - 4, 0), min(xs.max() + 5, w)
+    parts = np.zeros_like(clusters.labels, dtype=np.int32)
+    parts[y0:y1, x0:x1] = _split(crop_frame(frame, x0, y0, x1, y1), clusters.labels[y0:y1, x0:x1], min_px)
+    areas = np.bincount(parts.ravel())[1:].astype(np.int64)
+    return Clusters(parts, areas)
+
+
+def _split(frame: RGBDFrame, labels: np.ndarray, min_px: int) -> np.ndarray:
     depth = np.nan_to_num(np.asarray(frame.depth_m, dtype=np.float64), nan=0.0, posinf=0.0)
     smooth = cv2.filter2D(depth, cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
     noise = MIXTURE_NOISE_FRACTION * np.sqrt(frame.depth_variance(depth))
     thr = np.maximum(DEPTH_STEP_M, 4.0 * np.sqrt(2.0) * noise)
-    step = depth <= 0.0
+    step = (depth <= 0.0) | colour_steps(frame)
     dx = np.abs(np.diff(smooth, axis=1)) > np.minimum(thr[:, 1:], thr[:, :-1])
     dy = np.abs(np.diff(smooth, axis=0)) > np.minimum(thr[1:, :], thr[:-1, :])
     step[:, 1:] |= dx
@@ -162,9 +199,7 @@ def split_at_depth_steps(frame: RGBDFrame, clusters: Clusters, min_px: int) -> C
         parts[take] = grown[take]
         todo &= ~take
     uniq, inverse = np.unique(parts, return_inverse=True)
-    parts = inverse.reshape(parts.shape).astype(np.int32)
-    areas = np.bincount(parts.ravel())[1:].astype(np.int64)
-    return Clusters(parts, areas)
+    return inverse.reshape(parts.shape).astype(np.int32)
 
 
 def choose_cluster(
@@ -270,8 +305,8 @@ def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPa
     f = crop_frame(frame, x0, y0, x1, y1)
     pts = world_points(f)
     clusters = segment_objects(f, params, pts)
-    if heap:  # objects may touch one another: apart where the depth steps
-        clusters = split_at_depth_steps(f, clusters, params.min_target_px)
+    if heap:  # objects may touch one another: apart where the depth or the colour steps
+        clusters = split_heap(f, clusters, params.min_target_px)
     h, w = frame.rgb.shape[:2]
     centre = None if frame.roi is None else np.array([w / 2.0 - x0, h / 2.0 - y0])
     label = choose_cluster(f, clusters, model, params.min_target_px, centre_uv=centre, pts=pts)
@@ -396,14 +431,14 @@ class Survey:
 def survey_objects(frame: RGBDFrame, params: PerceptionParams | None = None, *, heap: bool = True) -> Survey:
     """Every object on the table in the frame: segmentation by geometry (:func:`segment_objects`; the
     robot and the cell's fixtures in the frame's ``robot_boxes`` left out; ``heap``: objects touching
-    one another told apart where the depth steps, :func:`split_at_depth_steps`), each cluster large enough
+    one another told apart where the depth or the colour steps, :func:`split_heap`), each cluster large enough
     with its points and the other clusters' points near it as obstacles (an
     :class:`~pickdemo.perception.model.ObjectCloud`), largest first."""
     params = params or PerceptionParams()
     pts = world_points(frame)
     clusters = segment_objects(frame, params, pts)
     if heap:
-        clusters = split_at_depth_steps(frame, clusters, params.min_target_px)
+        clusters = split_heap(frame, clusters, params.min_target_px)
     depth = holes_as_nan(frame.depth_m)
     labelled = clusters.labels > 0
     out = []

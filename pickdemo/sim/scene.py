@@ -291,6 +291,14 @@ class Scene:
         robotless = (b for n, b in self.bodies.items() if n not in FIXTURES)
         return all(np.linalg.norm(self.client.getBaseVelocity(b)[0]) < speed_m_s for b in robotless)
 
+    def let_objects_sleep(self) -> None:
+        """Let the movable objects sleep once at rest (Bullet's deactivation: a body still for a while
+        leaves the solver until something touches it). A clear round's objects mostly lie still, on the
+        table or in the tray: a step costs a quarter as much. Behaviour, not set-up: a round only."""
+        for name, body in self.bodies.items():
+            if name not in FIXTURES:
+                self.client.changeDynamics(body, -1, activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING)
+
     def settle(self, max_steps: int) -> int:
         """Step until the objects have come to rest (10 steps in a row), at most ``max_steps``; the
         robot holds its pose meanwhile. Returns the steps taken. World set-up, not robot behaviour."""
