@@ -100,6 +100,15 @@ def test_a_heap_is_told_apart_where_the_colour_steps_and_shading_does_not_split_
         assert len(split_heap(f, segment_objects(f, PARAMS), PARAMS.min_target_px).areas) == 1
 
 
+def test_a_sensors_scattered_holes_do_not_cut_an_object_into_pieces() -> None:
+    # a D435 drops returns at random (2 % of its pixels): a hole is no depth step, nor a point
+    one = render([Block((0.5, 0.02), (0.06, 0.09, 0.04))], noise=1.45e-3)
+    depth = np.array(one.depth_m)
+    depth[np.random.default_rng(1).random(depth.shape) < 0.02] = 0.0  # (a driver writes 0)
+    holed = dataclasses.replace(one, depth_m=depth)
+    assert len(split_heap(holed, segment_objects(holed, PARAMS), PARAMS.min_target_px).areas) == 1
+
+
 def test_a_heap_is_told_apart_where_the_depth_steps_and_one_box_stays_one_part() -> None:
     # a tall box in front of a low one that it hides in part, touching: one cluster seen from above, two
     # parts (where the tall one's top edge hides the low one, the depth steps)

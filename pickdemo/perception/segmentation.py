@@ -34,13 +34,13 @@ def world_heights(frame: RGBDFrame) -> np.ndarray:
     h, w = frame.depth_m.shape
     r = T.rotation[2]
     slope = r[0] * (np.arange(w) - K.cx)[None, :] / K.fx + r[1] * (np.arange(h) - K.cy)[:, None] / K.fy + r[2]
-    depth = np.where(np.isfinite(frame.depth_m), frame.depth_m, np.nan)
+    depth = holes_as_nan(frame.depth_m)  # (a driver's 0 is no point at the camera)
     return depth * slope + T.position[2]
 
 
 def world_points(frame: RGBDFrame) -> np.ndarray:
     """(H, W, 3) world coordinates of every pixel (nan where there is no depth)."""
-    depth = np.where(np.isfinite(frame.depth_m), frame.depth_m, np.nan)
+    depth = holes_as_nan(frame.depth_m)  # (a driver's 0 is no point at the camera)
     pts = backproject_image(depth, frame.intrinsics)
     return pts @ frame.T_world_cam.rotation.T + frame.T_world_cam.position
 

@@ -170,12 +170,19 @@ def split_heap(frame: RGBDFrame, clusters: Clusters, min_px: int) -> Clusters:
 
 def _split(frame: RGBDFrame, labels: np.ndarray, min_px: int) -> np.ndarray:
     depth = np.nan_to_num(np.asarray(frame.depth_m, dtype=np.float64), nan=0.0, posinf=0.0)
-    smooth = cv2.filter2D(depth, cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    # The mixture over the readings there are: a hole (no return) is no step, and does not pull its
+    # neighbours' depth to 0 (a sensor's scattered holes would cut an object into pieces).
+    valid = (depth > 0.0).astype(np.float64)
+    weight = cv2.filter2D(valid, cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    total = cv2.filter2D(depth, cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        smooth = np.where(weight > 0.0, total / weight, np.nan)
     noise = MIXTURE_NOISE_FRACTION * np.sqrt(frame.depth_variance(depth))
     thr = np.maximum(DEPTH_STEP_M, 4.0 * np.sqrt(2.0) * noise)
-    step = (depth <= 0.0) | colour_steps(frame)
-    dx = np.abs(np.diff(smooth, axis=1)) > np.minimum(thr[:, 1:], thr[:, :-1])
-    dy = np.abs(np.diff(smooth, axis=0)) > np.minimum(thr[1:, :], thr[:-1, :])
+    step = colour_steps(frame)
+    with np.errstate(invalid="ignore"):  # (NaN, no reading about: no step)
+        dx = np.abs(np.diff(smooth, axis=1)) > np.minimum(thr[:, 1:], thr[:, :-1])
+        dy = np.abs(np.diff(smooth, axis=0)) > np.minimum(thr[1:, :], thr[:-1, :])
     step[:, 1:] |= dx
     step[:, :-1] |= dx
     step[1:, :] |= dy
