@@ -19,6 +19,17 @@ from pickdemo.perception import ObjectCloud, PerceptionError, PoseEstimate, Targ
 from pickdemo.shapes import Unknown
 from pickdemo.tracker import TargetTracker, TrackedPose, TrackerParams
 
+#: Moving or not is decided on the track's accepted positions over this long (s, up to the newest) ...
+MOVING_WINDOW_S = 1.5
+#: ... once there are this many, spanning this long (before: the tracker's speed against 3 sigma)
+MOVING_WINDOW_MIN = 5
+MOVING_WINDOW_MIN_SPAN_S = 0.5
+#: A straight-line fit's speed beyond this many standard errors (and the least speed) is moving; a
+#: moving target has stopped once its fit's speed is under half of both (hysteresis)
+MOVING_SIGMAS = 5.0
+#: The least standard error of a position in the fit (m): the estimates' noise is never nil
+MOVING_POSITION_FLOOR_M = 0.0005
+
 
 class Verdict(str, enum.Enum):
     """What became of an estimate offered to the controller."""
@@ -80,6 +91,11 @@ class TargetBelief:
         self.counters = counters
         self.tracker = TargetTracker(symmetry_rad, tracker_params)
         self._velocity_cache: tuple[tuple, np.ndarray | None] | None = None
+        #: the track's accepted positions (time, x, y), and whether it is moving as last decided (on
+        #: which track, after how many accepted estimates)
+        self._seen: list[tuple[float, float, float, float]] = []  # (time, x, y, variance)
+        self._moving = False
+        self._decided: tuple[int, int] | None = None
         self.unknown = isinstance(model.geometry, Unknown)
         #: an object nobody described: the newest cloud seen of it whole with the hand away, or the
         #: first seen at all until then (grasps are planned from it); its extents as first seen on this track
@@ -90,6 +106,7 @@ class TargetBelief:
         """Forget the target: the next estimate starts a new track."""
         self.tracker = TargetTracker(self.symmetry, self.tracker_params)
         self._extents = None
+        self._seen, self._moving, self._decided = [], False, None
 
     @property
     def initialised(self) -> bool:
@@ -128,6 +145,11 @@ class TargetBelief:
             self.counters.rejected += 1
         if up.jumped:
             self.counters.jumps += 1
+            self._seen, self._moving = [], False  # a new track: moving or not is decided afresh
+        if up.accepted:
+            p = result.pose.position
+            var = float(np.mean(np.diag(result.position_cov)[:2]))  # its stated variance across the table
+            self._seen.append((frame_time_s, float(p[0]), float(p[1]), var))
         if up.accepted and self.unknown and result.cloud is not None and not hand_over_target:
             if self._extents is None or up.jumped:
                 self._extents = result.top_face_size_m
@@ -175,17 +197,60 @@ class TargetBelief:
 
     # ========================================================================= a moving target
     def moving_velocity(self, now_s: float, min_speed_m_s: float) -> np.ndarray | None:
-        """The target's horizontal velocity (m/s) while the tracker sees it move (faster than
-        ``min_speed_m_s`` and than 3 sigma of its speed); None when it is at rest, or not surely moving."""
+        """The target's horizontal velocity (m/s) while it is moving; None when it is at rest.
+
+        Moving or not is a decision, taken again on each accepted estimate and held between them (the
+        hand hiding the target changes nothing): a straight line fitted to the track's positions over
+        the last ``MOVING_WINDOW_S`` moves faster than ``min_speed_m_s`` and ``MOVING_SIGMAS`` standard
+        errors of its slope; a moving target has stopped once the fit's speed falls under half of
+        both. (A slow belt is told from the noise by the line, where the tracker's speed
+        alone, sure only to a centimetre a second, is not.) Until the track has such a window: the
+        tracker's speed against ``min_speed_m_s`` and 3 sigma."""
         if not self.tracker.initialised:
+            return None
+        at = (id(self.tracker), self.tracker.accepted)
+        if self._decided != at:
+            self._decided = at
+            self._moving = self._decide(min_speed_m_s)
+        if not self._moving:
             return None
         key = (now_s, id(self.tracker), self.tracker.accepted)  # the belief changes only on an accept
         if self._velocity_cache is not None and self._velocity_cache[0] == key:
-            v = self._velocity_cache[1]
-            return None if v is None else v.copy()
-        tp = self.tracker.predict(now_s)
-        v = tp.velocity[:2]
-        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(tp.covariance[4:6, 4:6])), 0.0)))
-        v = None if float(np.linalg.norm(v)) <= max(min_speed_m_s, 3.0 * sigma) else v.copy()
+            return self._velocity_cache[1].copy()  # type: ignore[union-attr]
+        v = self.tracker.predict(now_s).velocity[:2].copy()
         self._velocity_cache = (key, v)
-        return None if v is None else v.copy()
+        return v.copy()
+
+    def _decide(self, min_speed_m_s: float) -> bool:
+        fit = self._line_fit()
+        if fit is not None:
+            speed, se = fit
+            if self._moving:
+                return speed >= max(0.5 * min_speed_m_s, 0.5 * MOVING_SIGMAS * se)
+            return speed > max(min_speed_m_s, MOVING_SIGMAS * se)
+        tp = self.tracker.predict(self._seen[-1][0] if self._seen else 0.0)
+        speed = float(np.linalg.norm(tp.velocity[:2]))
+        if self._moving:
+            return speed >= 0.5 * min_speed_m_s
+        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(tp.covariance[4:6, 4:6])), 0.0)))
+        return speed > max(min_speed_m_s, 3.0 * sigma)
+
+    def _line_fit(self) -> tuple[float, float] | None:
+        """The speed (m/s) of a straight line through the track's positions over the last window, and
+        its standard error; None when the window holds too few, or too short a span."""
+        if not self._seen:
+            return None
+        newest = self._seen[-1][0]
+        pts = np.array([s for s in self._seen if s[0] >= newest - MOVING_WINDOW_S])
+        if len(pts) < MOVING_WINDOW_MIN or pts[-1, 0] - pts[0, 0] < MOVING_WINDOW_MIN_SPAN_S:
+            return None
+        t = pts[:, 0] - pts[:, 0].mean()
+        stt = float(t @ t)
+        xy = pts[:, 1:3] - pts[:, 1:3].mean(axis=0)
+        v = (t @ xy) / stt  # (2,) the slope of each axis
+        resid = xy - np.outer(t, v)
+        # a position's variance: what the residuals say, or what the estimates said of themselves if more
+        s2 = max(
+            float(np.sum(resid**2)) / (2.0 * (len(pts) - 2)), float(np.mean(pts[:, 3])), MOVING_POSITION_FLOOR_M**2
+        )
+        return float(np.linalg.norm(v)), float(np.sqrt(s2 / stt))

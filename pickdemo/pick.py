@@ -175,7 +175,17 @@ class MachineParams:
         """For a cell with a conveyor: a target may move at any speed the belt runs (up to 0.5 m/s),
         and its belt may change speed; the first plan waits for one more estimate (a velocity)."""
         tracker = dataclasses.replace(self.tracker, initial_speed_sigma_m_s=0.3, accel_sigma_m_s2=0.03)
-        return dataclasses.replace(self, look_min_estimates=max(self.look_min_estimates, 3), tracker=tracker)
+        return dataclasses.replace(
+            self,
+            look_min_estimates=max(self.look_min_estimates, 3),
+            tracker=tracker,
+            # a slow belt is a belt: a target steadily faster than this (and the fit's noise) is moving
+            moving_speed_m_s=min(self.moving_speed_m_s, BELT_MOVING_SPEED_M_S),
+        )
+
+
+#: On a belt, the least speed of a moving target (m/s): a slow belt's 1 cm/s is well clear of it
+BELT_MOVING_SPEED_M_S = 0.004
 
 
 @dataclass(frozen=True)
