@@ -10,6 +10,7 @@ knows nothing of the robot's joints.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,6 +60,9 @@ class GraspPlan:
     #: the TCP from the object's centre when it is put down (m, world x and y): the centre, not the
     #: hand, goes to the place (zero when the grasp is through the centre)
     place_offset_xy: tuple[float, float] = (0.0, 0.0)
+    #: the object's width between the fingers is known (a described shape): a close that stops wider
+    #: than ``object_width_m`` by the grip's ``wide_margin_m`` held it askew, or held something else too
+    width_known: bool = False
 
 
 def top_down(position: np.ndarray, yaw_rad: float) -> Pose:
@@ -124,7 +128,8 @@ def plan_grasp(
     grasp_above_bottom = grasp_z - bottom_z
 
     grasp_p = np.array([center[0], center[1], grasp_z])
-    return poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params)
+    plan = poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params)
+    return dataclasses.replace(plan, width_known=True)
 
 
 def poses_of_pick(

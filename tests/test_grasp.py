@@ -70,3 +70,20 @@ def test_hand_yaw_near_keeps_the_hand_angle() -> None:
     # The estimate crosses the quarter-turn boundary; the re-plan keeps the hand where it was.
     again = plan_grasp(_estimate(46.0), model, (0.45, 0.3), hand_yaw_near_rad=first.hand_yaw_rad)
     assert abs(again.hand_yaw_rad - first.hand_yaw_rad) == pytest.approx(np.radians(2.0))
+
+
+def test_a_grip_wider_than_a_known_object_is_no_hold_of_it_alone() -> None:
+    from pickdemo.actions import Grip, GripParams
+    from pickdemo.interfaces import Observation
+
+    box = TargetModel(Box((0.05, 0.05, 0.05)), color=(1.0, 0.0, 0.0))
+    plan = plan_grasp(_estimate(0.0), box, (0.3, 0.3))
+    assert plan.width_known and plan.object_width_m == pytest.approx(0.05)
+    grip = Grip(GripParams(), 1.0 / 120.0)
+
+    def at(opening_m: float) -> Observation:
+        return Observation(0.0, np.zeros(7), np.zeros(7), np.full(2, opening_m / 2.0), (3, 3))
+
+    assert grip.holding(at(0.050), plan.object_width_m) and not grip.too_wide(at(0.050), plan.object_width_m)
+    assert grip.too_wide(at(0.060), plan.object_width_m)  # the 60 mm grip of a 50 mm cube
+    assert not grip.too_wide(at(0.057), plan.object_width_m)  # turned a few degrees in the pads: held
