@@ -91,9 +91,9 @@ class TargetBelief:
         self.counters = counters
         self.tracker = TargetTracker(symmetry_rad, tracker_params)
         self._velocity_cache: tuple[tuple, np.ndarray | None] | None = None
-        #: the track's accepted positions (time, x, y), and whether it is moving as last decided (on
-        #: which track, after how many accepted estimates)
-        self._seen: list[tuple[float, float, float, float]] = []  # (time, x, y, variance)
+        #: the track's accepted positions over the last ``MOVING_WINDOW_S`` (time, x, y, variance), and
+        #: whether it is moving as last decided (on which track, after how many accepted estimates)
+        self._seen: list[tuple[float, float, float, float]] = []
         self._moving = False
         self._decided: tuple[int, int] | None = None
         self.unknown = isinstance(model.geometry, Unknown)
@@ -150,6 +150,7 @@ class TargetBelief:
             p = result.pose.position
             var = float(np.mean(np.diag(result.position_cov)[:2]))  # its stated variance across the table
             self._seen.append((frame_time_s, float(p[0]), float(p[1]), var))
+            self._seen = [s for s in self._seen if s[0] >= frame_time_s - MOVING_WINDOW_S]  # (the window only)
         if up.accepted and self.unknown and result.cloud is not None and not hand_over_target:
             if self._extents is None or up.jumped:
                 self._extents = result.top_face_size_m

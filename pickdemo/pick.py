@@ -1141,13 +1141,13 @@ class PickMachine:
         stalled = self.grip.stopped(obs)
         if not stalled and obs.time_s - self._since_s < self.p.close_timeout_s:
             return None
-        if self._holding(obs) and self.plan.width_known and self.grip.too_wide(obs, self.plan.object_width_m):
-            reason = (
-                f"fingers stopped at {obs.opening_m * 1e3:.1f} mm (expected {self.plan.object_width_m * 1e3:.0f} mm): "
-                "held askew, or not it alone"
-            )
-            return self._retry(Stage.GRASP, "missed", reason)
         if self._holding(obs):
+            if self.plan.width_known and self.grip.too_wide(obs, self.plan.object_width_m):
+                reason = (
+                    f"fingers stopped at {obs.opening_m * 1e3:.1f} mm "
+                    f"(expected {self.plan.object_width_m * 1e3:.0f} mm): held askew, or not it alone"
+                )
+                return self._retry(Stage.GRASP, "missed", reason)
             self.grasp_width_m = obs.opening_m
             return State.LIFT, (
                 f"holding: fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {self.grip_force_n:.0f} N"
