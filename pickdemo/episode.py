@@ -357,8 +357,6 @@ class Episode:
         params = self.options.machine
         if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
             params = params.on_a_belt()
-        else:  # a table alone: nothing moves on its own (a push that stopped has stopped)
-            params = params.on_a_table()
         m = sc.motion
         scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
         if scales != (1.0, 1.0, 1.0):

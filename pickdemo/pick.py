@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import dataclasses
 import enum
-import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -171,12 +170,6 @@ class MachineParams:
     #: the machine ends with the arm at rest: a last failed attempt backs off first (straight up, the
     #: fingers open), any other failure brakes the motion under way (a sequencer goes on from there)
     end_at_rest: bool = False
-
-    def on_a_table(self) -> MachineParams:
-        """For a cell with no conveyor: nothing there moves on its own, so a target is never met where
-        it would go (a push that stopped has stopped; a push is not taken for a belt): it is tracked
-        to where it is."""
-        return dataclasses.replace(self, moving_speed_m_s=math.inf)
 
     def on_a_belt(self) -> MachineParams:
         """For a cell with a conveyor: a target may move at any speed the belt runs (up to 0.5 m/s),
