@@ -67,6 +67,8 @@ class Offered:
 
     verdict: Verdict
     jumped: bool = False
+    #: a whole view the tracker's gate rejected: how far (m, across the table) from where the track has it
+    off_m: float | None = None
 
 
 class TargetBelief:
@@ -123,10 +125,17 @@ class TargetBelief:
         return self.tracker.lost(t_s)
 
     # ============================================================================== the gate
-    def offer(self, result: PoseEstimate | PerceptionError, frame_time_s: float, *, hand_over_target: bool) -> Offered:
+    def offer(
+        self,
+        result: PoseEstimate | PerceptionError,
+        frame_time_s: float,
+        *,
+        hand_over_target: bool,
+        camera: str = "camera",
+    ) -> Offered:
         """Gate and fuse what perception made of a frame taken at ``frame_time_s``. While the hand is
         over the target a view of part of its top face is not acted on (it can mislead the fit
-        consistently); the tracker predicts through."""
+        consistently); the tracker predicts through. ``camera``: which camera took the frame."""
         verdict = Verdict.NO_ESTIMATE
         if isinstance(result, PoseEstimate):
             implausible = self.implausible(result)
@@ -140,9 +149,12 @@ class TargetBelief:
             self.counters.last_error = str(result)
             return Offered(verdict)
         self.counters.estimates += 1
-        up = self.tracker.update(result, frame_time_s, partial=not self.complete_view(result))
+        up = self.tracker.update(result, frame_time_s, partial=not self.complete_view(result), source=camera)
         if not up.accepted:
             self.counters.rejected += 1
+        off_m = None
+        if not up.accepted and self.complete_view(result):
+            off_m = float(np.linalg.norm(result.pose.position[:2] - self.tracker.predict(frame_time_s).position[:2]))
         if up.jumped:
             self.counters.jumps += 1
             self._seen, self._moving = [], False  # a new track: moving or not is decided afresh
@@ -156,7 +168,7 @@ class TargetBelief:
                 self._extents = result.top_face_size_m
             if self.complete_view(result) or self.cloud is None:  # a partial view until a whole one comes
                 self.cloud = result.cloud
-        return Offered(Verdict.ACCEPTED if up.accepted else Verdict.REJECTED, jumped=up.jumped)
+        return Offered(Verdict.ACCEPTED if up.accepted else Verdict.REJECTED, jumped=up.jumped, off_m=off_m)
 
     def implausible(self, est: PoseEstimate) -> str:
         """Why an estimate cannot be the target resting on the table or the belt ("" if it can): not

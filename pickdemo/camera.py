@@ -87,6 +87,13 @@ def look_at_pose(position: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0
     return Pose(position, np.column_stack([x, y, z]))
 
 
+def hand_camera_pose(T_tcp_mount: Pose, position: np.ndarray, look_at: np.ndarray) -> Pose:
+    """``T_tcp_cam`` of a camera on the hand at ``position`` looking at ``look_at`` (both in the mount's
+    frame), its image's rows across the hand's y axis (the fingers' direction): the image's width lies
+    along the way it looks past the fingers."""
+    return T_tcp_mount @ look_at_pose(np.asarray(position, float), np.asarray(look_at, float), up=(0.0, 1.0, 0.0))
+
+
 def project(points_cam: np.ndarray, K: Intrinsics) -> np.ndarray:
     """Project (N, 3) camera-frame points to (N, 2) pixel coordinates (eqs. 5-6 inverted)."""
     p = np.atleast_2d(points_cam)
@@ -298,6 +305,7 @@ class RGBDFrame:
     #: The robot's own links where its joint states put them when the frame was taken (padded boxes):
     #: a point inside one is the arm or the hand, not the scene (the self-filter). Empty: not known.
     robot_boxes: tuple[OrientedBox, ...] = ()
+    camera: str = "camera"  # which camera took it: "camera" (the fixed one) or "wrist_camera"
 
     def depth_variance(self, z_m: np.ndarray | float) -> np.ndarray:
         """Variance (m^2) of a depth reading at ``z_m``: the sensor's noise and its quantisation."""

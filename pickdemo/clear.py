@@ -204,7 +204,13 @@ class ClearSequencer:
             return FrameRequest(None, survey=True)
         return self.current.frame_request(now_s)
 
-    def on_estimate(self, result: PoseEstimate | PerceptionError | Survey, frame_time_s: float) -> Verdict:
+    def wrist_request(self, now_s: float) -> FrameRequest | None:
+        """A clear round does not look through a camera on the hand (yet)."""
+        return None
+
+    def on_estimate(
+        self, result: PoseEstimate | PerceptionError | Survey, frame_time_s: float, camera: str = "camera"
+    ) -> Verdict:
         if self._done:
             return Verdict.UNUSED
         if isinstance(result, Survey):
@@ -214,7 +220,7 @@ class ClearSequencer:
             return Verdict.UNUSED
         if self._surveying:
             return Verdict.UNUSED
-        return self.current.on_estimate(result, frame_time_s)
+        return self.current.on_estimate(result, frame_time_s, camera)
 
     def update(self, obs: Observation) -> Command:
         self._now_s = obs.time_s

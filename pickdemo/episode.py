@@ -37,7 +37,15 @@ from pickdemo.kinematics import panda_kinematics
 from pickdemo.layout import LayoutError
 from pickdemo.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX, Observer, TraceRecorder
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
-from pickdemo.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
+from pickdemo.pick import (
+    TRACKING_STATES,
+    CameraModel,
+    FrameRequest,
+    MachineParams,
+    PickMachine,
+    State,
+    WristCameraModel,
+)
 from pickdemo.rate_limit import ReflexError
 from pickdemo.referee import PERCEPTION_OFF_MM, ClearReferee, Referee, diagnose
 from pickdemo.result import (
@@ -142,6 +150,7 @@ class _InFlight:
     taken_s: float
     result: PoseEstimate | PerceptionError
     error_mm: float | None  # against the truth when the frame was taken: for the referee only
+    camera: str = "camera"  # which camera took the frame
 
 
 @dataclass
@@ -365,6 +374,12 @@ class Episode:
             )
         params = dataclasses.replace(params, joint_transfers=m.transfers == "joint")
         camera = world.camera
+        wrist = world.wrist_camera
+        wrist_model = (
+            None
+            if wrist is None
+            else WristCameraModel(wrist.intrinsics, wrist.T_tcp_cam, wrist.spec.near_m, wrist.spec.far_m)
+        )
         common = dict(  # what the controller is told of its cell and its arm, for either task
             kin=kin,
             camera=CameraModel(camera.intrinsics, camera.T_world_cam),
@@ -392,6 +407,7 @@ class Episode:
             place_tolerance_m=sc.success.place_tolerance,
             open_loop=self.options.open_loop,
             surface_z=sc.surface_z,
+            wrist=wrist_model,
             **common,
         )
 
@@ -482,7 +498,7 @@ class Episode:
         obs = self.observation = self.robot.observe()
         while self._pending and self._pending[0].arrival_s <= now + 1e-9:
             f = self._pending.popleft()
-            status = machine.on_estimate(f.result, f.taken_s)
+            status = machine.on_estimate(f.result, f.taken_s, f.camera)
             self.referee.delivered(f.result, f.error_mm, status)
             self._notify("estimate", now, f.taken_s, f.result, status)
         t0 = time.perf_counter()
@@ -506,6 +522,10 @@ class Episode:
             self._last_frame_tick = self.tick
             self._look(request, now)
             counts.tracking_frames += tracking
+        wrist = machine.wrist_request(now) if due and self.world.wrist_camera is not None else None
+        if wrist is not None:  # the hand's camera looks in the same tick (each frame its own estimate)
+            self._last_frame_tick = self.tick
+            self._look(wrist, now)
         self._notify("tick", now)
         with self.timer("physics"):
             for _ in range(self.substeps):
@@ -532,9 +552,15 @@ class Episode:
         from pickdemo.sim.disturb import PushPlayer, draw_push
 
         world = self.world
-        with self.timer("render"):
-            frame = world.camera.capture(world.scene, request.roi)
         obs = self.observation  # the joint states when the frame was taken: where the arm is in it
+        if request.wrist:  # told where it was by the arm's kinematics at those joint states
+            with self.timer("render wrist"):
+                T_world_tcp = self.machine.kin.forward(obs.arm_q)
+                frame = world.wrist_camera.capture_from(world.scene, T_world_tcp, request.roi)
+            frame = dataclasses.replace(frame, camera="wrist_camera")
+        else:
+            with self.timer("render"):
+                frame = world.camera.capture(world.scene, request.roi)
         if obs is not None:
             boxes = robot_body().boxes(obs.arm_q, obs.fingers_m)
             if world.tray is not None:  # the cell's tray, and what is in it, is no object on the table
@@ -549,7 +575,7 @@ class Episode:
             self._pending.append(_InFlight(now + self.scenario.control.perception_latency_s, now, survey, None))
             self._notify("frame", now, frame, survey)
             return
-        with self.timer("perceive"):
+        with self.timer("perceive wrist" if request.wrist else "perceive"):
             try:
                 result: PoseEstimate | PerceptionError = self.estimator(frame, self.machine.model)
                 if not isinstance(result, PoseEstimate):
@@ -565,7 +591,8 @@ class Episode:
             ]
         # Truth: for scoring only (an estimate that perception's own checks rejected included).
         error_mm = self.referee.error_mm(result)
-        self._pending.append(_InFlight(now + self.scenario.control.perception_latency_s, now, result, error_mm))
+        latency = self.scenario.control.perception_latency_s
+        self._pending.append(_InFlight(now + latency, now, result, error_mm, frame.camera))
         self._notify("frame", now, frame, result)
 
     def _log_events(self, now: float) -> None:

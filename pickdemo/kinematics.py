@@ -95,6 +95,11 @@ class PandaKinematics:
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return Pose.from_se3(self.data.oMf[self.tcp_id])
 
+    def tcp_to_frame(self, name: str) -> Pose:
+        """``T_tcp_frame`` of a frame fixed to the hand (a camera's mount): the same at any configuration."""
+        pin.framesForwardKinematics(self.model, self.data, pin.neutral(self.model))
+        return Pose.from_se3(self.data.oMf[self.tcp_id].actInv(self.data.oMf[self.model.getFrameId(name)]))
+
     def manipulability(self, q: np.ndarray) -> float:
         """Yoshikawa's measure sqrt(det(J J^T)) of the TCP's Jacobian: near 0 close to a singularity."""
         J = pin.computeFrameJacobian(self.model, self.data, np.asarray(q, dtype=float), self.tcp_id, pin.LOCAL)

@@ -50,8 +50,8 @@ import numpy as np
 
 from pickdemo import robot_model as rm
 from pickdemo.actions import Grip, GripParams, Move, PayloadParams, Scale
-from pickdemo.belief import Counters, GateParams, TargetBelief, Verdict
-from pickdemo.camera import Intrinsics, roi_around
+from pickdemo.belief import Counters, GateParams, Offered, TargetBelief, Verdict
+from pickdemo.camera import Intrinsics, project, roi_around
 from pickdemo.geometry import Pose, wrap_angle
 from pickdemo.grasp import GraspParams, GraspPlan, GraspPlanningError, top_down
 from pickdemo.grasp_selection import GraspRequest, GraspSelector, selector_for
@@ -133,6 +133,7 @@ class MachineParams:
     max_relooks: int = 2  # the target lost while approaching: look again from home, at most this often
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
     moved_tolerance_rad: float = float(np.radians(8.0))
+    moved_views: int = 2  # ... or this many whole views in a row refused that far from the track: back off
     close_timeout_s: float = 2.0
     verify_wait_s: float = 0.3  # let the placed object come to rest before the last look
     roi_margin_m: float = 0.03  # around the target's box, for the region of interest
@@ -207,11 +208,23 @@ class CameraModel:
 
 
 @dataclass(frozen=True)
+class WristCameraModel:
+    """What the robot knows of the camera on its hand: intrinsics of the whole image, its pose on the
+    hand (``T_tcp_cam``, from its hand-eye calibration) and the depths it measures."""
+
+    intrinsics: Intrinsics
+    T_tcp_cam: Pose
+    near_m: float
+    far_m: float
+
+
+@dataclass(frozen=True)
 class FrameRequest:
     """A frame perception wants now: the whole image (``roi`` None) or a region of it."""
 
     roi: tuple[int, int, int, int] | None
     survey: bool = False  # every object on the table (a clear round's look), not the target's pose
+    wrist: bool = False  # of the camera on the hand (else the fixed camera's)
 
 
 Transition = tuple[State, str] | None  # the next state and what it says, or stay
@@ -240,6 +253,7 @@ class PickMachine:
         place_z_m: float = 0.0,
         look_at: np.ndarray | None = None,
         look_from_here: bool = False,
+        wrist: WristCameraModel | None = None,
     ) -> None:
         """``surface_z(x, y)``: the height of what a target at (x, y) rests on, as the cell's layout
         says (a belt's top, or the table at 0). ``selector``: where grasps come from (default: a
@@ -248,7 +262,8 @@ class PickMachine:
         ``max_attempts``). ``place_z_m``: the height above the table the target's bottom is let go at
         (a tray's rim: it drops in). ``look_at``: where the target was seen last (a survey of the table
         chose it among others): the first look is at a region around it; ``look_from_here``: from where
-        the arm is (it hides nothing of the table from the camera), not from home."""
+        the arm is (it hides nothing of the table from the camera), not from home. ``wrist``: the camera
+        on the hand, if there is one (it looks too whenever the target is wholly in its view)."""
         self.p = params or MachineParams()
         self.look_at = None if look_at is None else np.asarray(look_at, dtype=float)
         self._look_here = look_from_here
@@ -257,6 +272,8 @@ class PickMachine:
         self.symmetry = symmetry_rad
         self.place_xy = place_xy
         self.camera = camera
+        self.wrist = wrist
+        self._arm_q = np.asarray(q0, dtype=float)  # the joint states last observed (where the wrist camera is)
         self.rng = rng  # the IK's restarts
         self.max_attempts = max_attempts
         self.place_tolerance_m = place_tolerance_m
@@ -315,6 +332,8 @@ class PickMachine:
         self._descent_plan: GraspPlan | None = None
         self._planned_at_s = 0.0  # the plan is for the target where it was then
         self._descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
+        self._far_views: dict[str, list[float]] = {}  # per camera: whole views refused far from the track
+        self._moved_seen: tuple[float, str, float] | None = None  # the target moved under the hand: how far, seen by
         self._verify_asked = False
         self._relooks = 0
         self._plan_id = 0  # counts first plans (the grasp selector's plan_id)
@@ -371,9 +390,38 @@ class PickMachine:
             return None
         return FrameRequest(self._roi(now_s))
 
-    def on_estimate(self, result: PoseEstimate | PerceptionError, frame_time_s: float) -> Verdict:
-        """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``;
-        what became of it (:class:`~pickdemo.belief.Verdict`)."""
+    def wrist_request(self, now_s: float) -> FrameRequest | None:
+        """Whether the camera on the hand should look now, and at what region: while it tracks the
+        target (closed loop), when the target as tracked lies wholly in its view and depth range."""
+        if self.wrist is None or self.open_loop or self.state not in TRACKING_STATES or not self.belief.initialised:
+            return None
+        w = self.wrist
+        T_world_cam = self.kin.forward(self._arm_q) @ w.T_tcp_cam
+        tp = self.belief.predict(now_s)
+        g = self.model.geometry  # its footprint's circle, top and bottom, all in view
+        ring = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)])
+        corners = np.vstack(
+            [tp.position + g.footprint_radius_m * ring + [0.0, 0.0, dz * g.height_m / 2.0] for dz in (-1, 1)]
+        )
+        p_cam = T_world_cam.inverse().transform_points(corners)
+        if np.any(p_cam[:, 2] <= w.near_m) or np.any(p_cam[:, 2] >= w.far_m):
+            return None
+        uv = project(p_cam, w.intrinsics)
+        K = w.intrinsics
+        if np.any(uv < 0.0) or np.any(uv[:, 0] > K.width - 1) or np.any(uv[:, 1] > K.height - 1):
+            return None
+        margin = self.p.roi_margin_m + 3.0 * tp.position_sigma_m  # (close by: never above its top, near the lens)
+        wide = [(g.footprint_radius_m + margin) * ring + [0.0, 0.0, dz] for dz in (-g.height_m / 2.0, g.height_m / 2.0)]
+        corners = tp.position + np.vstack(wide)
+        corners[:, 2] = np.maximum(corners[:, 2], self.p.roi_floor_z_m)
+        roi = roi_around(corners, K, T_world_cam, pad_px=self.p.roi_pad_px)
+        return None if roi is None else FrameRequest(roi, wrist=True)
+
+    def on_estimate(
+        self, result: PoseEstimate | PerceptionError, frame_time_s: float, camera: str = "camera"
+    ) -> Verdict:
+        """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``
+        by ``camera``; what became of it (:class:`~pickdemo.belief.Verdict`)."""
         if self.state is State.VERIFY:
             self._verify_asked = True
             if isinstance(result, PoseEstimate):
@@ -384,7 +432,9 @@ class PickMachine:
             return Verdict.UNUSED
         if self.state is State.LOOK:
             self._look_frames += 1
-        offered = self.belief.offer(result, frame_time_s, hand_over_target=self.state in HAND_OVER_TARGET)
+        offered = self.belief.offer(
+            result, frame_time_s, hand_over_target=self.state in HAND_OVER_TARGET, camera=camera
+        )
         if offered.jumped:
             tp = self.belief.predict(frame_time_s)
             moved = ""
@@ -395,11 +445,27 @@ class PickMachine:
             self.events.append(Event(self.state, self._now_s, message, note=True))
         if offered.verdict is Verdict.ACCEPTED:
             self._fresh_estimate = True
+        self._watch_moves(offered, camera, frame_time_s)
         return offered.verdict
+
+    def _watch_moves(self, offered: Offered, camera: str, frame_time_s: float) -> None:
+        """With the hand over the target, whole views of it that the tracker refuses, ``moved_views`` of
+        them in a row from one camera, each farther than ``moved_tolerance_m`` from where it is tracked:
+        the target moved under the hand (the tracker confirms where to only once it is at rest again)."""
+        if offered.off_m is None or offered.off_m <= self.p.moved_tolerance_m:
+            self._far_views.pop(camera, None)  # (an accepted view, or a near one, ends the run)
+            return
+        if self.state not in HAND_OVER_TARGET:
+            return
+        run = self._far_views.setdefault(camera, [])
+        run.append(offered.off_m)
+        if len(run) >= self.p.moved_views:
+            self._moved_seen = (max(run), camera, frame_time_s)
 
     def update(self, obs: Observation) -> Command:
         """One control tick: the state's entry action (once), its exit test, then the motion's tick."""
         self._now_s = obs.time_s
+        self._arm_q = obs.arm_q
         for _ in range(MAX_TRANSITIONS_PER_TICK):
             if not self._entered:
                 self._entered = True
@@ -1097,8 +1163,24 @@ class PickMachine:
         return None
 
     # ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
+    def _moved_under_hand(self) -> Transition:
+        """Back off (and approach again) when views refused by the tracker say the target moved under the hand."""
+        if self._moved_seen is None:
+            return None
+        off, camera, t = self._moved_seen
+        self._moved_seen = None
+        self._far_views.clear()
+        self.grip.open()
+        self._after_back_off = State.APPROACH
+        by = "the hand's camera" if camera == "wrist_camera" else "the camera"
+        return State.BACK_OFF, (
+            f"{by} sees the target {off * 1e3:.0f} mm from where it was tracked (frame of t = {t:.2f} s) "
+            f"during the {self.state.value}: backing off to approach again"
+        )
+
     def _enter_descend(self, obs: Observation) -> None:
         assert self.plan is not None
+        self._moved_seen = None
         self._descent_plan = self.plan
         v = self._target_velocity()
         self._descent_ref = (self.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, self._planned_at_s)
@@ -1106,6 +1188,9 @@ class PickMachine:
         self._go_to(self.plan.grasp, limits=self._near_limits())
 
     def _tick_descend(self, obs: Observation) -> Transition:
+        moved = self._moved_under_hand()
+        if moved is not None:
+            return moved
         plan = self._track_plan()
         if plan is not None:
             assert self._descent_plan is not None and self._descent_ref is not None
@@ -1132,6 +1217,10 @@ class PickMachine:
     def _tick_close(self, obs: Observation) -> Transition:
         assert self.plan is not None
         stalled = self.grip.stopped(obs)
+        if not stalled and not self._holding(obs):
+            moved = self._moved_under_hand()
+            if moved is not None:
+                return moved
         if not stalled and obs.time_s - self._since_s < self.p.close_timeout_s:
             return None
         if self._holding(obs):

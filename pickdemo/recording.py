@@ -135,18 +135,19 @@ class RerunRecorder(Observer):
         rr = self.rr
         self._time(frame.time_s)
         T, K = frame.T_world_cam, frame.intrinsics
-        self._pose("world/camera", T)
+        cam = f"world/{frame.camera}"
+        self._pose(cam, T)
         self.rec.log(
-            "world/camera/image",
+            f"{cam}/image",
             rr.Pinhole(
                 image_from_camera=[[K.fx, 0.0, K.cx], [0.0, K.fy, K.cy], [0.0, 0.0, 1.0]],
                 resolution=[K.width, K.height],
                 image_plane_distance=0.1,
             ),
         )
-        self.rec.log("world/camera/image/rgb", rr.Image(np.ascontiguousarray(frame.rgb)))
+        self.rec.log(f"{cam}/image/rgb", rr.Image(np.ascontiguousarray(frame.rgb)))
         depth = np.where(np.isfinite(frame.depth_m), frame.depth_m, 0.0).astype(np.float32)  # 0: no return
-        self.rec.log("world/camera/image/depth", rr.DepthImage(depth, meter=1.0))
+        self.rec.log(f"{cam}/image/depth", rr.DepthImage(depth, meter=1.0))
         self.rec.log("world/target/points", rr.Points3D(_target_points(ep, frame, result), radii=0.001))
         estimate = result if isinstance(result, PoseEstimate) else getattr(result, "estimate", None)
         if estimate is None:

@@ -43,6 +43,7 @@ from pickdemo.schema import (
     SimSpec,
     SuccessSpec,
     TableSpec,
+    WristCameraSpec,
     parse_scenario,
     printable,
 )
@@ -56,8 +57,8 @@ __all__ = [
     "BELT_ACCELERATION_M_S2", "BELT_REWIND_M", "MAX_FILE_BYTES", "MAX_TIME_STEP_S", "NAME_PATTERN", "RESERVED_NAMES",
     "SENSOR_PRESETS", "BeltSlab", "CameraSpec", "ClearSpec", "ControlSpec", "ConveyorSpec", "DisturbanceSpec",
     "LayoutSpec", "MotionSpec", "ObjectSpec", "PlaceSpec", "ReferenceSpec", "Scenario", "ScenarioError", "SimSpec",
-    "SuccessSpec", "TableSpec", "builtin_scenario_dirs", "list_scenarios", "load_scenario", "parse_scenario",
-    "resolve_scenario_path", "suite_scenarios",
+    "SuccessSpec", "TableSpec", "WristCameraSpec", "builtin_scenario_dirs", "list_scenarios", "load_scenario",
+    "parse_scenario", "resolve_scenario_path", "suite_scenarios",
 ]  # fmt: skip
 
 MAX_FILE_BYTES = 1 << 20

@@ -21,7 +21,7 @@ import difflib
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
@@ -66,11 +66,9 @@ SENSOR_PRESETS: dict[str, dict[str, object]] = {
 }  # fmt: skip
 
 
-class CameraSpec(_Model):
-    """A fixed RGB-D camera. Defaults match the paper's Xtion Pro Live (57 x 43 deg, 640x480)."""
+class _SensorSpec(_Model):
+    """What an RGB-D sensor gives: its image, its field of view, its depth range and its faults."""
 
-    position: Vec3 = (1.1, 0.0, 0.75)  # m, world frame
-    look_at: Vec3 = (0.5, 0.0, 0.0)  # m, world frame
     width: Annotated[int, Field(ge=16, le=4096)] = 640  # px
     height: Annotated[int, Field(ge=16, le=4096)] = 480  # px
     fov_deg: tuple[Annotated[float, Field(gt=1.0, lt=170.0)], Annotated[float, Field(gt=1.0, lt=170.0)]] = (
@@ -84,27 +82,44 @@ class CameraSpec(_Model):
     depth_invalid: Literal[0.0, "nan"] = 0.0  # what a hole reads as: 0.0 (like real drivers) or "nan"
     depth_quantum_m: Annotated[float, Field(ge=0.0, le=0.01)] = 0.0  # depth reported in steps of this (0: none)
     rgb_noise_sigma: Annotated[float, Field(ge=0.0, le=50.0)] = 0.0  # 8-bit units
-    extrinsic_error: tuple[Annotated[float, Field(ge=0.0, le=50.0)], Annotated[float, Field(ge=0.0, le=5.0)]] = (
-        0.0,
-        0.0,
-    )  # mm, deg: the true camera pose differs from the one the robot is told, drawn per seed
     sensor: Literal["realsense_d435", "realsense_d415", "kinect"] | None = None  # a preset for the keys above
-    # Instead of a fixed position: sampled around look_at per seed (all three, or none).
-    distance_range_m: tuple[Annotated[float, Field(ge=0.2, le=5.0)], Annotated[float, Field(ge=0.2, le=5.0)]] | None = (
-        None
-    )
-    elevation_range_deg: tuple[Angle, Angle] | None = None  # above the table plane
-    azimuth_range_deg: tuple[Angle, Angle] | None = None  # about world z, 0 = from +x
     near_m: Annotated[float, Field(ge=0.01, le=1.0)] = 0.1
     far_m: Annotated[float, Field(gt=0.1, le=20.0)] = 3.0
+
+    #: the key a preset's calibration error goes to
+    calibration_key: ClassVar[str] = "extrinsic_error"
 
     @model_validator(mode="before")
     @classmethod
     def _preset(cls, data: object) -> object:
         """A sensor preset fills the fault keys the file does not give itself."""
         if isinstance(data, dict) and isinstance(data.get("sensor"), str) and data["sensor"] in SENSOR_PRESETS:
-            return {**SENSOR_PRESETS[data["sensor"]], **data}
+            preset = dict(SENSOR_PRESETS[data["sensor"]])
+            preset[cls.calibration_key] = preset.pop("extrinsic_error")
+            return {**preset, **data}
         return data
+
+    @property
+    def extrinsic_sigma(self) -> tuple[float, float]:
+        """How far the pose the robot is told may be off (mm, deg)."""
+        return getattr(self, self.calibration_key)
+
+
+class CameraSpec(_SensorSpec):
+    """A fixed RGB-D camera. Defaults match the paper's Xtion Pro Live (57 x 43 deg, 640x480)."""
+
+    position: Vec3 = (1.1, 0.0, 0.75)  # m, world frame
+    look_at: Vec3 = (0.5, 0.0, 0.0)  # m, world frame
+    extrinsic_error: tuple[Annotated[float, Field(ge=0.0, le=50.0)], Annotated[float, Field(ge=0.0, le=5.0)]] = (
+        0.0,
+        0.0,
+    )  # mm, deg: the true camera pose differs from the one the robot is told, drawn per seed
+    # Instead of a fixed position: sampled around look_at per seed (all three, or none).
+    distance_range_m: tuple[Annotated[float, Field(ge=0.2, le=5.0)], Annotated[float, Field(ge=0.2, le=5.0)]] | None = (
+        None
+    )
+    elevation_range_deg: tuple[Angle, Angle] | None = None  # above the table plane
+    azimuth_range_deg: tuple[Angle, Angle] | None = None  # about world z, 0 = from +x
 
     @model_validator(mode="after")
     def _check(self) -> CameraSpec:
@@ -127,6 +142,53 @@ class CameraSpec(_Model):
     @property
     def sampled(self) -> bool:
         return self.distance_range_m is not None
+
+
+#: The links a wrist camera may be mounted on: the hand's, which move rigidly with it (the fingers do not).
+WRIST_MOUNTS = ("panda_hand", "panda_link8", "panda_hand_tcp")
+HandCoord = Annotated[float, Field(ge=-0.5, le=0.5)]  # m, in the mount link's frame
+
+
+class WristCameraSpec(_SensorSpec):
+    """An RGB-D camera on the hand (``[wrist_camera]``), as real pick cells mount a small one on the
+    Franka hand. Defaults: a RealSense D405-like camera (87 x 58 deg, 424x240, from 5 cm) 9 cm beside the
+    hand, looking down past the fingertips; the hand-eye calibration exact."""
+
+    mount: str = "panda_hand"  # a link of the hand (the frame ``position`` and ``look_at`` are in)
+    #: m, in the mount's frame (the hand's z points from the flange to the fingertips)
+    position: tuple[HandCoord, HandCoord, HandCoord] = (0.09, 0.0, 0.04)
+    look_at: tuple[HandCoord, HandCoord, HandCoord] = (0.0, 0.0, 0.16)
+    width: Annotated[int, Field(ge=16, le=4096)] = 424
+    height: Annotated[int, Field(ge=16, le=4096)] = 240
+    fov_deg: tuple[Annotated[float, Field(gt=1.0, lt=170.0)], Annotated[float, Field(gt=1.0, lt=170.0)]] = (
+        87.0,
+        58.0,
+    )
+    depth_noise: Literal["none", "kinect", "d415", "d435"] = "d415"
+    near_m: Annotated[float, Field(ge=0.01, le=1.0)] = 0.05
+    far_m: Annotated[float, Field(gt=0.1, le=20.0)] = 1.0
+    #: mm, deg: the true pose of the camera on the hand differs from the one the robot is told (drawn per seed)
+    hand_eye_error: tuple[Annotated[float, Field(ge=0.0, le=50.0)], Annotated[float, Field(ge=0.0, le=5.0)]] = (
+        0.0,
+        0.0,
+    )
+
+    calibration_key: ClassVar[str] = "hand_eye_error"
+
+    @field_validator("mount")
+    @classmethod
+    def _on_the_hand(cls, mount: str) -> str:
+        if mount not in WRIST_MOUNTS:
+            raise ValueError(f"{printable(mount)!r} is not a link of the hand; one of {', '.join(WRIST_MOUNTS)}")
+        return mount
+
+    @model_validator(mode="after")
+    def _check(self) -> WristCameraSpec:
+        if sum((a - b) ** 2 for a, b in zip(self.position, self.look_at, strict=True)) < 1e-6:
+            raise ValueError("look_at must differ from position")
+        if self.far_m <= self.near_m:
+            raise ValueError("far_m must exceed near_m")
+        return self
 
 
 class TableSpec(_Model):
@@ -599,6 +661,7 @@ class Scenario(_Model):
     #: "perceive": for `pickdemo perceive` only (any number of targets); "clear": every object into the tray
     task: Literal["pick", "perceive", "clear"] = "pick"
     camera: CameraSpec = CameraSpec()
+    wrist_camera: WristCameraSpec | None = None  # a second camera, on the hand
     table: TableSpec = TableSpec()
     objects: tuple[ObjectSpec, ...] = ()
     place: PlaceSpec

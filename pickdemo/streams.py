@@ -10,7 +10,19 @@ from __future__ import annotations
 import numpy as np
 
 #: Order in which the seed's generators are spawned. Append only: reordering changes every episode.
-RNG_STREAMS = ("layout", "camera", "ik", "camera_pose", "disturbance", "calibration", "place", "objects", "clear")
+RNG_STREAMS = (
+    "layout",
+    "camera",
+    "ik",
+    "camera_pose",
+    "disturbance",
+    "calibration",
+    "place",
+    "objects",
+    "clear",
+    "wrist_camera",
+    "hand_eye",
+)
 
 
 def spawn_rngs(seed: int) -> dict[str, np.random.Generator]:

@@ -95,7 +95,9 @@ class TargetTracker:
         self._P = np.zeros((8, 8))
         self._t = 0.0
         self._last_accept_s: float | None = None
-        self._rejected: list[tuple[float, np.ndarray, np.ndarray]] = []  # run of rejected (t, z, R)
+        #: the run of rejected estimates (t, z, R, with yaw) of each camera: one camera's outliers do not
+        #: break another's run
+        self._runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, bool]]] = {}
         self.accepted = 0
         self.rejected = 0
         self.jumps = 0
@@ -129,12 +131,15 @@ class TargetTracker:
         )
 
     # ---------------------------------------------------------------------------------- updates
-    def update(self, estimate: PoseEstimate, time_s: float, *, partial: bool = False) -> TrackerUpdate:
+    def update(
+        self, estimate: PoseEstimate, time_s: float, *, partial: bool = False, source: str = "camera"
+    ) -> TrackerUpdate:
         """Take in an estimate from a frame taken at ``time_s`` (estimates must come in time order).
 
         ``partial``: the estimate saw only part of the target (the hand over it); it is trusted less
         (its noise floor times ``partial_floor_factor``), and if rejected it never counts towards a
         restart (a partly hidden face can mislead the fit consistently): the filter predicts through.
+        ``source``: the camera that took it; a restart needs a run of one camera's estimates.
         """
         z, R = self._measurement(estimate, floor_factor=self.params.partial_floor_factor if partial else 1.0)
         with_yaw = self.has_yaw and bool(np.isfinite(R[3, 3]))  # an estimator may measure no orientation
@@ -154,11 +159,12 @@ class TargetTracker:
         d2 = float(innov @ np.linalg.solve(S, innov))
         if d2 > CHI2_999[len(innov)]:
             self.rejected += 1
+            run = self._runs.setdefault(source, [])
             if partial:
-                self._rejected.clear()
+                run.clear()
                 return TrackerUpdate(False, d2, reason=f"beyond the gate ({np.sqrt(d2):.1f} sigma), a partial view")
-            self._rejected.append((time_s, z, R, with_yaw))
-            fit = self._jump_fit()
+            run.append((time_s, z, R, with_yaw))
+            fit = self._jump_fit(run)
             if fit is not None:
                 self._restart(*fit, time_s)
                 self.jumps += 1
@@ -170,7 +176,7 @@ class TargetTracker:
         P = I_KH @ P @ I_KH.T + K @ (H @ R @ H.T) @ K.T  # Joseph form: stays symmetric and positive
         self._x, self._P, self._t = x, 0.5 * (P + P.T), time_s
         self._last_accept_s = time_s
-        self._rejected.clear()
+        self._runs.clear()
         self.accepted += 1
         return TrackerUpdate(True, d2)
 
@@ -204,7 +210,7 @@ class TargetTracker:
         self._P = P
         self._t = time_s
         self._last_accept_s = time_s
-        self._rejected.clear()
+        self._runs.clear()
         self.accepted += 1
 
     def _propagate(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -232,17 +238,17 @@ class TargetTracker:
         P[7, 7] = p.initial_yaw_rate_sigma_rad_s**2
         return P
 
-    def _jump_fit(self) -> tuple[np.ndarray, np.ndarray, bool] | None:
-        """The last ``jump_confirm`` rejected estimates in a row, if they fit one constant-velocity
+    def _jump_fit(self, rejected: list) -> tuple[np.ndarray, np.ndarray, bool] | None:
+        """The last ``jump_confirm`` rejected estimates in a row (of one camera), if they fit one constant-velocity
         motion: its state (pose and rates at the newest) and covariance, and whether it has a yaw.
 
         Weighted least squares of ``z_i = p + v (t_i - t_n)`` with the rates' prior as a pseudo
         measurement; accepted when the residuals' chi-square is within its 99.9 % quantile.
         """
         n = self.params.jump_confirm
-        if len(self._rejected) < n:
+        if len(rejected) < n:
             return None
-        run = self._rejected[-n:]
+        run = rejected[-n:]
         with_yaw = all(w for *_, w in run)
         rows = [0, 1, 2, 3] if with_yaw else [0, 1, 2]
         m = len(rows)
@@ -282,5 +288,5 @@ class TargetTracker:
     def _restart(self, x: np.ndarray, P: np.ndarray, with_yaw: bool, time_s: float) -> None:
         self._x, self._P, self._t = x, 0.5 * (P + P.T), time_s
         self._last_accept_s = time_s
-        self._rejected.clear()
+        self._runs.clear()
         self.accepted += 1

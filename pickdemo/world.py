@@ -15,14 +15,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pickdemo.camera import calibration_error
+from pickdemo.camera import calibration_error, hand_camera_pose
 from pickdemo.layout import Placement, Tray, camera_position, sample_layout, sample_place, sample_round
-from pickdemo.scenario import Scenario
+from pickdemo.scenario import Scenario, WristCameraSpec
 from pickdemo.streams import spawn_rngs
 
 if TYPE_CHECKING:
     from pickdemo.geometry import Pose
-    from pickdemo.sim.render import Camera
+    from pickdemo.sim.render import Camera, WristCamera
     from pickdemo.sim.scene import Scene
 
 
@@ -43,6 +43,7 @@ class World:
         self.place_xy: tuple[float, float] = sample_place(scenario, self.layout, self.rngs["place"])
         self.scene: Scene | None = None
         self.camera: Camera | None = None
+        self.wrist_camera: WristCamera | None = None  # a camera on the hand, if the scenario has one
 
     @classmethod
     def build(cls, scenario: Scenario, seed: int, *, gui: bool = False) -> World:
@@ -60,6 +61,8 @@ class World:
         where = camera_position(sc.camera, self.rngs["camera_pose"])
         error = calibration_error(*sc.camera.extrinsic_error, self.rngs["calibration"])
         self.camera = Camera(sc.camera, self.rngs["camera"], position=where, calibration_error=error)
+        if sc.wrist_camera is not None:
+            self.wrist_camera = wrist_camera(sc.wrist_camera, self.rngs["wrist_camera"], self.rngs["hand_eye"])
         return self
 
     def placement(self, name: str) -> Placement:
@@ -88,3 +91,12 @@ class World:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def wrist_camera(spec: WristCameraSpec, rng: np.random.Generator, hand_eye_rng: np.random.Generator) -> WristCamera:
+    """The hand's camera where the scenario mounts it, told its pose with the hand-eye error drawn for it."""
+    from pickdemo.kinematics import panda_kinematics
+    from pickdemo.sim.render import WristCamera
+
+    T_tcp_cam = hand_camera_pose(panda_kinematics().tcp_to_frame(spec.mount), spec.position, spec.look_at)
+    return WristCamera(spec, rng, T_tcp_cam, calibration_error(*spec.hand_eye_error, hand_eye_rng))

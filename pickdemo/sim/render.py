@@ -27,13 +27,13 @@ from pickdemo.camera import (
     sensor_faults,
 )
 from pickdemo.geometry import Pose
-from pickdemo.scenario import CameraSpec
+from pickdemo.scenario import CameraSpec, WristCameraSpec
 from pickdemo.sim.scene import Scene
 
 LIGHT_DIRECTION = (0.4, -0.3, 1.0)  # world frame; mostly from above, so faces shade differently
 
 
-def camera_intrinsics(spec: CameraSpec) -> Intrinsics:
+def camera_intrinsics(spec: CameraSpec | WristCameraSpec) -> Intrinsics:
     """The intrinsics of the rendered images, with TinyRenderer's principal point."""
     return rendered_intrinsics(spec.width, spec.height, spec.fov_deg[0], spec.fov_deg[1])
 
@@ -61,7 +61,7 @@ class Camera:
         self.T_world_cam: Pose = (
             self.T_world_cam_true if calibration_error is None else self.T_world_cam_true @ calibration_error
         )  # what the robot is told
-        err_mm, err_deg = spec.extrinsic_error
+        err_mm, err_deg = spec.extrinsic_sigma
         self.calibration_sigma = (err_mm * 1e-3, float(np.radians(err_deg)))
         self.noise_coeff = depth_noise_coeff(spec.depth_noise, self.intrinsics.fx)
         self._view = opengl_view_matrix(self.T_world_cam_true)
@@ -155,6 +155,33 @@ class Camera:
             rgb=rgb, depth_m=depth, intrinsics=self.intrinsics, T_world_cam=self.T_world_cam, time_s=scene.sim_time_s
         )
         return frame, seg
+
+
+class WristCamera(Camera):
+    """An RGB-D camera on the hand: rendered from the hand's true pose when a frame is taken; each frame
+    says the pose the robot knows it by (its kinematics at the joint states then, and its hand-eye
+    calibration, off the true mount by the error drawn for the seed)."""
+
+    def __init__(self, spec: WristCameraSpec, rng: np.random.Generator, T_tcp_cam: Pose, hand_eye_error: Pose | None):
+        self.spec = spec  # type: ignore[assignment]
+        self.intrinsics = camera_intrinsics(spec)
+        self.T_tcp_cam_true = T_tcp_cam
+        self.T_tcp_cam = T_tcp_cam if hand_eye_error is None else T_tcp_cam @ hand_eye_error  # what the robot is told
+        err_mm, err_deg = spec.extrinsic_sigma
+        self.calibration_sigma = (err_mm * 1e-3, float(np.radians(err_deg)))
+        self.noise_coeff = depth_noise_coeff(spec.depth_noise, self.intrinsics.fx)
+        self._proj = opengl_projection_matrix(self.intrinsics, spec.near_m, spec.far_m)
+        self._rng = rng
+        self.T_world_cam_true = self.T_world_cam = Pose.identity()
+        self._view = opengl_view_matrix(self.T_world_cam_true)
+
+    def capture_from(self, scene: Scene, T_world_tcp: Pose, roi: tuple[int, int, int, int] | None = None) -> RGBDFrame:
+        """A frame from where the hand truly is, told as seen from ``T_world_tcp`` (the robot's
+        kinematics at the joint states it reads)."""
+        self.T_world_cam_true = scene.true_tcp_pose() @ self.T_tcp_cam_true
+        self._view = opengl_view_matrix(self.T_world_cam_true)
+        self.T_world_cam = T_world_tcp @ self.T_tcp_cam
+        return self.capture(scene, roi)
 
 
 def render_rgb(scene: Scene, T_world_cam: Pose, K: Intrinsics, near_m: float = 0.05, far_m: float = 5.0) -> np.ndarray:
