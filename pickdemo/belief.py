@@ -56,7 +56,7 @@ class Counters:
 class GateParams:
     """When an estimate is no use, whatever the tracker would say; SI units."""
 
-    max_sigma_m: float = 0.005  # an estimate less sure than this is no use to a grasp
+    max_sigma_m: float = 0.005  # an estimate noisier than this (its camera's calibration aside) is no use to a grasp
     table_gap_m: float = 0.008  # a resting target has its centre at half its height, give or take
     face_size_tolerance: float = 0.2  # a top face measured this far off the model's size: a partial view
 
@@ -67,8 +67,10 @@ class Offered:
 
     verdict: Verdict
     jumped: bool = False
-    #: a whole view the tracker's gate rejected: how far (m, across the table) from where the track has it
+    #: a view refused (by the tracker's gate, or as a partial one under the hand): how far (m, across
+    #: the table) from where the track has the target; whether it saw only part of the target
     off_m: float | None = None
+    partial: bool = False
 
 
 class TargetBelief:
@@ -137,24 +139,25 @@ class TargetBelief:
         over the target a view of part of its top face is not acted on (it can mislead the fit
         consistently); the tracker predicts through. ``camera``: which camera took the frame."""
         verdict = Verdict.NO_ESTIMATE
+        off: tuple[float | None, bool] = (None, False)
         if isinstance(result, PoseEstimate):
             implausible = self.implausible(result)
             if not implausible and hand_over_target and not self.complete_view(result):
                 implausible = "a partial view: its top face measures off the model's size"
+                off = (self._off_track(result, frame_time_s), True)
             if implausible:
                 result = PerceptionError(implausible)
                 verdict = Verdict.REJECTED
         if isinstance(result, PerceptionError):
             self.counters.perception_errors += 1
             self.counters.last_error = str(result)
-            return Offered(verdict)
+            return Offered(verdict, off_m=off[0], partial=off[1])
         self.counters.estimates += 1
         up = self.tracker.update(result, frame_time_s, partial=not self.complete_view(result), source=camera)
         if not up.accepted:
             self.counters.rejected += 1
-        off_m = None
-        if not up.accepted and self.complete_view(result):
-            off_m = float(np.linalg.norm(result.pose.position[:2] - self.tracker.predict(frame_time_s).position[:2]))
+        if not up.accepted:
+            off = (self._off_track(result, frame_time_s), not self.complete_view(result))
         if up.jumped:
             self.counters.jumps += 1
             self._seen, self._moving = [], False  # a new track: moving or not is decided afresh
@@ -168,7 +171,14 @@ class TargetBelief:
                 self._extents = result.top_face_size_m
             if self.complete_view(result) or self.cloud is None:  # a partial view until a whole one comes
                 self.cloud = result.cloud
-        return Offered(Verdict.ACCEPTED if up.accepted else Verdict.REJECTED, jumped=up.jumped, off_m=off_m)
+        verdict = Verdict.ACCEPTED if up.accepted else Verdict.REJECTED
+        return Offered(verdict, jumped=up.jumped, off_m=off[0], partial=off[1])
+
+    def _off_track(self, est: PoseEstimate, frame_time_s: float) -> float | None:
+        """How far (m, across the table) an estimate lies from where the track has the target then."""
+        if not self.tracker.initialised:
+            return None
+        return float(np.linalg.norm(est.pose.position[:2] - self.tracker.predict(frame_time_s).position[:2]))
 
     def implausible(self, est: PoseEstimate) -> str:
         """Why an estimate cannot be the target resting on the table or the belt ("" if it can): not
@@ -177,7 +187,10 @@ class TargetBelief:
         p = est.pose.position
         if not (np.all(np.isfinite(p)) and np.all(np.isfinite(est.position_cov))):
             return "estimate not finite"
-        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(est.frame_cov)), 0.0)))
+        # (its camera's calibration aside: a bias the same in every frame, weighed against the grasp's
+        # clearance before the hand goes down, where another camera may have corrected it)
+        cov = est.frame_cov if est.calibration_cov is None else est.frame_cov - est.calibration_cov
+        sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(cov)), 0.0)))
         if sigma > self.gate.max_sigma_m:
             return f"estimate too uncertain ({sigma * 1e3:.1f} mm)"
         surface = self.surface_z(float(p[0]), float(p[1]))

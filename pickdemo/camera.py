@@ -307,6 +307,16 @@ class RGBDFrame:
     robot_boxes: tuple[OrientedBox, ...] = ()
     camera: str = "camera"  # which camera took it: "camera" (the fixed one) or "wrist_camera"
 
+    def calibration_cov_at(self, point_world: np.ndarray) -> np.ndarray | None:
+        """The covariance (m^2) a point seen at ``point_world`` takes from the camera's pose being known
+        only to its calibration: an error of that size in any direction moves every point alike (a turn
+        by the range times the angle), a third of its square on each axis. None when the pose is exact."""
+        s_t, s_r = self.calibration_sigma
+        if s_t <= 0.0 and s_r <= 0.0:
+            return None
+        rng_m = float(np.linalg.norm(point_world - self.T_world_cam.position))
+        return np.eye(3) * (s_t**2 + (s_r * rng_m) ** 2) / 3.0
+
     def depth_variance(self, z_m: np.ndarray | float) -> np.ndarray:
         """Variance (m^2) of a depth reading at ``z_m``: the sensor's noise and its quantisation."""
         return np.square(self.depth_noise_coeff * np.square(z_m)) + self.depth_quantum_m**2 / 12.0

@@ -134,6 +134,10 @@ class MachineParams:
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
     moved_tolerance_rad: float = float(np.radians(8.0))
     moved_views: int = 2  # ... or this many whole views in a row refused that far from the track: back off
+    #: the hand goes down only when this many standard deviations of where the target is (its cameras'
+    #: calibration included) fit in the grasp's clearance (how far the open fingers reach past it)
+    clearance_sigmas: float = 2.0
+    hover_max_s: float = 2.0  # above a target not yet sure enough: wait this long for the hand's camera
     close_timeout_s: float = 2.0
     verify_wait_s: float = 0.3  # let the placed object come to rest before the last look
     roi_margin_m: float = 0.03  # around the target's box, for the region of interest
@@ -333,7 +337,9 @@ class PickMachine:
         self._planned_at_s = 0.0  # the plan is for the target where it was then
         self._descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
         self._far_views: dict[str, list[float]] = {}  # per camera: whole views refused far from the track
-        self._moved_seen: tuple[float, str, float] | None = None  # the target moved under the hand: how far, seen by
+        #: the target moved under the hand: how far, seen by which camera, in the frame of when
+        self._moved_seen: tuple[float, str, float] | None = None
+        self._hover_since: float | None = None  # above the target, waiting to be sure enough of it
         self._verify_asked = False
         self._relooks = 0
         self._plan_id = 0  # counts first plans (the grasp selector's plan_id)
@@ -410,7 +416,7 @@ class PickMachine:
         K = w.intrinsics
         if np.any(uv < 0.0) or np.any(uv[:, 0] > K.width - 1) or np.any(uv[:, 1] > K.height - 1):
             return None
-        margin = self.p.roi_margin_m + 3.0 * tp.position_sigma_m  # (close by: never above its top, near the lens)
+        margin = self.p.roi_margin_m + 3.0 * tp.grasp_sigma_m  # (close by: never above its top, near the lens)
         wide = [(g.footprint_radius_m + margin) * ring + [0.0, 0.0, dz] for dz in (-g.height_m / 2.0, g.height_m / 2.0)]
         corners = tp.position + np.vstack(wide)
         corners[:, 2] = np.maximum(corners[:, 2], self.p.roi_floor_z_m)
@@ -449,11 +455,16 @@ class PickMachine:
         return offered.verdict
 
     def _watch_moves(self, offered: Offered, camera: str, frame_time_s: float) -> None:
-        """With the hand over the target, whole views of it that the tracker refuses, ``moved_views`` of
-        them in a row from one camera, each farther than ``moved_tolerance_m`` from where it is tracked:
-        the target moved under the hand (the tracker confirms where to only once it is at rest again)."""
-        if offered.off_m is None or offered.off_m <= self.p.moved_tolerance_m:
-            self._far_views.pop(camera, None)  # (an accepted view, or a near one, ends the run)
+        """With the hand over the target, views of it that are refused, ``moved_views`` of them in a row
+        from one camera, each farther than ``moved_tolerance_m`` from where it is tracked (a partial view:
+        and half its top face): the target moved under the hand (the tracker confirms where to only once
+        it is at rest again)."""
+        far = self.p.moved_tolerance_m
+        if offered.partial:  # part of its top face: its centre may lie up to half the face off
+            far += max(self.model.geometry.top_extents_m) / 2.0
+        if offered.off_m is None or offered.off_m <= far:
+            if offered.verdict is Verdict.ACCEPTED or (offered.off_m is not None and not offered.partial):
+                self._far_views.pop(camera, None)  # an accepted view, or a near whole one, ends the run
             return
         if self.state not in HAND_OVER_TARGET:
             return
@@ -1095,6 +1106,10 @@ class PickMachine:
             if plan is None:
                 return None
             self.plan = plan
+            unsafe = self._unsafe(obs.time_s)
+            if unsafe and (self.wrist is None or self.open_loop):
+                self._fail(Stage.PERCEPTION, f"{unsafe}, and no camera can see it closer: not tried")
+                return None
             tp = self.belief.predict(obs.time_s)
             yaw = ""
             if self.symmetry > 0:
@@ -1115,6 +1130,7 @@ class PickMachine:
     # ---- APPROACH: to above the target, re-targeted as estimates arrive.
     def _enter_approach(self, obs: Observation) -> None:
         assert self.plan is not None
+        self._hover_since = None
         if not self.p.joint_transfers or self._target_velocity() is not None:
             # Cartesian (a moving target is met so, moving with it)
             self._cartesian()
@@ -1157,10 +1173,29 @@ class PickMachine:
             else:
                 self._go_to(plan.pregrasp)
         if (self._motion_finished or self._with_target(self.plan.pregrasp)) and not self.finished:
+            unsafe = self._unsafe(obs.time_s)
+            if unsafe:  # wait above it for the hand's camera to see it better (a bounded wait)
+                self._hover_since = obs.time_s if self._hover_since is None else self._hover_since
+                if obs.time_s - self._hover_since >= self.p.hover_max_s or self.wrist is None or self.open_loop:
+                    self._fail(Stage.PERCEPTION, f"{unsafe} after {obs.time_s - self._hover_since:.1f} s above it")
+                return None
             return State.DESCEND, "above the target" + (
                 ", moving with it" if self._target_velocity() is not None else ""
             )
         return None
+
+    def _unsafe(self, now_s: float) -> str:
+        """Why the hand may not go down on the plan yet ("" when it may): where the target is, its
+        cameras' calibration included, is less sure than the grasp's clearance allows."""
+        assert self.plan is not None
+        sigma = self.belief.predict(now_s).grasp_sigma_m
+        clearance = rm.FINGER_MAX_M - self.plan.object_width_m / 2.0  # from the fingers open to the object
+        if self.p.clearance_sigmas * sigma <= clearance:
+            return ""
+        return (
+            f"the target is known to {self.p.clearance_sigmas:g} x {sigma * 1e3:.1f} mm, more than the grasp's "
+            f"clearance of {clearance * 1e3:.1f} mm"
+        )
 
     # ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
     def _moved_under_hand(self) -> Transition:

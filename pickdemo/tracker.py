@@ -65,12 +65,20 @@ class TrackedPose:
     yaw_rad: float
     velocity: np.ndarray  # (3,) m/s
     yaw_rate_rad_s: float
-    covariance: np.ndarray  # (8, 8)
+    covariance: np.ndarray  # (8, 8): what the estimates' own noise leaves uncertain
+    #: the cameras' calibration that the position carries (m, per axis): a bias no number of frames of
+    #: one camera averages away (0: their poses exact)
+    calibration_sigma_m: float = 0.0
 
     @property
     def position_sigma_m(self) -> float:
-        """The largest standard deviation of the position (m)."""
+        """The largest standard deviation of the position (m), from the estimates' noise."""
         return float(np.sqrt(np.max(np.linalg.eigvalsh(self.covariance[:3, :3]))))
+
+    @property
+    def grasp_sigma_m(self) -> float:
+        """The largest standard deviation of where the target is (m): noise and calibration both."""
+        return float(np.hypot(self.position_sigma_m, self.calibration_sigma_m))
 
 
 @dataclass(frozen=True)
@@ -98,6 +106,9 @@ class TargetTracker:
         #: the run of rejected estimates (t, z, R, with yaw) of each camera: one camera's outliers do not
         #: break another's run
         self._runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, bool]]] = {}
+        #: each camera's calibration variance (m^2 per axis), and the share of its bias in the track's position
+        self._calibration: dict[str, float] = {}
+        self._share: dict[str, float] = {}
         self.accepted = 0
         self.rejected = 0
         self.jumps = 0
@@ -128,6 +139,7 @@ class TargetTracker:
             velocity=x[4:7].copy(),
             yaw_rate_rad_s=float(x[7]),
             covariance=P,
+            calibration_sigma_m=float(np.sqrt(self._track_bias())),
         )
 
     # ---------------------------------------------------------------------------------- updates
@@ -142,11 +154,14 @@ class TargetTracker:
         ``source``: the camera that took it; a restart needs a run of one camera's estimates.
         """
         z, R = self._measurement(estimate, floor_factor=self.params.partial_floor_factor if partial else 1.0)
+        cal = estimate.calibration_cov
+        self._calibration[source] = 0.0 if cal is None else float(np.trace(cal)) / 3.0
         with_yaw = self.has_yaw and bool(np.isfinite(R[3, 3]))  # an estimator may measure no orientation
         if not with_yaw:
             R[3, 3] = 0.0
         if self._x is None:
             self._start(z, R, time_s, with_yaw)
+            self._share = {source: 1.0}
             return TrackerUpdate(True, 0.0)
         if time_s < self._t:
             return TrackerUpdate(False, float("nan"), reason="older than the track")
@@ -156,6 +171,14 @@ class TargetTracker:
         if with_yaw:
             innov[3] = wrap_angle(innov[3], self.symmetry)
         S = H @ P @ H.T + H @ R @ H.T
+        # Calibration: this camera's bias and the track's (its cameras' biases, by their shares) differ
+        # by this much (0 for the one camera that made the track); the track's own bias, less what it
+        # shares with this camera, is what this estimate can correct.
+        s_e, w_e, b_track = self._calibration[source], self._share.get(source, 0.0), self._track_bias()
+        differ = s_e - 2.0 * w_e * s_e + b_track
+        correctable = max(b_track - w_e * s_e, 0.0)
+        if differ > 0.0:
+            S[:3, :3] += np.eye(3) * differ
         d2 = float(innov @ np.linalg.solve(S, innov))
         if d2 > CHI2_999[len(innov)]:
             self.rejected += 1
@@ -167,20 +190,32 @@ class TargetTracker:
             fit = self._jump_fit(run)
             if fit is not None:
                 self._restart(*fit, time_s)
+                self._share = {source: 1.0}
                 self.jumps += 1
                 return TrackerUpdate(True, d2, jumped=True, reason="the target moved: the track restarts")
             return TrackerUpdate(False, d2, reason=f"Mahalanobis distance {np.sqrt(d2):.1f} beyond the gate")
-        K = P @ H.T @ np.linalg.inv(S)
+        PH = P @ H.T
+        if correctable > 0.0:
+            PH[:3, :3] += np.eye(3) * correctable
+        K = PH @ np.linalg.inv(S)
         x = x + K @ innov
         I_KH = np.eye(8) - K @ H
         P = I_KH @ P @ I_KH.T + K @ (H @ R @ H.T) @ K.T  # Joseph form: stays symmetric and positive
         self._x, self._P, self._t = x, 0.5 * (P + P.T), time_s
+        k = float(np.trace(K[:3, :3])) / 3.0  # the position's gain: this camera's share of the track now
+        if any(self._calibration.values()):
+            self._share = {c: (1.0 - k) * w for c, w in self._share.items()}
+            self._share[source] = self._share.get(source, 0.0) + k
         self._last_accept_s = time_s
         self._runs.clear()
         self.accepted += 1
         return TrackerUpdate(True, d2)
 
     # --------------------------------------------------------------------------------- internals
+    def _track_bias(self) -> float:
+        """The calibration variance the track's position carries (m^2 per axis)."""
+        return sum(w * w * self._calibration.get(c, 0.0) for c, w in self._share.items())
+
     def _H(self, with_yaw: bool | None = None) -> np.ndarray:
         """Rows of the state that a measurement observes: position, and yaw where there is one."""
         rows = [0, 1, 2, 3] if (self.has_yaw if with_yaw is None else with_yaw) else [0, 1, 2]
@@ -195,7 +230,8 @@ class TargetTracker:
             yaw = float(self._x[3] + wrap_angle(yaw - self._x[3], self.symmetry))
         z[3] = yaw
         R = np.zeros((8, 8))
-        w, V = np.linalg.eigh(est.frame_cov)
+        cov = est.frame_cov if est.calibration_cov is None else est.frame_cov - est.calibration_cov  # (the bias aside)
+        w, V = np.linalg.eigh(cov)
         R[:3, :3] = V @ np.diag((np.sqrt(np.maximum(w, 0.0)) + floor_factor * p.position_floor_m) ** 2) @ V.T
         R[3, 3] = (np.sqrt(max(float(est.rpy_cov[2, 2]), 0.0)) + floor_factor * p.yaw_floor_rad) ** 2
         return z, R

@@ -177,6 +177,10 @@ class PoseEstimate:
     #: described: what the view hides of its shape), a bias rather than noise: it does not average
     #: away over frames, and it does not move when the object does (None: nothing shared)
     shared_cov: np.ndarray | None = field(repr=False, default=None)
+    #: the part of ``position_cov`` that comes of the camera's pose being known only to its calibration
+    #: (m^2): the same error in every frame of that camera, a bias; one camera's is independent of
+    #: another's, which is how a second camera corrects the first (None: the camera's pose is exact)
+    calibration_cov: np.ndarray | None = field(repr=False, default=None)
 
     @property
     def frame_cov(self) -> np.ndarray:

@@ -160,9 +160,6 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     # is reported better than that, however many points agree.
     w, V = np.linalg.eigh(0.5 * (cov6[:3, :3] + cov6[:3, :3].T))
     pos_cov = V @ np.diag(np.maximum(w, 0.0) + MODEL_FLOOR_M**2) @ V.T
-    # The camera's pose is known only to its calibration's accuracy: an error of that size in any
-    # direction moves every point alike (a turn by the range times the angle), a third of its square
-    # on each axis.
     # What the fit's statistics do not see: with a noisy colour image or depth dropped at edges, the
     # face's outline shifts by a fraction of a pixel as a whole (a bias shared by all its points,
     # which no number of them averages away). Its size per unit of each fault was calibrated on
@@ -172,10 +169,9 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     if k_px > 0.0:
         lateral = k_px * float(np.linalg.norm(pose.position - f.T_world_cam.position)) / f.intrinsics.fx
         pos_cov = pos_cov + np.eye(3) * lateral**2
-    s_t, s_r = f.calibration_sigma
-    if s_t > 0.0 or s_r > 0.0:
-        rng_m = float(np.linalg.norm(pose.position - f.T_world_cam.position))
-        pos_cov = pos_cov + np.eye(3) * (s_t**2 + (s_r * rng_m) ** 2) / 3.0
+    calibration = f.calibration_cov_at(pose.position)  # the camera's pose known to its calibration's accuracy
+    if calibration is not None:
+        pos_cov = pos_cov + calibration
     rpy_cov = cov6[3:, 3:]
     if symmetry == 0.0:
         rpy_cov = rpy_cov.copy()
@@ -191,6 +187,7 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
         n_face_pixels=int(face.sum()),
         fit=quality,
         features=features,
+        calibration_cov=calibration,
     )
     problem = quality.problem(params)
     if problem:

@@ -345,10 +345,9 @@ def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPa
     n_independent = max(n / 9.0, 1.0)
     position_cov = R @ c_cam @ R.T / n_independent + np.eye(3) * SILHOUETTE_FLOOR_M**2
     yaw, yaw_var = principal_yaw(np.cov((surface[:, :2] - mean[:2]).T), int(n_independent))
-    s_t, s_r = f.calibration_sigma
-    if s_t > 0.0 or s_r > 0.0:
-        rng_m = float(np.linalg.norm(mean - f.T_world_cam.position))
-        position_cov = position_cov + np.eye(3) * (s_t**2 + (s_r * rng_m) ** 2) / 3.0
+    calibration = f.calibration_cov_at(mean)
+    if calibration is not None:
+        position_cov = position_cov + calibration
 
     occluded = hidden_in_part(depth, mask)
     cloud_pts = pts[mask]
@@ -400,6 +399,7 @@ def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPa
         ),
         occluded=occluded,
         shared_cov=hidden,
+        calibration_cov=calibration,
     )
 
 
