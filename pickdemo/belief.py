@@ -195,17 +195,22 @@ class TargetBelief:
             return f"estimate too uncertain ({sigma * 1e3:.1f} mm)"
         surface = self.surface_z(float(p[0]), float(p[1]))
         if self.unknown:  # its features lie on it: between what it rests on and its size bound above
-            if float(p[2]) < surface - self.gate.table_gap_m:
+            if float(p[2]) < surface - self.gate.table_gap_m - self._calibration_slack(est):
                 return f"estimate sinks {(surface - float(p[2])) * 1e3:.0f} mm into what it rests on"
-            if float(p[2]) > surface + self.model.height_m:
+            if float(p[2]) > surface + self.model.height_m + self._calibration_slack(est):
                 return f"estimate floats {(float(p[2]) - surface) * 1e3:.0f} mm above what it rests on"
             return ""
         gap = float(p[2]) - surface - self.model.height_m / 2.0
-        if abs(gap) > self.gate.table_gap_m:
+        if abs(gap) > self.gate.table_gap_m + self._calibration_slack(est):
             where = "above" if gap > 0 else "into"
             what = "the table" if surface == 0.0 else "the belt"
             return f"estimate {'floats' if gap > 0 else 'sinks'} {abs(gap) * 1e3:.0f} mm {where} {what}"
         return ""
+
+    @staticmethod
+    def _calibration_slack(est: PoseEstimate) -> float:
+        """How far (m, 3 sigma) its camera's calibration may put an estimate above or below where it is."""
+        return 0.0 if est.calibration_cov is None else 3.0 * float(np.sqrt(est.calibration_cov[2, 2]))
 
     def complete_view(self, estimate: PoseEstimate) -> bool:
         """Whether the estimate saw the whole top face: its measured extents within

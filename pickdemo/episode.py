@@ -38,6 +38,7 @@ from pickdemo.layout import LayoutError
 from pickdemo.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX, Observer, TraceRecorder
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
 from pickdemo.pick import (
+    HAND_OVER_TARGET,
     TRACKING_STATES,
     CameraModel,
     FrameRequest,
@@ -518,11 +519,13 @@ class Episode:
         counts.tracking_ticks += tracking
         due = self.tick - self._last_frame_tick >= self.frame_ticks  # asked only then: a region costs a prediction
         request = machine.frame_request(now) if due else None
+        wrist = machine.wrist_request(now) if due and self.world.wrist_camera is not None else None
+        if wrist is not None and machine.state in HAND_OVER_TARGET:
+            request = None  # the hand's camera sees the target whole; the fixed one, the hand over it
         if request is not None:
             self._last_frame_tick = self.tick
             self._look(request, now)
             counts.tracking_frames += tracking
-        wrist = machine.wrist_request(now) if due and self.world.wrist_camera is not None else None
         if wrist is not None:  # the hand's camera looks in the same tick (each frame its own estimate)
             self._last_frame_tick = self.tick
             self._look(wrist, now)

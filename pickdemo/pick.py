@@ -397,10 +397,13 @@ class PickMachine:
         return FrameRequest(self._roi(now_s))
 
     def wrist_request(self, now_s: float) -> FrameRequest | None:
-        """Whether the camera on the hand should look now, and at what region: while it tracks the
-        target (closed loop), when the target as tracked lies wholly in its view and depth range."""
+        """Whether the camera on the hand should look now, and at what region: while the hand descends,
+        closes and backs off (and while it approaches a target not yet sure enough for the grasp), when
+        the target as tracked lies wholly in its view and depth range."""
         if self.wrist is None or self.open_loop or self.state not in TRACKING_STATES or not self.belief.initialised:
             return None
+        if self.state is State.APPROACH and (self.plan is None or not self._unsafe(now_s)):
+            return None  # on its way, the fixed camera sees it whole: the hand's looks when that is not sure enough
         w = self.wrist
         T_world_cam = self.kin.forward(self._arm_q) @ w.T_tcp_cam
         tp = self.belief.predict(now_s)
@@ -462,9 +465,12 @@ class PickMachine:
         far = self.p.moved_tolerance_m
         if offered.partial:  # part of its top face: its centre may lie up to half the face off
             far += max(self.model.geometry.top_extents_m) / 2.0
+        if offered.verdict is Verdict.ACCEPTED:  # where it is tracked, as a camera sees it: no run goes on
+            self._far_views.clear()
+            return
         if offered.off_m is None or offered.off_m <= far:
-            if offered.verdict is Verdict.ACCEPTED or (offered.off_m is not None and not offered.partial):
-                self._far_views.pop(camera, None)  # an accepted view, or a near whole one, ends the run
+            if offered.off_m is not None and not offered.partial:
+                self._far_views.pop(camera, None)  # a near whole view ends its camera's run (no view does not)
             return
         if self.state not in HAND_OVER_TARGET:
             return
