@@ -292,6 +292,25 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "place.position: the tray overlaps clear.region",
     ),
     (
+        "wrist camera: a mount that is not a link of the hand",
+        GOOD + '[wrist_camera]\nmount = "panda_leftfinger"\n',
+        "wrist_camera.mount: 'panda_leftfinger' is not a link of the hand",
+    ),
+    ("wrist camera: no field of view", GOOD + "[wrist_camera]\nfov_deg = [0.0, 58.0]\n", "wrist_camera.fov_deg[0]"),
+    ("wrist camera: a half sphere", GOOD + "[wrist_camera]\nfov_deg = [87.0, 180.0]\n", "wrist_camera.fov_deg[1]"),
+    ("wrist camera: NaN", GOOD + "[wrist_camera]\nposition = [nan, 0.0, 0.04]\n", "wrist_camera.position[0]"),
+    ("wrist camera: an unknown sensor", GOOD + '[wrist_camera]\nsensor = "zed2"\n', "wrist_camera.sensor"),
+    (
+        "wrist camera: looking at itself",
+        GOOD + "[wrist_camera]\nposition = [0.0, 0.0, 0.1]\nlook_at = [0.0, 0.0, 0.1]\n",
+        "wrist_camera: look_at must differ from position",
+    ),
+    (
+        "wrist camera: an unknown key",
+        GOOD + "[wrist_camera]\nhand_eye_errr = [1.0, 0.1]\n",
+        "wrist_camera.hand_eye_errr: unknown key (did you mean 'hand_eye_error'?)",
+    ),
+    (
         "clear: a region off the table",
         _clear("[-0.2, 0.12]", "[-0.2, 0.72]"),
         "clear.region: its corner (0.400, 0.720) m is off the table",

@@ -121,3 +121,64 @@ def test_tracker_learns_a_belts_speed_and_follows_a_speed_change() -> None:
     tp = tracker.predict(t)
     assert tp.velocity[1] == pytest.approx(0.10, abs=0.004)
     assert tp.position[1] == pytest.approx(y, abs=0.002)
+
+
+def _calibrated(x: float, y: float, noise_m: float, calibration_m: float) -> PoseEstimate:
+    """An estimate whose camera's pose is known to ``calibration_m`` per axis (a bias in every frame of it)."""
+    cal = np.eye(3) * calibration_m**2
+    return PoseEstimate(
+        pose=Pose.from_xyz_rpy([x, y, 0.025]),
+        position_cov=np.eye(3) * noise_m**2 + cal,
+        rpy_cov=np.eye(3) * np.radians(0.1) ** 2,
+        yaw_symmetry_rad=np.pi / 2,
+        top_face_size_m=(0.05, 0.05),
+        n_features=10,
+        n_face_pixels=500,
+        calibration_cov=cal,
+    )
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_cameras_calibration_is_a_bias_no_number_of_its_frames_averages_away(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    bias = rng.normal(0.0, 0.008, 2)  # this camera's pose is off: every frame of it alike
+    tr = TargetTracker(np.pi / 2)
+    for k in range(50):
+        noise = rng.normal(0.0, 3e-4, 2)
+        assert tr.update(_calibrated(*(np.array([0.5, 0.0]) + bias + noise), 3e-4, 0.008), 0.1 * k).accepted
+    tp = tr.predict(5.0)
+    assert tp.position_sigma_m < 0.002  # its noise averages away (to the floor of each estimate) ...
+    assert tp.grasp_sigma_m >= 0.008  # ... its calibration does not: the track says so
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_better_calibrated_camera_corrects_the_track_of_a_worse_one(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    truth = np.array([0.5, 0.0])
+    fixed_bias = rng.normal(0.0, 0.01, 2)
+    fixed_bias *= 0.012 / np.linalg.norm(fixed_bias)  # 12 mm off: more than any gate of its own noise
+    tr = TargetTracker(np.pi / 2)
+    t = 0.0
+    for _ in range(20):  # the fixed camera alone (a miscalibrated one, and told so)
+        tr.update(_calibrated(*(truth + fixed_bias + rng.normal(0, 3e-4, 2)), 3e-4, 0.01), t, source="camera")
+        t += 0.1
+    for _ in range(10):  # then both, the hand's camera calibrated to the hand
+        up_w = tr.update(_calibrated(*(truth + rng.normal(0, 2e-4, 2)), 2e-4, 0.0005), t, source="wrist_camera")
+        up_f = tr.update(_calibrated(*(truth + fixed_bias + rng.normal(0, 3e-4, 2)), 3e-4, 0.01), t, source="camera")
+        assert up_w.accepted and up_f.accepted and not up_w.jumped and not up_f.jumped  # one target, no jumps
+        t += 0.1
+    tp = tr.predict(t)
+    assert np.linalg.norm(tp.position[:2] - truth) < 0.0015  # where the better camera sees it
+    assert tp.grasp_sigma_m < 0.002  # and sure of it
+
+
+def test_an_uncalibrated_trackers_arithmetic_is_unchanged_by_a_second_camera_name() -> None:
+    """With exact camera poses the cameras' names change nothing: the same estimates, the same belief."""
+    rng = np.random.default_rng(3)
+    a, b = TargetTracker(np.pi / 2), TargetTracker(np.pi / 2)
+    for k in range(20):
+        e = _est(0.5 + rng.normal(0, 2e-4), rng.normal(0, 2e-4), 10.0)
+        a.update(e, 0.1 * k)
+        b.update(e, 0.1 * k, source="wrist_camera" if k % 2 else "camera")
+    pa, pb = a.predict(2.0), b.predict(2.0)
+    assert np.array_equal(pa.position, pb.position) and np.array_equal(pa.covariance, pb.covariance)

@@ -1,0 +1,91 @@
+"""The camera on the hand: rendered from where the hand is, told its pose by the arm's kinematics and
+its hand-eye calibration; seeing through the descent, and correcting a miscalibrated fixed camera."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from pickdemo import robot_model as rm
+from pickdemo.episode import run_episode
+from pickdemo.geometry import Pose
+from pickdemo.kinematics import panda_kinematics
+from pickdemo.perception import PerceptionParams, estimate_pose
+from pickdemo.result import Stage
+from pickdemo.robot_geometry import robot_body
+from pickdemo.scenario import load_scenario
+from pickdemo.task import target_model
+from pickdemo.world import World
+
+
+def _hand_over(world: World, position: np.ndarray, height_m: float) -> np.ndarray:
+    """Put the arm (in the simulator) with its TCP this high over a point, pointing down; its joints."""
+    kin = panda_kinematics()
+    r = kin.solve(
+        Pose(position + [0.0, 0.0, height_m], np.diag([1.0, -1.0, -1.0])), rm.HOME_Q, np.random.default_rng(0)
+    )
+    assert r.success
+    robot = world.scene.bodies["robot"]
+    for j, q in zip(world.scene.arm_joints, r.q, strict=True):
+        world.scene.client.resetJointState(robot, j, float(q))
+    return r.q
+
+
+@pytest.mark.parametrize("height_m", [0.10, 0.05, 0.0])
+def test_the_hands_camera_sees_the_target_from_above_it_down_to_the_grasp(height_m: float) -> None:
+    sc = load_scenario("pick_cube_wrist")
+    with World.build(sc, 0) as world:
+        world.scene.settle(240)
+        truth = world.true_pose("cube")
+        q = _hand_over(world, truth.position, height_m)
+        kin = panda_kinematics()
+        frame = world.wrist_camera.capture_from(world.scene, kin.forward(q))
+        # told where it is by the arm's kinematics: where the simulator renders it from (no hand-eye error)
+        assert np.allclose(frame.T_world_cam.position, world.wrist_camera.T_world_cam_true.position, atol=1e-6)
+        frame = dataclasses.replace(frame, robot_boxes=robot_body().boxes(q, np.array([rm.FINGER_MAX_M] * 2)))
+        est = estimate_pose(frame, target_model(sc, world.placement("cube")), PerceptionParams())
+        assert np.linalg.norm(est.pose.position - truth.position) < 0.001
+
+
+def test_a_hand_eye_error_is_drawn_per_seed_and_the_robot_is_told_the_calibrated_pose() -> None:
+    sc = load_scenario("pick_cube_wrist")
+    wc = sc.wrist_camera.model_copy(update={"hand_eye_error": (5.0, 1.0)})
+    sc = sc.model_copy(update={"wrist_camera": wc})
+    offsets = []
+    for seed in (0, 1):
+        with World.build(sc, seed) as world:
+            cam = world.wrist_camera
+            err = cam.T_tcp_cam_true.inverse() @ cam.T_tcp_cam
+            assert np.linalg.norm(err.position) == pytest.approx(0.005)
+            angle = np.degrees(np.arccos(np.clip((np.trace(err.rotation) - 1.0) / 2.0, -1.0, 1.0)))
+            assert angle == pytest.approx(1.0, abs=1e-6)
+            offsets.append(err.position)
+    assert not np.allclose(offsets[0], offsets[1])  # drawn per seed
+
+
+def test_a_miscalibrated_fixed_camera_alone_is_refused_by_name_before_the_arm_moves() -> None:
+    sc = load_scenario("pick_miscalibrated")
+    for seed in (0, 1, 2):
+        r = run_episode(sc, seed)
+        assert not r.success and r.failure.stage is Stage.PERCEPTION
+        assert "clearance" in r.failure.reason and "not tried" in r.failure.reason
+        assert r.attempts == () or len(r.attempts) <= 1
+        assert r.sim_time_s < 1.0  # before it runs
+
+
+def test_a_camera_on_the_hand_makes_the_miscalibrated_cells_grasps_safe() -> None:
+    sc = load_scenario("pick_miscalibrated_wrist")
+    results = [run_episode(sc, seed) for seed in (0, 1, 2, 3)]
+    assert sum(r.success for r in results) >= 3, [r.failure for r in results]
+    assert all(r.place_error_mm < 20.0 for r in results if r.success)
+
+
+def test_a_push_during_the_descent_is_seen_by_the_hands_camera_and_the_first_attempt_goes_on() -> None:
+    sc = load_scenario("pick_pushed_descent_wrist")
+    results = [run_episode(sc, seed) for seed in (0, 1, 2, 3)]
+    first = [r for r in results if r.success and len(r.attempts) == 1]
+    assert len(first) >= 3, [(r.failure, len(r.attempts)) for r in results]
+    backed_off = [p.message for r in results for p in r.phases if p.phase == "back_off"]
+    assert any("from where it was tracked" in m for m in backed_off)  # it saw the move under the hand
