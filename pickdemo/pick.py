@@ -340,6 +340,7 @@ class PickMachine:
         #: the target moved under the hand: how far, seen by which camera, in the frame of when
         self._moved_seen: tuple[float, str, float] | None = None
         self._hover_since: float | None = None  # above the target, waiting to be sure enough of it
+        self._move_unconfirmed = False  # it backed off on a move the tracker has not confirmed (yet)
         self._verify_asked = False
         self._relooks = 0
         self._plan_id = 0  # counts first plans (the grasp selector's plan_id)
@@ -462,6 +463,10 @@ class PickMachine:
         from one camera, each farther than ``moved_tolerance_m`` from where it is tracked (a partial view:
         and half its top face): the target moved under the hand (the tracker confirms where to only once
         it is at rest again)."""
+        if offered.jumped:
+            self._move_unconfirmed = False
+        if offered.partial and self._move_unconfirmed:
+            return  # partial views said it moved before, and the tracker never found it moved: not again
         far = self.p.moved_tolerance_m
         if offered.partial:  # part of its top face: its centre may lie up to half the face off
             far += max(self.model.geometry.top_extents_m) / 2.0
@@ -1112,7 +1117,7 @@ class PickMachine:
             if plan is None:
                 return None
             self.plan = plan
-            unsafe = self._unsafe(obs.time_s)
+            unsafe = self._unsafe(obs.time_s, calibration_only=True)  # (more frames cannot mend that)
             if unsafe and (self.wrist is None or self.open_loop):
                 self._fail(Stage.PERCEPTION, f"{unsafe}, and no camera can see it closer: not tried")
                 return None
@@ -1180,9 +1185,9 @@ class PickMachine:
                 self._go_to(plan.pregrasp)
         if (self._motion_finished or self._with_target(self.plan.pregrasp)) and not self.finished:
             unsafe = self._unsafe(obs.time_s)
-            if unsafe:  # wait above it for the hand's camera to see it better (a bounded wait)
+            if unsafe:  # wait above it for more frames, or the hand's camera, to make it surer (a bounded wait)
                 self._hover_since = obs.time_s if self._hover_since is None else self._hover_since
-                if obs.time_s - self._hover_since >= self.p.hover_max_s or self.wrist is None or self.open_loop:
+                if obs.time_s - self._hover_since >= self.p.hover_max_s:
                     self._fail(Stage.PERCEPTION, f"{unsafe} after {obs.time_s - self._hover_since:.1f} s above it")
                 return None
             return State.DESCEND, "above the target" + (
@@ -1190,16 +1195,20 @@ class PickMachine:
             )
         return None
 
-    def _unsafe(self, now_s: float) -> str:
+    def _unsafe(self, now_s: float, *, calibration_only: bool = False) -> str:
         """Why the hand may not go down on the plan yet ("" when it may): where the target is, its
-        cameras' calibration included, is less sure than the grasp's clearance allows."""
+        cameras' calibration included (``calibration_only``: that alone), is less sure than the grasp's
+        clearance allows."""
         assert self.plan is not None
-        sigma = self.belief.predict(now_s).grasp_sigma_m
+        tp = self.belief.predict(now_s)
+        sigma = tp.calibration_sigma_m if calibration_only else tp.grasp_sigma_m
         clearance = rm.FINGER_MAX_M - self.plan.object_width_m / 2.0  # from the fingers open to the object
         if self.p.clearance_sigmas * sigma <= clearance:
             return ""
         return (
-            f"the target is known to {self.p.clearance_sigmas:g} x {sigma * 1e3:.1f} mm, more than the grasp's "
+            f"the target is known to {self.p.clearance_sigmas:g} x {sigma * 1e3:.1f} mm"
+            + (" (its camera's calibration)" if calibration_only else "")
+            + ", more than the grasp's "
             f"clearance of {clearance * 1e3:.1f} mm"
         )
 
@@ -1211,6 +1220,7 @@ class PickMachine:
         off, camera, t = self._moved_seen
         self._moved_seen = None
         self._far_views.clear()
+        self._move_unconfirmed = True  # (until the tracker finds where it went)
         self.grip.open()
         self._after_back_off = State.APPROACH
         by = "the hand's camera" if camera == "wrist_camera" else "the camera"
