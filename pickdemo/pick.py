@@ -336,7 +336,8 @@ class PickMachine:
         self._descent_plan: GraspPlan | None = None
         self._planned_at_s = 0.0  # the plan is for the target where it was then
         self._descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
-        self._far_views: dict[str, list[float]] = {}  # per camera: whole views refused far from the track
+        #: per camera: views refused far from the track, in a row (how far, where seen)
+        self._far_views: dict[str, list[tuple[float, np.ndarray | None]]] = {}
         #: the target moved under the hand: how far, seen by which camera, in the frame of when
         self._moved_seen: tuple[float, str, float] | None = None
         self._hover_since: float | None = None  # above the target, waiting to be sure enough of it
@@ -421,8 +422,10 @@ class PickMachine:
         if np.any(uv < 0.0) or np.any(uv[:, 0] > K.width - 1) or np.any(uv[:, 1] > K.height - 1):
             return None
         margin = self.p.roi_margin_m + 3.0 * tp.grasp_sigma_m  # (close by: never above its top, near the lens)
-        wide = [(g.footprint_radius_m + margin) * ring + [0.0, 0.0, dz] for dz in (-g.height_m / 2.0, g.height_m / 2.0)]
-        corners = tp.position + np.vstack(wide)
+        half_h = g.height_m / 2.0
+        wide = np.vstack([(g.footprint_radius_m + margin) * ring + [0.0, 0.0, dz] for dz in (-half_h, half_h)])
+        far = self._far_seen("wrist_camera")  # and where it last saw it, far from there
+        corners = np.vstack([tp.position + wide] + ([] if far is None else [far + wide]))
         corners[:, 2] = np.maximum(corners[:, 2], self.p.roi_floor_z_m)
         roi = roi_around(corners, K, T_world_cam, pad_px=self.p.roi_pad_px)
         return None if roi is None else FrameRequest(roi, wrist=True)
@@ -455,14 +458,16 @@ class PickMachine:
             self.events.append(Event(self.state, self._now_s, message, note=True))
         if offered.verdict is Verdict.ACCEPTED:
             self._fresh_estimate = True
-        self._watch_moves(offered, camera, frame_time_s)
+        seen = result.pose.position if isinstance(result, PoseEstimate) else None
+        self._watch_moves(offered, camera, frame_time_s, seen)
         return offered.verdict
 
-    def _watch_moves(self, offered: Offered, camera: str, frame_time_s: float) -> None:
+    def _watch_moves(self, offered: Offered, camera: str, frame_time_s: float, seen: np.ndarray | None) -> None:
         """With the hand over the target, views of it that are refused, ``moved_views`` of them in a row
         from one camera, each farther than ``moved_tolerance_m`` from where it is tracked (a partial view:
-        and half its top face): the target moved under the hand (the tracker confirms where to only once
-        it is at rest again)."""
+        and half its top face; after one, a frame in which the model fits nothing counts too): the target
+        moved under the hand (the tracker confirms where to only once it is at rest again). Meanwhile
+        each camera also looks where it last saw it (:meth:`_far_seen`)."""
         if offered.jumped:
             self._move_unconfirmed = False
         if offered.partial and self._move_unconfirmed:
@@ -473,6 +478,12 @@ class PickMachine:
         if offered.verdict is Verdict.ACCEPTED:  # where it is tracked, as a camera sees it: no run goes on
             self._far_views.clear()
             return
+        run = self._far_views.get(camera)
+        if offered.verdict is Verdict.NO_ESTIMATE and run and self.state in HAND_OVER_TARGET:
+            run.append(run[-1])  # after a far view, the model fits nothing where it was tracked: on the run goes
+            if len(run) >= self.p.moved_views:
+                self._moved_seen = (max(off for off, _ in run), camera, frame_time_s)
+            return
         if offered.off_m is None or offered.off_m <= far:
             if offered.off_m is not None and not offered.partial:
                 self._far_views.pop(camera, None)  # a near whole view ends its camera's run (no view does not)
@@ -480,9 +491,14 @@ class PickMachine:
         if self.state not in HAND_OVER_TARGET:
             return
         run = self._far_views.setdefault(camera, [])
-        run.append(offered.off_m)
+        run.append((offered.off_m, seen))
         if len(run) >= self.p.moved_views:
-            self._moved_seen = (max(run), camera, frame_time_s)
+            self._moved_seen = (max(off for off, _ in run), camera, frame_time_s)
+
+    def _far_seen(self, camera: str) -> np.ndarray | None:
+        """Where a camera last saw the target far from where it is tracked (a run under way), or None."""
+        run = self._far_views.get(camera)
+        return None if not run else run[-1][1]
 
     def update(self, obs: Observation) -> Command:
         """One control tick: the state's entry action (once), its exit test, then the motion's tick."""
@@ -1068,7 +1084,15 @@ class PickMachine:
     def _roi(self, now_s: float) -> tuple[int, int, int, int] | None:
         """Around the tracked target, widened by its uncertainty (None: the whole image)."""
         tp = self.belief.predict(now_s)
-        return self._roi_at(tp.position, self.p.roi_margin_m + 3.0 * tp.position_sigma_m)
+        margin = self.p.roi_margin_m + 3.0 * tp.position_sigma_m
+        roi = self._roi_at(tp.position, margin)
+        far = self._far_seen("camera")
+        if far is None or roi is None:
+            return roi
+        there = self._roi_at(far, margin)  # and where it was last seen, far from there
+        if there is None:
+            return roi
+        return (min(roi[0], there[0]), min(roi[1], there[1]), max(roi[2], there[2]), max(roi[3], there[3]))
 
     def _roi_at(self, centre: np.ndarray, margin_m: float) -> tuple[int, int, int, int] | None:
         r = self.model.geometry.bounding_radius_m + margin_m
