@@ -106,6 +106,12 @@ class TargetBelief:
         self.cloud: ObjectCloud | None = None
         self._extents: tuple[float, float] | None = None
 
+    @property
+    def top_extents_m(self) -> tuple[float, float] | None:
+        """Its top face's extents: the model's, or for an object nobody described as first seen on this
+        track (None: not seen yet)."""
+        return self._extents if self.unknown else self.model.geometry.top_extents_m
+
     def restart(self) -> None:
         """Forget the target: the next estimate starts a new track."""
         self.tracker = TargetTracker(self.symmetry, self.tracker_params)

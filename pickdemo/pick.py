@@ -409,11 +409,9 @@ class PickMachine:
         w = self.wrist
         T_world_cam = self.kin.forward(self._arm_q) @ w.T_tcp_cam
         tp = self.belief.predict(now_s)
-        g = self.model.geometry  # its footprint's circle, top and bottom, all in view
+        radius, half_h = self._seen_size(tp.position)  # its footprint's circle, top and bottom, all in view
         ring = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)])
-        corners = np.vstack(
-            [tp.position + g.footprint_radius_m * ring + [0.0, 0.0, dz * g.height_m / 2.0] for dz in (-1, 1)]
-        )
+        corners = np.vstack([tp.position + radius * ring + [0.0, 0.0, dz * half_h] for dz in (-1, 1)])
         p_cam = T_world_cam.inverse().transform_points(corners)
         if np.any(p_cam[:, 2] <= w.near_m) or np.any(p_cam[:, 2] >= w.far_m):
             return None
@@ -422,13 +420,21 @@ class PickMachine:
         if np.any(uv < 0.0) or np.any(uv[:, 0] > K.width - 1) or np.any(uv[:, 1] > K.height - 1):
             return None
         margin = self.p.roi_margin_m + 3.0 * tp.grasp_sigma_m  # (close by: never above its top, near the lens)
-        half_h = g.height_m / 2.0
-        wide = np.vstack([(g.footprint_radius_m + margin) * ring + [0.0, 0.0, dz] for dz in (-half_h, half_h)])
+        wide = np.vstack([(radius + margin) * ring + [0.0, 0.0, dz] for dz in (-half_h, half_h)])
         far = self._far_seen("wrist_camera")  # and where it last saw it, far from there
         corners = np.vstack([tp.position + wide] + ([] if far is None else [far + wide]))
         corners[:, 2] = np.maximum(corners[:, 2], self.p.roi_floor_z_m)
         roi = roi_around(corners, K, T_world_cam, pad_px=self.p.roi_pad_px)
         return None if roi is None else FrameRequest(roi, wrist=True)
+
+    def _seen_size(self, position: np.ndarray) -> tuple[float, float]:
+        """The target's footprint radius and half height (m): its model's, or for an object nobody
+        described what was seen of it (its top face's extents, its centre's height above the table)."""
+        g = self.model.geometry
+        extents = self.belief.top_extents_m
+        if not self.belief.unknown or extents is None:
+            return g.footprint_radius_m, g.height_m / 2.0
+        return float(np.hypot(*extents)) / 2.0, max(float(position[2]), 0.005)
 
     def on_estimate(
         self, result: PoseEstimate | PerceptionError, frame_time_s: float, camera: str = "camera"
@@ -474,7 +480,8 @@ class PickMachine:
             return  # partial views said it moved before, and the tracker never found it moved: not again
         far = self.p.moved_tolerance_m
         if offered.partial:  # part of its top face: its centre may lie up to half the face off
-            far += max(self.model.geometry.top_extents_m) / 2.0
+            extents = self.belief.top_extents_m
+            far += max(extents) / 2.0 if extents is not None else self.model.geometry.footprint_radius_m
         if offered.verdict is Verdict.ACCEPTED:  # where it is tracked, as a camera sees it: no run goes on
             self._far_views.clear()
             return
