@@ -99,6 +99,15 @@ class _SensorSpec(_Model):
             return {**preset, **data}
         return data
 
+    @model_validator(mode="after")
+    def _placed(self) -> _SensorSpec:
+        """Every sensor has a depth range and looks from its ``position`` at its ``look_at`` (its class's)."""
+        if self.far_m <= self.near_m:
+            raise ValueError("far_m must exceed near_m")
+        if sum((a - b) ** 2 for a, b in zip(self.position, self.look_at, strict=True)) < 1e-6:  # type: ignore[attr-defined]
+            raise ValueError("look_at must differ from position")
+        return self
+
     @property
     def extrinsic_sigma(self) -> tuple[float, float]:
         """How far the pose the robot is told may be off (mm, deg)."""
@@ -123,10 +132,6 @@ class CameraSpec(_SensorSpec):
 
     @model_validator(mode="after")
     def _check(self) -> CameraSpec:
-        if sum((a - b) ** 2 for a, b in zip(self.position, self.look_at, strict=True)) < 1e-6:
-            raise ValueError("look_at must differ from position")
-        if self.far_m <= self.near_m:
-            raise ValueError("far_m must exceed near_m")
         ranges = (self.distance_range_m, self.elevation_range_deg, self.azimuth_range_deg)
         if any(r is not None for r in ranges) and any(r is None for r in ranges):
             raise ValueError("give all of distance_range_m, elevation_range_deg, azimuth_range_deg, or none")
@@ -181,14 +186,6 @@ class WristCameraSpec(_SensorSpec):
         if mount not in WRIST_MOUNTS:
             raise ValueError(f"{printable(mount)!r} is not a link of the hand; one of {', '.join(WRIST_MOUNTS)}")
         return mount
-
-    @model_validator(mode="after")
-    def _check(self) -> WristCameraSpec:
-        if sum((a - b) ** 2 for a, b in zip(self.position, self.look_at, strict=True)) < 1e-6:
-            raise ValueError("look_at must differ from position")
-        if self.far_m <= self.near_m:
-            raise ValueError("far_m must exceed near_m")
-        return self
 
 
 class TableSpec(_Model):
