@@ -476,6 +476,8 @@ class PickMachine:
         each camera also looks where it last saw it (:meth:`_far_seen`)."""
         if offered.jumped:
             self._move_unconfirmed = False
+        if self.belief.unknown:  # told from its neighbours only by where it is: a view far off may be one
+            return
         if offered.partial and self._move_unconfirmed:
             return  # partial views said it moved before, and the tracker never found it moved: not again
         far = self.p.moved_tolerance_m
