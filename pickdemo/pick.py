@@ -337,7 +337,7 @@ class PickMachine:
         self._planned_at_s = 0.0  # the plan is for the target where it was then
         self._descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
         #: per camera: views refused far from the track, in a row (how far, where seen)
-        self._far_views: dict[str, list[tuple[float, np.ndarray | None]]] = {}
+        self._far_views: dict[str, list[tuple[float, np.ndarray | None, bool]]] = {}  # (+ partial or not)
         #: the target moved under the hand: how far, seen by which camera, in the frame of when
         self._moved_seen: tuple[float, str, float] | None = None
         self._hover_since: float | None = None  # above the target, waiting to be sure enough of it
@@ -490,8 +490,7 @@ class PickMachine:
         run = self._far_views.get(camera)
         if offered.verdict is Verdict.NO_ESTIMATE and run and self.state in HAND_OVER_TARGET:
             run.append(run[-1])  # after a far view, the model fits nothing where it was tracked: on the run goes
-            if len(run) >= self.p.moved_views:
-                self._moved_seen = (max(off for off, _ in run), camera, frame_time_s)
+            self._judge_run(run, camera, frame_time_s)
             return
         if offered.off_m is None or offered.off_m <= far:
             if offered.off_m is not None and not offered.partial:
@@ -500,9 +499,14 @@ class PickMachine:
         if self.state not in HAND_OVER_TARGET:
             return
         run = self._far_views.setdefault(camera, [])
-        run.append((offered.off_m, seen))
-        if len(run) >= self.p.moved_views:
-            self._moved_seen = (max(off for off, _ in run), camera, frame_time_s)
+        run.append((offered.off_m, seen, offered.partial))
+        self._judge_run(run, camera, frame_time_s)
+
+    def _judge_run(self, run: list, camera: str, frame_time_s: float) -> None:
+        """``moved_views`` in a row, one of them at least a whole view (partial views alone can mislead
+        consistently: the fixed camera's, of the face the hand leaves, 45-49 mm off): it moved."""
+        if len(run) >= self.p.moved_views and any(not partial for *_, partial in run):
+            self._moved_seen = (max(off for off, *_ in run), camera, frame_time_s)
 
     def _far_seen(self, camera: str) -> np.ndarray | None:
         """Where a camera last saw the target far from where it is tracked (a run under way), or None."""
@@ -1217,7 +1221,7 @@ class PickMachine:
             else:
                 self._go_to(plan.pregrasp)
         if (self._motion_finished or self._with_target(self.plan.pregrasp)) and not self.finished:
-            unsafe = self._unsafe(obs.time_s)
+            unsafe = "" if self.open_loop else self._unsafe(obs.time_s)  # (open loop: the plan of one look)
             if unsafe:  # wait above it for more frames, or the hand's camera, to make it surer (a bounded wait)
                 self._hover_since = obs.time_s if self._hover_since is None else self._hover_since
                 if obs.time_s - self._hover_since >= self.p.hover_max_s:
