@@ -470,20 +470,23 @@ class PickMachine:
 
     def _watch_moves(self, offered: Offered, camera: str, frame_time_s: float, seen: np.ndarray | None) -> None:
         """With the hand over the target, views of it that are refused, ``moved_views`` of them in a row
-        from one camera, each farther than ``moved_tolerance_m`` from where it is tracked (a partial view:
-        and half its top face; after one, a frame in which the model fits nothing counts too): the target
-        moved under the hand (the tracker confirms where to only once it is at rest again). Meanwhile
-        each camera also looks where it last saw it (:meth:`_far_seen`)."""
+        from one camera, each farther than ``moved_tolerance_m`` from where it is tracked (and than a view
+        of it there could be off), one at least a whole view (after a far view, a frame in which the model
+        fits nothing counts too): the target moved under the hand (the tracker confirms where to only
+        once it is at rest again; until it does, no views send the hand back again). Meanwhile each
+        camera also looks where it last saw it (:meth:`_far_seen`)."""
         if offered.jumped:
             self._move_unconfirmed = False
         if self.belief.unknown:  # told from its neighbours only by where it is: a view far off may be one
             return
-        if offered.partial and self._move_unconfirmed:
-            return  # partial views said it moved before, and the tracker never found it moved: not again
-        far = self.p.moved_tolerance_m
-        if offered.partial:  # part of its top face: its centre may lie up to half the face off
-            extents = self.belief.top_extents_m
-            far += max(extents) / 2.0 if extents is not None else self.model.geometry.footprint_radius_m
+        if self._move_unconfirmed:
+            return  # views said it moved before, and the tracker never found it moved: not again until it does
+        # How far off a view may be and still be of the target where it is tracked: a partial view's
+        # centre up to half its top face; a whole one's up to the share of the face a view may miss and
+        # still pass as whole (under the hand, its fingers hide an edge of a large face).
+        extents = self.belief.top_extents_m
+        half = max(extents) / 2.0 if extents is not None else self.model.geometry.footprint_radius_m
+        far = self.p.moved_tolerance_m + (half if offered.partial else self.p.gate.face_size_tolerance * half)
         if offered.verdict is Verdict.ACCEPTED:  # where it is tracked, as a camera sees it: no run goes on
             self._far_views.clear()
             return
