@@ -40,6 +40,7 @@ from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate,
 from pickdemo.pick import (
     HAND_OVER_TARGET,
     TRACKING_STATES,
+    WRIST_CAMERA,
     CameraModel,
     FrameRequest,
     MachineParams,
@@ -560,7 +561,7 @@ class Episode:
             with self.timer("render wrist"):
                 T_world_tcp = self.machine.kin.forward(obs.arm_q)
                 frame = world.wrist_camera.capture_from(world.scene, T_world_tcp, request.roi)
-            frame = dataclasses.replace(frame, camera="wrist_camera")
+            frame = dataclasses.replace(frame, camera=WRIST_CAMERA)
         else:
             with self.timer("render"):
                 frame = world.camera.capture(world.scene, request.roi)

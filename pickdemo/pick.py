@@ -189,6 +189,8 @@ class MachineParams:
         )
 
 
+#: The name of the camera on the hand (an :class:`~pickdemo.camera.RGBDFrame`'s ``camera``)
+WRIST_CAMERA = "wrist_camera"
 #: On a belt, the least speed of a moving target (m/s): a slow belt's 1 cm/s is well clear of it
 BELT_MOVING_SPEED_M_S = 0.004
 
@@ -421,7 +423,7 @@ class PickMachine:
             return None
         margin = self.p.roi_margin_m + 3.0 * tp.grasp_sigma_m  # (close by: never above its top, near the lens)
         wide = np.vstack([(radius + margin) * ring + [0.0, 0.0, dz] for dz in (-half_h, half_h)])
-        far = self._far_seen("wrist_camera")  # and where it last saw it, far from there
+        far = self._far_seen(WRIST_CAMERA)  # and where it last saw it, far from there
         corners = np.vstack([tp.position + wide] + ([] if far is None else [far + wide]))
         corners[:, 2] = np.maximum(corners[:, 2], self.p.roi_floor_z_m)
         roi = roi_around(corners, K, T_world_cam, pad_px=self.p.roi_pad_px)
@@ -478,6 +480,8 @@ class PickMachine:
         if offered.jumped:
             self._move_unconfirmed = False
         if self.belief.unknown:  # told from its neighbours only by where it is: a view far off may be one
+            return
+        if camera != WRIST_CAMERA:  # the fixed camera sees the hand over it: its views there mislead (see README)
             return
         if self._move_unconfirmed:
             return  # views said it moved before, and the tracker never found it moved: not again until it does
@@ -1100,15 +1104,7 @@ class PickMachine:
     def _roi(self, now_s: float) -> tuple[int, int, int, int] | None:
         """Around the tracked target, widened by its uncertainty (None: the whole image)."""
         tp = self.belief.predict(now_s)
-        margin = self.p.roi_margin_m + 3.0 * tp.position_sigma_m
-        roi = self._roi_at(tp.position, margin)
-        far = self._far_seen("camera")
-        if far is None or roi is None:
-            return roi
-        there = self._roi_at(far, margin)  # and where it was last seen, far from there
-        if there is None:
-            return roi
-        return (min(roi[0], there[0]), min(roi[1], there[1]), max(roi[2], there[2]), max(roi[3], there[3]))
+        return self._roi_at(tp.position, self.p.roi_margin_m + 3.0 * tp.position_sigma_m)
 
     def _roi_at(self, centre: np.ndarray, margin_m: float) -> tuple[int, int, int, int] | None:
         r = self.model.geometry.bounding_radius_m + margin_m
@@ -1263,7 +1259,7 @@ class PickMachine:
         self._move_unconfirmed = True  # (until the tracker finds where it went)
         self.grip.open()
         self._after_back_off = State.APPROACH
-        by = "the hand's camera" if camera == "wrist_camera" else "the camera"
+        by = "the hand's camera" if camera == WRIST_CAMERA else "the camera"
         return State.BACK_OFF, (
             f"{by} sees the target {off * 1e3:.0f} mm from where it was tracked (frame of t = {t:.2f} s) "
             f"during the {self.state.value}: backing off to approach again"
