@@ -481,16 +481,18 @@ class PickMachine:
             self._move_unconfirmed = False
         if self.belief.unknown:  # told from its neighbours only by where it is: a view far off may be one
             return
-        if camera != WRIST_CAMERA:  # the fixed camera sees the hand over it: its views there mislead (see README)
+        if self.wrist is None:  # the fixed camera alone sees the hand over it: its views there mislead (README)
             return
         if self._move_unconfirmed:
             return  # views said it moved before, and the tracker never found it moved: not again until it does
         # How far off a view may be and still be of the target where it is tracked: a partial view's
-        # centre up to half its top face; a whole one's up to the share of the face a view may miss and
-        # still pass as whole (under the hand, its fingers hide an edge of a large face).
+        # centre up to half its top face; a whole one's, from the fixed camera, up to the share of the
+        # face a view may miss and still pass as whole (the fingers hide an edge of a large face; the
+        # hand's camera sees past them).
         extents = self.belief.top_extents_m
         half = max(extents) / 2.0 if extents is not None else self.model.geometry.footprint_radius_m
-        far = self.p.moved_tolerance_m + (half if offered.partial else self.p.gate.face_size_tolerance * half)
+        whole = 0.0 if camera == WRIST_CAMERA else self.p.gate.face_size_tolerance * half  # (its fingers, close by)
+        far = self.p.moved_tolerance_m + (half if offered.partial else whole)
         if offered.verdict is Verdict.ACCEPTED:  # where it is tracked, as a camera sees it: no run goes on
             self._far_views.clear()
             return
