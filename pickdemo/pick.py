@@ -82,6 +82,8 @@ from pickdemo.result import AttemptRecord, Failure, Stage
 from pickdemo.tracker import TargetTracker, TrackerParams
 
 UNIT_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+#: Eight unit directions around the vertical: a footprint's circle, sampled (the hand camera's view of it)
+FOOTPRINT_RING = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)])
 #: A state may hand over to the next within one tick (an exit test met at once): at most this many times.
 MAX_TRANSITIONS_PER_TICK = 4
 
@@ -412,7 +414,7 @@ class PickMachine:
         T_world_cam = self.kin.forward(self._arm_q) @ w.T_tcp_cam
         tp = self.belief.predict(now_s)
         radius, half_h = self._seen_size(tp.position)  # its footprint's circle, top and bottom, all in view
-        ring = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)])
+        ring = FOOTPRINT_RING
         corners = np.vstack([tp.position + radius * ring + [0.0, 0.0, dz * half_h] for dz in (-1, 1)])
         p_cam = T_world_cam.inverse().transform_points(corners)
         if np.any(p_cam[:, 2] <= w.near_m) or np.any(p_cam[:, 2] >= w.far_m):
