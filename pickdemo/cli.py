@@ -142,7 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     perceive.add_argument("scenario", help="a scenario name or path")
     perceive.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-99 (default 0-19)")
-    perceive.add_argument("--methods", default="paper,pixel,centroid,icp", help="comma-separated (default: all)")
+    perceive.add_argument(
+        "--methods", default=None, help="comma-separated (default: all that apply to the scenario's targets)"
+    )
     perceive.add_argument(
         "--out", type=Path, metavar="DIR", help="directory for perception.json, perception.png and report.html"
     )
@@ -466,15 +468,25 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
         seeds = bench.parse_seeds(args.seeds)
     except bench.BenchError as exc:
         raise UsageError(f"--seeds: {exc}") from None
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    # The command says the task: a file without a `task` key is read as a perception task (a static,
+    # tilted target is fine to look at); a file that says `task = "pick"` is checked as the pick it says it is.
+    scenario = load_scenario(args.scenario, default_task="perceive")
+    undescribed = any(t.shape == "mesh" for t in scenario.targets)  # seen as objects nobody described
+    if args.methods is None:
+        methods = [m for m in perceive.METHODS if not (undescribed and m in perceive.NEEDS_DESCRIPTION)]
+    else:
+        methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     unknown = [m for m in methods if m not in perceive.METHODS]
     if unknown or not methods:
         raise UsageError(
             f"--methods: unknown {', '.join(unknown) or '(none given)'}; known: {', '.join(perceive.METHODS)}"
         )
-    # The command says the task: a file without a `task` key is read as a perception task (a static,
-    # tilted target is fine to look at); a file that says `task = "pick"` is checked as the pick it says it is.
-    scenario = load_scenario(args.scenario, default_task="perceive")
+    blind = [m for m in methods if undescribed and m in perceive.NEEDS_DESCRIPTION]
+    if blind:
+        raise UsageError(
+            f"--methods: {', '.join(blind)} {'needs' if len(blind) == 1 else 'need'} the target's shape and colour, "
+            f"which {args.scenario} does not give (a mesh is seen as an object nobody described)"
+        )
     print(f"pickdemo perceive: {scenario.name}, {len(scenario.targets)} target(s) x {len(seeds)} seed(s), "
           f"methods {', '.join(methods)}", flush=True)  # fmt: skip
     samples: list[perceive.PerceptionSample] = []

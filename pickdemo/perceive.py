@@ -31,6 +31,8 @@ from pickdemo.stats import describe
 MethodFn = Callable[..., PoseEstimate]
 METHODS: dict[str, MethodFn] = dict(BUILTIN)
 ORIENTED = {"paper", "centroid", "icp"}  # pixel gives a position only
+#: The baselines need the target described (its shape and colour): not for an object nobody described.
+NEEDS_DESCRIPTION = {"pixel", "centroid", "icp"}
 
 #: One method on one target of one seed's frame, as perception.json holds it: ``method``, ``seed``,
 #: ``target``, ``time_ms``, ``camera_distance_m``, ``failure`` (None or perception's reason), the

@@ -82,6 +82,10 @@ class Shape(Protocol):
         """Closest points on its surface to ``points`` (N, 3) and the outward normals there (body frame)."""
         ...
 
+    def ray_entry(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where rays from outside first meet the surface, the outward normal there, and which rays do."""
+        ...
+
     def outline_residuals(self, xy: np.ndarray) -> np.ndarray:
         """Signed distance (m) of points of its top plane ((N, >=2), body x, y) from its top face's outline."""
         ...
@@ -159,6 +163,21 @@ class Box:
         n[np.arange(len(points)), axis] = np.sign(points[np.arange(len(points)), axis] + 1e-15)
         return q, n
 
+    def ray_entry(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where rays from outside first meet the box (the slab method), the outward normal there,
+        and which rays meet it at all (body frame, centred)."""
+        h = np.array(self.size_m) / 2.0
+        d = np.where(np.abs(directions) < 1e-12, 1e-12, directions)
+        t1, t2 = (-h - origins) / d, (h - origins) / d
+        near, far = np.minimum(t1, t2), np.maximum(t1, t2)
+        axis = np.argmax(near, axis=1)
+        rows = np.arange(len(origins))
+        enter = near[rows, axis]
+        hit = (enter <= far.min(axis=1)) & (enter > 0.0)
+        n = np.zeros_like(origins)
+        n[rows, axis] = -np.sign(d[rows, axis])
+        return origins + enter[:, None] * directions, n, hit
+
     def outline_residuals(self, xy: np.ndarray) -> np.ndarray:
         """To the nearer pair of sides."""
         hx, hy = self.size_m[0] / 2.0, self.size_m[1] / 2.0
@@ -235,6 +254,33 @@ class Cylinder:
         q[caps, 2] = np.sign(points[caps, 2] + 1e-15) * hh
         n[caps, 2] = np.sign(points[caps, 2] + 1e-15)
         return q, n
+
+    def ray_entry(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where rays from outside first meet the cylinder (its side or a cap), the outward normal
+        there, and which rays meet it at all (body frame, centred)."""
+        r, hh = self.diameter_m / 2.0, self.height_m / 2.0
+        o, d = origins, directions
+        a = np.maximum(d[:, 0] ** 2 + d[:, 1] ** 2, 1e-24)
+        b = 2.0 * (o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1])
+        c = o[:, 0] ** 2 + o[:, 1] ** 2 - r * r
+        disc = b * b - 4.0 * a * c
+        t_side = np.where(disc >= 0.0, (-b - np.sqrt(np.maximum(disc, 0.0))) / (2.0 * a), np.inf)
+        z_side = o[:, 2] + t_side * d[:, 2]
+        t_side = np.where((np.abs(z_side) <= hh) & (t_side > 0.0), t_side, np.inf)
+        dz = np.where(np.abs(d[:, 2]) < 1e-12, 1e-12, d[:, 2])
+        t_cap = np.minimum((hh - o[:, 2]) / dz, (-hh - o[:, 2]) / dz)  # the cap faced first
+        cap_xy = o[:, :2] + t_cap[:, None] * d[:, :2]
+        t_cap = np.where((np.hypot(cap_xy[:, 0], cap_xy[:, 1]) <= r) & (t_cap > 0.0), t_cap, np.inf)
+        on_side = t_side <= t_cap
+        t = np.minimum(t_side, t_cap)
+        hit = np.isfinite(t)
+        q = o + np.where(hit, t, 0.0)[:, None] * d
+        n = np.zeros_like(o)
+        rho = np.maximum(np.hypot(q[:, 0], q[:, 1]), 1e-12)
+        n[on_side, 0] = q[on_side, 0] / rho[on_side]
+        n[on_side, 1] = q[on_side, 1] / rho[on_side]
+        n[~on_side, 2] = -np.sign(dz[~on_side])
+        return q, n, hit
 
     def outline_residuals(self, xy: np.ndarray) -> np.ndarray:
         return np.hypot(xy[:, 0], xy[:, 1]) - self.diameter_m / 2.0

@@ -122,7 +122,8 @@ def test_wrong_estimates_under_the_d435_preset_are_not_acted_on() -> None:
     """pick_cube_d435: with the hand over the cube part of it is hidden, and some estimates land far
     off (one fit diverged to tens of metres). They come in bursts, in a few seeds, so the test
     counts them over forty seeds (9 over seeds 0-39 with the self-filter, in 6 seeds, measured;
-    6 before it): perception's own fit check or the loop's checks reject them (with the hand's own
+    6 before it; 2 since readings are matched along their rays): perception's own fit check or the
+    loop's checks reject them (with the hand's own
     pixels left out the loop's checks took all 9 here; the fit check has its own tests in
     test_pose_fit); at most one is acted on (1 of 125 over 100 seeds, measured), and the cubes are
     placed."""
@@ -130,5 +131,5 @@ def test_wrong_estimates_under_the_d435_preset_are_not_acted_on() -> None:
 
     rs = episodes("pick_cube_d435", tuple(range(40)))
     at_least(rs, len(rs) - 2)
-    assert sum(r.estimates_off for r in rs) >= 3, [r.estimates_off for r in rs]  # the checks were exercised
+    assert sum(r.estimates_off for r in rs) >= 1, [r.estimates_off for r in rs]  # the checks were exercised
     assert sum(r.estimates_off_accepted for r in rs) <= 1

@@ -139,3 +139,27 @@ def test_the_scenario_modules_import_one_way() -> None:
         assert reaches(high, low) and not reaches(low, high), (low, high)
     for pure in ("pickdemo.shapes", "pickdemo.schema", "pickdemo.layout", "pickdemo.checks"):
         assert not any(m.startswith("pickdemo.sim") for m in graph[pure])
+
+
+@pytest.mark.parametrize("shape", [Box((0.06, 0.04, 0.05)), Cylinder(0.05, 0.08)], ids=["box", "cylinder"])
+def test_a_ray_enters_where_it_first_meets_the_surface(shape) -> None:  # noqa: ANN001 - a Shape
+    """Rays from outside toward points inside: the entry lies on the surface with its outward normal,
+    and the ray is outside just before it (nothing nearer along the ray); rays that pass miss."""
+    rng = np.random.default_rng(7)
+    origins = rng.normal(size=(500, 3))
+    origins *= (0.3 + rng.random((500, 1))) / np.linalg.norm(origins, axis=1, keepdims=True)
+    targets = (rng.random((500, 3)) - 0.5) * np.array([0.02, 0.02, 0.03])  # inside either shape
+    q, n, hit = shape.ray_entry(origins, targets - origins)
+    assert hit.all()
+    closest, normal = shape.closest_points(q)
+    assert np.allclose(closest, q, atol=1e-9)
+    d = (targets - origins) / np.linalg.norm(targets - origins, axis=1, keepdims=True)
+    assert np.all(np.einsum("ij,ij->i", n, d) < 0.0)  # the ray enters against the outward normal
+    before = q - 1e-5 * d
+    assert np.all(np.linalg.norm(shape.closest_points(before)[0] - before, axis=1) > 0.0)
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    # A ray aimed well to the side of the shape, parallel to the line toward it, misses.
+    side = np.cross(d, [0.0, 0.0, 1.0]) + np.cross(d, [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    _, _, hit_far = shape.ray_entry(origins + 0.2 * side, targets - origins)
+    assert not hit_far.any()

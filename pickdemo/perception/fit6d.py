@@ -23,6 +23,28 @@ def closest_on_model(points: np.ndarray, model: TargetModel) -> tuple[np.ndarray
     return model.geometry.closest_points(points)
 
 
+def surface_along_rays(
+    points: np.ndarray, origin: np.ndarray, model: TargetModel, *, reach_m: float = 0.01
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where each point's viewing ray (from ``origin``, the camera) first meets the model's surface
+    (model frame, centred), and the outward normal there; the closest surface point where the ray
+    misses the model or meets it further than ``reach_m`` from the point, or where the shape cannot
+    cast rays.
+
+    A depth reading errs along its ray, so the surface it belongs to is the one its ray meets, not
+    the one nearest to it: beside an edge, a reading pushed behind the top face by noise lies nearer
+    the side face, and matching it there would drag the top face up (measured: boxes estimated
+    0.06 mm too high with the D435's noise, as much as their median error).
+    """
+    q0, n0 = closest_on_model(points, model)
+    cast = getattr(model.geometry, "ray_entry", None)
+    if cast is None:
+        return q0, n0
+    q, n, hit = cast(np.broadcast_to(origin, points.shape), points - origin)
+    use = hit & (np.linalg.norm(q - points, axis=1) < reach_m)
+    return np.where(use[:, None], q, q0), np.where(use[:, None], n, n0)
+
+
 def _rpy_jacobian(R: np.ndarray) -> np.ndarray:
     """d(roll, pitch, yaw) / d(rotation vector in the body frame) at R (numeric)."""
     base = pin.rpy.matrixToRpy(R)
@@ -102,9 +124,13 @@ def refine_pose_6dof(
         # Point to plane, the closest model points held fixed in this step (as in ICP):
         # r = n_w . (p - T q); for T exp(xi): dr/dv = -n, dr/dw = n x q (model frame).
         local = (pts - t) @ R
-        q, n = closest_on_model(local, model)
+        q, n = surface_along_rays(local, (Tc.position - t) @ R, model)
         nw = n @ R.T
         r_d = np.einsum("ij,ij->i", nw, pts - (q @ R.T + t))
+        # Each point's depth variance (eq. 8) at the depth the model predicts there, not at its own
+        # noisy reading: weights drawn from the noise they weigh would pull the fit toward the camera
+        # (a nearer reading would count for more; measured, 2-3 um of the median error).
+        vz = frame.depth_variance(((q @ R.T + t) - Tc.position) @ Rc[:, 2])
         nc = nw @ Rc  # normals in the camera frame
         var_n = vz * np.einsum("ij,ij->i", nc, ray) ** 2 + s2z2 * (nc[:, 0] ** 2 / K.fx**2 + nc[:, 1] ** 2 / K.fy**2)
         sd = np.sqrt(np.maximum(var_n, 1e-14))

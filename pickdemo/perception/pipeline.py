@@ -36,10 +36,6 @@ from pickdemo.perception.segmentation import (
 )
 from pickdemo.shapes import Box, Cylinder, Unknown
 
-#: The outline's shared shift (px) per unit of RGB noise (8-bit sigma) and of edge dropout (fraction).
-OUTLINE_PX_PER_RGB_SIGMA = 0.0103
-OUTLINE_PX_PER_DROPOUT = 0.18
-
 
 def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None) -> PoseEstimate:
     """The target's pose from one frame (see the module docstring for the method).
@@ -149,26 +145,27 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     # against its surface, and the outline (with the features on it) against its top face's edges.
     edge_uv = np.vstack([outline_uv, feat_uv])
     edge_var = np.concatenate([np.full(len(outline_uv), var_edge), feat_var])
-    # Dense points: each pixel's own depth, with the mixture's variance (eq. 10) as its uncertainty,
-    # which grows where the 3x3 window spans a depth step. (The mixture's mean, eq. 9, would smear a
-    # surface across such a step; measured: 0.09 mm median error with it, 0.04 mm without.)
+    # Dense points: each pixel's own depth with eq. (8)'s variance. Not the mixture (eqs. 9-10): its
+    # mean smears a surface across a depth step, and its variance is undefined beside a hole, which
+    # on a real sensor lies on the silhouette (edge dropout), so the points there would go and the
+    # fit would lean inward. Measured on perceive_tall_oblique_d435 (seeds 0-99): 0.09 mm median
+    # error with the mixture's mean; with its variance, 0.040 mm, and 0.036 mm with eq. (8).
     pose, cov6, quality = refine_pose_6dof(
-        f, mask, depth, var_z, model, Pose(center, R), edge_uv, edge_var, max_points=params.fit_points
+        f,
+        mask,
+        depth,
+        f.depth_variance(depth),
+        model,
+        Pose(center, R),
+        edge_uv,
+        edge_var,
+        max_points=params.fit_points,
     )
     # A floor for what the fit cannot see: the scene itself is modelled to some 10-20 um (a cylinder's
     # 64-sided mesh deviates 24 um from the circle; rasterisation quantises edges), so no direction
     # is reported better than that, however many points agree.
     w, V = np.linalg.eigh(0.5 * (cov6[:3, :3] + cov6[:3, :3].T))
     pos_cov = V @ np.diag(np.maximum(w, 0.0) + MODEL_FLOOR_M**2) @ V.T
-    # What the fit's statistics do not see: with a noisy colour image or depth dropped at edges, the
-    # face's outline shifts by a fraction of a pixel as a whole (a bias shared by all its points,
-    # which no number of them averages away). Its size per unit of each fault was calibrated on
-    # held-out seeds (100-199 of perceive_boxes_d435 with one of the two faults off, to a mean
-    # position NEES of 3); the evaluation uses seeds 0-99.
-    k_px = float(np.hypot(OUTLINE_PX_PER_RGB_SIGMA * f.rgb_noise_sigma, OUTLINE_PX_PER_DROPOUT * f.depth_edge_dropout))
-    if k_px > 0.0:
-        lateral = k_px * float(np.linalg.norm(pose.position - f.T_world_cam.position)) / f.intrinsics.fx
-        pos_cov = pos_cov + np.eye(3) * lateral**2
     calibration = f.calibration_cov_at(pose.position)  # the camera's pose known to its calibration's accuracy
     if calibration is not None:
         pos_cov = pos_cov + calibration
