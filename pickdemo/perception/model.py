@@ -37,7 +37,7 @@ class PerceptionParams:
     face_color_tol: float = 12.0  # 8-bit units: how far a top-face pixel's colour may stray
     face_depth_sigmas: float = 3.0
     edge_sigma_px: float = 1.0  # an outline point's location uncertainty (the paper's sigma_u = 1 px)
-    fit_points: int = 100000  # depth points in the 6-DoF fit at most (a regular thinning beyond)
+    fit_points: int = 8000  # depth points in the 6-DoF fit at most (a regular thinning beyond)
     # The fit checks itself: an estimate is rejected when its normalised residuals' RMS exceeds this
     # (the noise model says 1), when more than these fractions of the depth points or of the outline
     # lie beyond 4 sigma, or when fewer depth points than this fit at all.
