@@ -36,13 +36,14 @@ def surface_along_rays(
     the side face, and matching it there would drag the top face up (measured: boxes estimated
     0.06 mm too high with the D435's noise, as much as their median error).
     """
-    q0, n0 = closest_on_model(points, model)
     cast = getattr(model.geometry, "ray_entry", None)
     if cast is None:
-        return q0, n0
+        return closest_on_model(points, model)
     q, n, hit = cast(np.broadcast_to(origin, points.shape), points - origin)
-    use = hit & (np.linalg.norm(q - points, axis=1) < reach_m)
-    return np.where(use[:, None], q, q0), np.where(use[:, None], n, n0)
+    off = ~(hit & (np.linalg.norm(q - points, axis=1) < reach_m))
+    if off.any():
+        q[off], n[off] = closest_on_model(points[off], model)
+    return q, n
 
 
 def _rpy_jacobian(R: np.ndarray) -> np.ndarray:
