@@ -136,6 +136,7 @@ class MachineParams:
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
     moved_tolerance_rad: float = float(np.radians(8.0))
     moved_views: int = 2  # ... or this many whole views in a row refused that far from the track: back off
+    touch_back_offs: int = 2  # a finger touching something during the descent: back off and look again, this often
     #: the hand goes down only when this many standard deviations of where the target is (its cameras'
     #: calibration included) fit in the grasp's clearance (how far the open fingers reach past it)
     clearance_sigmas: float = 2.0
@@ -346,6 +347,7 @@ class PickMachine:
         self._moved_seen: tuple[float, str, float] | None = None
         self._hover_since: float | None = None  # above the target, waiting to be sure enough of it
         self._move_unconfirmed = False  # it backed off on a move the tracker has not confirmed (yet)
+        self._touch_back_offs = 0  # backed off this often on a finger touching something in the descent
         self._verify_asked = False
         self._relooks = 0
         self._plan_id = 0  # counts first plans (the grasp selector's plan_id)
@@ -1269,6 +1271,25 @@ class PickMachine:
             f"during the {self.state.value}: backing off to approach again"
         )
 
+    def _touched_early(self, obs: Observation) -> Transition:
+        """Back off and look again when a finger touches something on the way down: the fingers go
+        down beside the target, in free space, so a touch means the target (or something else) is not
+        where it was seen; closing there would close on nothing or on it askew. The fixed camera, with
+        the hand over the target, cannot say so; the fingers can. At most ``touch_back_offs`` times
+        (then the descent goes on as before)."""
+        left, right = obs.finger_contacts
+        if not (left or right) or self._touch_back_offs >= self.p.touch_back_offs:
+            return None
+        self._touch_back_offs += 1
+        self.grip.open()
+        self._after_back_off = State.LOOK
+        assert self.plan is not None
+        above = (float(self.kin.forward(obs.arm_q).position[2]) - float(self.plan.grasp.position[2])) * 1e3
+        which = "both fingers" if left and right else ("the left finger" if left else "the right finger")
+        return State.BACK_OFF, (
+            f"{which} touched something {above:.0f} mm above the grasp during the descent: backing off to look again"
+        )
+
     def _enter_descend(self, obs: Observation) -> None:
         assert self.plan is not None
         self._moved_seen = None
@@ -1280,6 +1301,8 @@ class PickMachine:
 
     def _tick_descend(self, obs: Observation) -> Transition:
         moved = self._moved_under_hand()
+        if moved is None:
+            moved = self._touched_early(obs)
         if moved is not None:
             return moved
         plan = self._track_plan()

@@ -292,3 +292,42 @@ def test_fingers_that_stop_on_the_target_at_the_release_are_opened_with_full_for
     assert run(cell, m) == FULL_PICK
     assert any("still on the target: opening with 70 N" in e.message for e in m.events)
     assert np.linalg.norm(cell.obj[:2] - np.array(PLACE)) < 0.005 and cell.held_offset is None
+
+
+def test_a_finger_touching_something_in_the_descent_backs_off_and_looks_again() -> None:
+    """The fingers go down in free space beside the target: a touch says it is not where it was
+    seen. The hand backs off, looks again and picks it, on the same attempt; a second touch, then a
+    third: after ``touch_back_offs`` (2) the descent goes on as before."""
+    cell = Cell()
+    m = cell.machine()
+    observe = cell.observe
+    touches: list[float] = []
+
+    def observe_touching_once(t: float) -> Observation:
+        obs = observe(t)
+        if m.state is State.DESCEND and not touches:
+            touches.append(t)
+            return Observation(obs.time_s, obs.arm_q, obs.arm_dq, obs.fingers_m, (1, 0))
+        return obs
+
+    cell.observe = observe_touching_once  # type: ignore[method-assign]
+    states = run(cell, m)
+    assert states[:5] == ["look", "approach", "descend", "back_off", "look"] and states[5:] == FULL_PICK[1:]
+    touched = [e for e in m.events if e.state is State.BACK_OFF and "touched" in e.message]
+    assert len(touched) == 1 and "the left finger touched something" in touched[0].message
+    assert [a.outcome for a in m.attempts] == ["placed"]
+
+    cell = Cell()
+    m = cell.machine()
+    observe = cell.observe
+
+    def observe_always_touching(t: float) -> Observation:
+        obs = observe(t)
+        if m.state is State.DESCEND:
+            return Observation(obs.time_s, obs.arm_q, obs.arm_dq, obs.fingers_m, (1, 1))
+        return obs
+
+    cell.observe = observe_always_touching  # type: ignore[method-assign]
+    states = run(cell, m)
+    assert states.count("descend") == 3 and states[-1] == "done"
+    assert [a.outcome for a in m.attempts] == ["placed"]
