@@ -789,9 +789,9 @@ class PickMachine:
         """A grasp plan from the tracker's belief now; None after failing the episode.
 
         A re-plan keeps the hand's angle, unless IK says the arm would then be left without room at the
-        grasp. The first plan of an attempt takes the best of the equivalent hand angles by IK
-        (:meth:`_ranked_hand_yaws`) that the whole pick and place can reach; after a miss, a square
-        box's other pair of faces first.
+        grasp (and the hand is not yet going down). The first plan of an attempt takes the best of the
+        equivalent hand angles by IK (:meth:`_ranked_hand_yaws`) that the whole pick and place can
+        reach; after a miss, a square box's other pair of faces first.
         """
         pose = self._tracked_pose()
         self._planned_at_s = self._now_s
@@ -801,7 +801,10 @@ class PickMachine:
             near = None if self.plan is None else self.plan.hand_yaw_rad
             try:
                 plan = self._grasp(pose, near)
-                if not self._room_kept(plan):  # this hand angle is running out of room: choose again
+                # This hand angle running out of room: choose again, but not with the hand going down
+                # over the target (the room was judged before it went down; another angle there would
+                # read as the target turning, and back the hand off again and again).
+                if self.state not in HAND_OVER_TARGET and not self._room_kept(plan):
                     ranked = self._ranked_hand_yaws(pose, held, None)
                     if ranked and abs(float(wrap_angle(ranked[0] - plan.hand_yaw_rad))) > 1e-6:
                         plan = self._grasp(pose, ranked[0])
