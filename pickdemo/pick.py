@@ -801,12 +801,13 @@ class PickMachine:
             near = None if self.plan is None else self.plan.hand_yaw_rad
             try:
                 plan = self._grasp(pose, near)
-                # This hand angle running out of room: choose again, but not with the hand going down
-                # over the target (the room was judged before it went down; another angle there would
-                # read as the target turning, and back the hand off again and again).
-                if self.state not in HAND_OVER_TARGET and not self._room_kept(plan):
+                if not self._room_kept(plan):  # this hand angle is running out of room: choose again
                     ranked = self._ranked_hand_yaws(pose, held, None)
-                    if ranked and abs(float(wrap_angle(ranked[0] - plan.hand_yaw_rad))) > 1e-6:
+                    # ... but not with the hand going down over the target (the room was judged before
+                    # it went down; another angle there reads as the target turning, and backed the
+                    # hand off again and again)
+                    other = ranked and abs(float(wrap_angle(ranked[0] - plan.hand_yaw_rad))) > 1e-6
+                    if other and self.state not in HAND_OVER_TARGET:
                         plan = self._grasp(pose, ranked[0])
             except GraspPlanningError as exc:
                 self._fail(Stage.GRASP_PLANNING, str(exc))
