@@ -1292,6 +1292,8 @@ class PickMachine:
             return None
         if self.belief.unknown:  # grasps from a cloud go down close to its surface: a finger brushing it is no news
             return None
+        if self.open_loop:  # one look and the plan played (the comparison): no feedback
+            return None
         assert self.plan is not None
         grasp_xy = self.plan.grasp.position[:2]
         if self._touched_at is not None and np.linalg.norm(grasp_xy - self._touched_at) < self.p.moved_tolerance_m:
