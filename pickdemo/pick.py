@@ -1302,7 +1302,6 @@ class PickMachine:
         self._touch_back_offs += 1
         self.grip.open()
         self._after_back_off = State.LOOK
-        assert self.plan is not None
         above = (float(self.kin.forward(obs.arm_q).position[2]) - float(self.plan.grasp.position[2])) * 1e3
         which = "both fingers" if left and right else ("the left finger" if left else "the right finger")
         return State.BACK_OFF, (

@@ -82,10 +82,6 @@ class Shape(Protocol):
         """Closest points on its surface to ``points`` (N, 3) and the outward normals there (body frame)."""
         ...
 
-    def ray_entry(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Where rays from outside first meet the surface, the outward normal there, and which rays do."""
-        ...
-
     def outline_residuals(self, xy: np.ndarray) -> np.ndarray:
         """Signed distance (m) of points of its top plane ((N, >=2), body x, y) from its top face's outline."""
         ...

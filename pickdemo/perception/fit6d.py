@@ -60,8 +60,7 @@ def _rpy_jacobian(R: np.ndarray) -> np.ndarray:
 def refine_pose_6dof(
     frame: RGBDFrame,
     pixels: np.ndarray,
-    mu_z: np.ndarray,
-    var_z: np.ndarray,
+    depth: np.ndarray,
     model: TargetModel,
     start: Pose,
     outline_uv: np.ndarray,
@@ -75,9 +74,9 @@ def refine_pose_6dof(
 
     Residuals, each divided by its own standard deviation:
 
-    * every target pixel's mixture point (eqs. 5-10) against the model's surface, point to plane;
-      its variance is eq. (14)'s covariance projected on the surface normal, so a pixel on an edge,
-      whose 3x3 mixture spans two depths (eq. 10), weighs little;
+    * every target pixel's point (eqs. 5-7, its own depth) against the face of the model its
+      viewing ray meets (:func:`surface_along_rays`), point to plane; its variance is eq. (14)'s
+      covariance projected on the face's normal, with eq. (8) at the depth the model predicts there;
     * every outline ray of the top face (and each Shi-Tomasi feature on it): where it meets the
       model's top plane, its distance to the top face's edge; variance ``outline_var``.
 
@@ -91,10 +90,9 @@ def refine_pose_6dof(
     if len(vs) > max_points:  # a regular, deterministic thinning: the fit's cost grows with the points
         keep = np.arange(0, len(vs), int(np.ceil(len(vs) / max_points)))
         vs, us = vs[keep], us[keep]
-    z = mu_z[vs, us]
-    vz = var_z[vs, us]
-    ok = np.isfinite(z) & np.isfinite(vz)
-    vs, us, z, vz = vs[ok], us[ok], z[ok], vz[ok]
+    z = depth[vs, us]
+    ok = np.isfinite(z)
+    vs, us, z = vs[ok], us[ok], z[ok]
     du, dv = us - K.cx, vs - K.cy
     ray = np.column_stack([du / K.fx, dv / K.fy, np.ones(len(z))])  # a = (x/z, y/z, 1)
     pts = Tc.transform_points(ray * z[:, None])

@@ -151,15 +151,7 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     # fit would lean inward. Measured on perceive_tall_oblique_d435 (seeds 0-99): 0.09 mm median
     # error with the mixture's mean; with its variance, 0.040 mm, and 0.036 mm with eq. (8).
     pose, cov6, quality = refine_pose_6dof(
-        f,
-        mask,
-        depth,
-        f.depth_variance(depth),
-        model,
-        Pose(center, R),
-        edge_uv,
-        edge_var,
-        max_points=params.fit_points,
+        f, mask, depth, model, Pose(center, R), edge_uv, edge_var, max_points=params.fit_points
     )
     # A floor for what the fit cannot see: the scene itself is modelled to some 10-20 um (a cylinder's
     # 64-sided mesh deviates 24 um from the circle; rasterisation quantises edges), so no direction
