@@ -137,6 +137,10 @@ class MachineParams:
     moved_tolerance_rad: float = float(np.radians(8.0))
     moved_views: int = 2  # ... or this many whole views in a row refused that far from the track: back off
     touch_back_offs: int = 2  # a finger touching something during the descent: back off and look again, this often
+    #: held, the hand's camera sees the target's centre this far (m, across the table) from where the
+    #: grasp should hold it: let go and grasp it again (it would be put down that far off)
+    off_centre_tolerance_m: float = 0.008
+    hold_look_s: float = 0.3  # held, with a camera on the hand: wait this long for its view of the hold
     #: the hand goes down only when this many standard deviations of where the target is (its cameras'
     #: calibration included) fit in the grasp's clearance (how far the open fingers reach past it)
     clearance_sigmas: float = 2.0
@@ -349,6 +353,8 @@ class PickMachine:
         self._move_unconfirmed = False  # it backed off on a move the tracker has not confirmed (yet)
         self._touch_back_offs = 0  # backed off this often on a finger touching something in the descent
         self._touched_at: np.ndarray | None = None  # where the grasp was when a finger last touched (x, y)
+        self._held_at: float | None = None  # closing: when the fingers were found holding it
+        self._hold_views: list[tuple[float, np.ndarray]] = []  # closing: the hand camera's whole views (t, centre)
         self._verify_asked = False
         self._relooks = 0
         self._plan_id = 0  # counts first plans (the grasp selector's plan_id)
@@ -472,6 +478,9 @@ class PickMachine:
         if offered.verdict is Verdict.ACCEPTED:
             self._fresh_estimate = True
         seen = result.pose.position if isinstance(result, PoseEstimate) else None
+        whole = offered.verdict is Verdict.ACCEPTED or (offered.off_m is not None and not offered.partial)
+        if self.state is State.CLOSE and camera == WRIST_CAMERA and seen is not None and whole:
+            self._hold_views.append((frame_time_s, seen.copy()))  # (a plausible whole view, accepted or not)
         self._watch_moves(offered, camera, frame_time_s, seen)
         return offered.verdict
 
@@ -653,6 +662,8 @@ class PickMachine:
         if outcome == "missed":
             # Look again; a square box may be taken by its other pair of faces.
             self._turn_hand = 0.0 < self.symmetry < np.pi - 1e-9  # a square top (a cube)
+        elif outcome == "held off centre":
+            pass  # look again, and grasp it where it lies now
         else:
             # It slipped out: hold harder, lift more gently.
             self.grip_force_n = min(self.grip_force_n * 2.0, self.p.max_grip_force_n)
@@ -1345,6 +1356,8 @@ class PickMachine:
     def _enter_close(self, obs: Observation) -> None:
         self.grip.close(self.grip_force_n)
         self.grip.watch()
+        self._held_at = None
+        self._hold_views.clear()
 
     def _tick_close(self, obs: Observation) -> Transition:
         assert self.plan is not None
@@ -1362,6 +1375,11 @@ class PickMachine:
                     f"(expected {self.plan.object_width_m * 1e3:.0f} mm): held askew, or not it alone"
                 )
                 return self._retry(Stage.GRASP, "missed", reason)
+            off_centre = self._held_off_centre(obs)
+            if off_centre is False:
+                return None  # (waiting for the hand's camera to see the hold)
+            if off_centre is not None:
+                return self._retry(Stage.GRASP, "held off centre", off_centre)
             self.grasp_width_m = obs.opening_m
             return State.LIFT, (
                 f"holding: fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {self.grip_force_n:.0f} N"
@@ -1371,6 +1389,27 @@ class PickMachine:
             f"(expected {self.plan.object_width_m * 1e3:.0f} mm): nothing held"
         )
         return self._retry(Stage.GRASP, "missed", reason)
+
+    def _held_off_centre(self, obs: Observation) -> str | bool | None:
+        """Held, the width right: whether the hand's camera sees it held off centre (a reason), cannot
+        say yet (False: a view of the hold is on its way) or sees nothing wrong (None). The fingers
+        centre it between them, not along them: pushed as they closed, it may be held near an end of
+        a face and carried that far from where it should go. A whole view from a frame taken once the
+        fingers held it, within ``hold_look_s``; no view (or no camera on the hand): as before, lifted.
+        Not for an object nobody described (a grasp from its cloud holds it anywhere)."""
+        if self.wrist is None or self.open_loop or self.belief.unknown:
+            return None
+        assert self.plan is not None
+        if self._held_at is None:
+            self._held_at = obs.time_s
+        views = [c for t, c in self._hold_views if t >= self._held_at]
+        if not views:
+            return False if obs.time_s - self._held_at < self.p.hold_look_s else None
+        tcp = self.kin.forward(obs.arm_q).position[:2]
+        off = float(np.linalg.norm(tcp - views[-1][:2] - np.asarray(self.plan.place_offset_xy)))
+        if off <= self.p.off_centre_tolerance_m:
+            return None
+        return f"the hand's camera sees it held {off * 1e3:.0f} mm off centre"
 
     # ---- LIFT, TRANSPORT, LOWER: carry it, watching the hold.
     def _enter_lift(self, obs: Observation) -> None:

@@ -16,13 +16,13 @@ import pytest
 
 from pickdemo import robot_model as rm
 from pickdemo.belief import Verdict
-from pickdemo.camera import Intrinsics, look_at_pose
+from pickdemo.camera import Intrinsics, hand_camera_pose, look_at_pose
 from pickdemo.geometry import Pose
 from pickdemo.interfaces import Command, Observation
 from pickdemo.kinematics import panda_kinematics
 from pickdemo.layout import sample_layout
 from pickdemo.perception import PerceptionError, PoseEstimate
-from pickdemo.pick import CameraModel, PickMachine, State
+from pickdemo.pick import WRIST_CAMERA, CameraModel, PickMachine, State, WristCameraModel
 from pickdemo.result import Stage
 from pickdemo.scenario import load_scenario
 from pickdemo.task import target_model
@@ -113,8 +113,8 @@ def run(cell: Cell, machine: PickMachine, seconds: float = 60.0, events: dict | 
         t = tick * DT
         while due and due[0][0] <= t:
             due.pop(0)[1](cell)
-        for taken, est in pending:
-            verdicts.append(machine.on_estimate(est, taken))
+        for taken, est, *camera in pending:
+            verdicts.append(machine.on_estimate(est, taken, *camera))
         pending.clear()
         cmd = machine.update(cell.observe(t))
         if machine.finished:
@@ -122,6 +122,8 @@ def run(cell: Cell, machine: PickMachine, seconds: float = 60.0, events: dict | 
         cell.apply(cmd, t)
         if tick % FRAME_TICKS == 0 and machine.frame_request(t) is not None:
             pending.append((t, cell.estimate()))
+        if tick % FRAME_TICKS == 0 and machine.wrist_request(t) is not None:
+            pending.append((t, cell.estimate(), WRIST_CAMERA))
     assert all(isinstance(v, Verdict) for v in verdicts)
     states = [e.state.value for e in machine.events if not e.note]
     return ["look", *states]
@@ -333,3 +335,43 @@ def test_a_finger_touching_something_in_the_descent_backs_off_and_looks_again() 
     assert states.count("descend") == 2 and states[-1] == "done"
     assert sum("touched" in e.message for e in m.events) == 1
     assert [a.outcome for a in m.attempts] == ["placed"]
+
+
+def wrist_camera(cell: Cell) -> WristCameraModel:
+    """The default camera on the hand (a D405-like one beside it, looking down past the fingertips)."""
+    K = Intrinsics.from_fov(424, 240, 87.0, 58.0)
+    T_tcp_cam = hand_camera_pose(cell.kin.tcp_to_frame("panda_hand"), (0.09, 0.0, 0.04), (0.0, 0.0, 0.16))
+    return WristCameraModel(K, T_tcp_cam, 0.05, 1.0)
+
+
+@pytest.mark.parametrize("with_wrist_camera", [True, False])
+def test_a_target_held_off_centre_is_let_go_and_grasped_again(with_wrist_camera: bool) -> None:
+    """Pushed along the fingers as they meet it, the cube is held 15 mm off centre, the fingers at its
+    width. The hand's camera sees the hold: the hand lets go, looks again and picks it up centred. The
+    fixed camera alone cannot see under the hand: it is carried, and put down 15 mm off."""
+    cell = Cell()
+    m = cell.machine(wrist=wrist_camera(cell) if with_wrist_camera else None)
+    observe = cell.observe
+    pushed: list[float] = []
+
+    def observe_pushed_as_it_closes(t: float) -> Observation:
+        if m.state is State.CLOSE and not pushed and cell.fingers < cell.width / 2.0 + 0.001:
+            pushed.append(t)  # (just before they meet it: once held, only a view of the hold can tell)
+            along = Pose.from_xyz_rpy(np.zeros(3), yaw=m.plan.hand_yaw_rad).rotation[:, 1]  # (the hand's y)
+            cell.obj = cell.obj + 0.015 * along
+            cell.between_fingers = lambda: True  # (once: it is held where it lies)
+        elif m.state is not State.CLOSE and pushed:
+            cell.between_fingers = Cell.between_fingers.__get__(cell)
+        return observe(t)
+
+    cell.observe = observe_pushed_as_it_closes  # type: ignore[method-assign]
+    states = run(cell, m)
+    place_error_mm = float(np.linalg.norm(cell.obj[:2] - PLACE)) * 1e3
+    if with_wrist_camera:
+        assert [a.outcome for a in m.attempts] == ["held off centre", "placed"]
+        assert "held 15 mm off centre" in m.attempts[0].reason
+        assert states[:5] == ["look", "approach", "descend", "close", "back_off"] and states[-1] == "done"
+        assert place_error_mm < 2.0
+    else:
+        assert [a.outcome for a in m.attempts] == ["placed"] and states == FULL_PICK
+        assert 14.0 < place_error_mm < 16.0
