@@ -9,6 +9,8 @@
   ``summary.json``, ``bench.png`` and ``report.html``.
 - ``perceive SCENARIO [--seeds ...] [--out DIR]``: perception only; ``DIR`` gets
   ``perception.json``, ``perception.png`` and ``report.html``.
+- ``profile SCENARIO [--seeds 0-2] [--json]``: where the loop's wall time goes, stage by stage, beside the
+  bare physics of the same cell measured in the same run.
 - ``validate SCENARIO ...``, ``list [--names]``.
 
 Exit codes: 0 the episode (or every scenario of a bench) succeeded, 1 it failed, 2 bad scenario or
@@ -149,6 +151,17 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", type=Path, metavar="DIR", help="directory for perception.json, perception.png and report.html"
     )
     perceive.add_argument("--repeat", type=int, default=1, help="time each method N times per frame (median)")
+    prof = sub.add_parser(
+        "profile",
+        help="where an episode's wall time goes, stage by stage, beside the bare physics",
+        description="Runs the seeds' episodes one after another in this process, each stage of the loop timed "
+        "(physics, robot I/O, render, perception, tracker, skill, motion, kinematics, observers), and first the "
+        "bare physics of the same cell (its robot and table, no objects) as the reference: the loop's real-time "
+        "factor is printed as a share of the reference's, measured in the same run.",
+    )
+    prof.add_argument("scenario", help="a scenario name or path")
+    prof.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-9 (default 0-2)")
+    prof.add_argument("--json", action="store_true", help="print the figures as JSON instead")
     validate = sub.add_parser(
         "validate",
         help="check scenarios without running them",
@@ -516,6 +529,29 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_profile(args: argparse.Namespace) -> int:
+    from pickdemo import bench
+    from pickdemo.profile import profile
+
+    try:
+        seeds = bench.parse_seeds(args.seeds)
+    except bench.BenchError as exc:
+        raise UsageError(f"--seeds: {exc}") from None
+    scenario = _pick_scenario(args.scenario)
+    if not args.json:
+        print(f"pickdemo profile: {scenario.name}, seeds {args.seeds}, one process", flush=True)
+
+    def on_episode(e) -> None:
+        if not args.json:
+            outcome = "ok" if e.success else f"FAILED ({e.failure})"
+            print(f"  seed {e.seed}: {outcome}, {e.sim_time_s:.1f} s simulated in {e.loop_s:.2f} s "
+                  f"({e.real_time_factor:.1f}x real time)", flush=True)  # fmt: skip
+
+    report = profile(scenario, seeds, on_episode)
+    print(json.dumps(report.to_dict(), indent=1) if args.json else "\n" + report.format())
+    return EXIT_OK
+
+
 def _cmd_list(args: argparse.Namespace) -> int:
     names = list_scenarios()
     if args.names:
@@ -554,6 +590,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_bench(args)
         if args.command == "perceive":
             return _cmd_perceive(args)
+        if args.command == "profile":
+            return _cmd_profile(args)
         if args.command == "validate":
             return _cmd_validate(args)
         if args.command == "list":

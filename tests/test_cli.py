@@ -24,6 +24,8 @@ def _run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str
         ("run",),
         ("run", "pick_cube", "--seed", "-1"),
         ("frobnicate",),
+        ("profile", "pick_cube", "--seeds", "x"),
+        ("profile", "perceive_boxes"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(args: tuple[str, ...]) -> None:

@@ -189,18 +189,27 @@ def unoccluded(
 ) -> np.ndarray:
     """Which outline points are the face's own edge, not the edge of something in front of it.
 
-    Just outside an occluded stretch of outline lies a surface nearer the camera than the face.
+    Just outside an occluded stretch of outline lies a surface nearer the camera than the face there:
+    than the face just inside that point (seen close and obliquely a face spans more depth than the
+    margin, and its median would take its own nearer neighbour for an occluder), or, where the face
+    reads no depth just inside, than ``face_depth_m``.
     """
     c = np.round(outline_uv).astype(int)
     centre = c.mean(axis=0)
     out_dir = outline_uv - centre
     out_dir /= np.maximum(np.linalg.norm(out_dir, axis=1, keepdims=True), 1e-9)
-    probe = np.round(outline_uv + step_px * out_dir).astype(int)
     h, w = depth_m.shape
-    probe[:, 0] = np.clip(probe[:, 0], 0, w - 1)
-    probe[:, 1] = np.clip(probe[:, 1], 0, h - 1)
-    d = depth_m[probe[:, 1], probe[:, 0]]
-    return ~(np.isfinite(d) & (d < face_depth_m - margin_m))
+
+    def depth_at(offset_px: float) -> np.ndarray:
+        probe = np.round(outline_uv + offset_px * out_dir).astype(int)
+        probe[:, 0] = np.clip(probe[:, 0], 0, w - 1)
+        probe[:, 1] = np.clip(probe[:, 1], 0, h - 1)
+        return depth_m[probe[:, 1], probe[:, 0]]
+
+    d = depth_at(step_px)
+    inside = depth_at(-step_px)
+    face = np.where(np.isfinite(inside), inside, face_depth_m)
+    return ~(np.isfinite(d) & (d < face - margin_m))
 
 
 def crop_frame(frame: RGBDFrame, x0: int, y0: int, x1: int, y1: int) -> RGBDFrame:

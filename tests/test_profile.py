@@ -1,0 +1,67 @@
+"""``pickdemo profile``: the stages account for the loop, the reference is measured, the wrappers go."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from pickdemo.kinematics import panda_kinematics
+from pickdemo.profile import STAGES, Profiler, profile
+from pickdemo.scenario import load_scenario
+
+
+def test_a_stage_counts_its_calls_without_the_wrapped_calls_they_make() -> None:
+    class Part:
+        def outer(self, inner) -> int:
+            return inner() + 1
+
+        def inner(self) -> int:
+            return 1
+
+    part = Part()
+    prof = Profiler()
+    with prof.wrapped():
+        prof.wrap(part, "outer", "a")
+        prof.wrap(part, "inner", "b")
+        assert part.outer(part.inner) == 2 and part.inner() == 1
+        assert "outer" in part.__dict__
+    assert prof.stages["a"].calls == 1 and prof.stages["b"].calls == 2
+    assert 0.0 <= prof.stages["a"].seconds and 0.0 <= prof.stages["b"].seconds
+    assert "outer" not in part.__dict__ and "inner" not in part.__dict__  # restored: the class's methods again
+
+
+@pytest.mark.sim
+def test_profile_of_an_episode_accounts_for_its_loop_and_leaves_nothing_wrapped() -> None:
+    kin = panda_kinematics()  # shared by every episode in a process: wrapped for one, then restored
+    report = profile(load_scenario("pick_cube"), [0])
+    (e,) = report.episodes
+    assert e.success and e.sim_time_s > 5.0
+    assert set(e.stages) == set(STAGES)
+    total = sum(s.seconds for s in e.stages.values())
+    assert total == pytest.approx(e.loop_s, rel=0.02)  # every second of the loop under one stage
+    dt = load_scenario("pick_cube").sim.time_step_s
+    steps = round(e.sim_time_s / dt)  # (the objects' settling before the first tick included)
+    assert steps - round(1.0 / dt) < e.stages["physics"].calls < steps  # one call a physics step of the loop
+    for stage in ("physics", "robot I/O", "render", "perception", "tracker", "skill", "motion", "kinematics"):
+        assert e.stages[stage].calls > 0 and e.stages[stage].seconds > 0.0, stage
+    assert report.reference.steps > 0 and report.reference.real_time_factor > 0.0
+    assert 0.0 < report.ratio < 1.0  # the loop costs more than the bare physics
+    assert not any(name in kin.__dict__ for name in ("track", "solve", "forward"))
+    assert np.allclose(kin.forward(np.zeros(7)).position, panda_kinematics().forward(np.zeros(7)).position)
+
+
+@pytest.mark.sim
+def test_profile_json() -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "pickdemo", "profile", "pick_cube", "--seeds", "1", "--json"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["scenario"] == "pick_cube" and len(out["episodes"]) == 1
+    assert out["ratio_to_reference"] == pytest.approx(out["real_time_factor"] / out["reference"]["real_time_factor"])
+    assert set(out["stages"]) == set(STAGES)
