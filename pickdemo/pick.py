@@ -64,6 +64,7 @@ from pickdemo.ik_goals import (
     line_trackable,
     path_dip,
     path_low_z,
+    straight_carry_ok,
 )
 from pickdemo.interfaces import Command, Observation
 from pickdemo.kinematics import IKParams, PandaKinematics
@@ -74,7 +75,6 @@ from pickdemo.motion import (
     MotionSample,
     OnlineMotion,
     pose_to_x4,
-    top_down_se3,
 )
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.rate_limit import RateLimiter
@@ -1467,23 +1467,19 @@ class PickMachine:
 
     def _straight_carry_lowers(self) -> bool:
         """Whether the arm, carried along a straight line to above the place (the per-tick IK keeps
-        to the branch it is on), stays clear of singular postures on the way (its joints within
-        ``line_velocity_share`` of their limits at the carry's speed) and arrives where it can follow
-        the lowering onto the place."""
+        to the branch it is on), stays clear of singular postures and joint limits on the way and
+        arrives where it can follow the lowering onto the place (:func:`~pickdemo.ik_goals.straight_carry_ok`)."""
         assert self.plan is not None
-        start, end = self.motion.setpoint, self.move.x4(self.plan.place_above)
-        n = self.p.goals.line_steps
-        step_s = float(np.linalg.norm(end[:3] - start[:3])) / n / self.p.free.scaled(self.lift_scale).velocity
-        max_step = self.p.goals.line_velocity_share * rm.MAX_VELOCITY_RAD_S * step_s
-        q = self.motion.q
-        for k in range(1, n + 1):
-            res = self.kin.track(top_down_se3(start + (end - start) * (k / n)), q, max_iterations=8,
-                                 posture=self.motion.posture)  # fmt: skip
-            if not res.success or np.any(np.abs(res.q - q) > max_step):
-                return False
-            q = res.q
-        above = self.kin.forward(q)
-        return line_speed_scale(self.kin, q, above, self.plan.place, self.p.goals) >= self.p.goals.min_line_speed_scale
+        return straight_carry_ok(
+            self.kin,
+            self.motion.q,
+            self.motion.setpoint,
+            self.move.x4(self.plan.place_above),
+            self.plan.place,
+            speed_m_s=self.p.free.scaled(self.lift_scale).velocity,
+            posture=self.motion.posture,
+            params=self.p.goals,
+        )
 
     def _tick_transport(self, obs: Observation) -> Transition:
         if self._dropped(obs):

@@ -3,14 +3,16 @@ transfer should go to, and a joint-space transfer within the Franka's limits."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from pickdemo import robot_model as rm
 from pickdemo.grasp import top_down
-from pickdemo.ik_goals import Goal, GoalParams, choose_goal, goal_candidates, line_trackable
+from pickdemo.ik_goals import Goal, GoalParams, choose_goal, goal_candidates, line_trackable, straight_carry_ok
 from pickdemo.kinematics import panda_kinematics
-from pickdemo.motion import JointMotion
-from pickdemo.pick import _half_turn
+from pickdemo.motion import JointMotion, MotionError, OnlineMotion, top_down_pose
+from pickdemo.pick import MachineParams, _half_turn
 from pickdemo.result import peak_limit_ratios
 
 
@@ -80,3 +82,42 @@ def test_choose_goal_takes_a_path_that_does_not_dip_first() -> None:
     slower = Goal(q, pose, 1, margin_rad=0.5, manipulability=0.1, travel_s=1.0)
     assert choose_goal([quick_but_dips, slower]) is slower
     assert choose_goal([quick_but_dips]) is quick_but_dips  # the skill then goes over the top
+
+
+def _carry(kin, start: np.ndarray, end: np.ndarray, q: np.ndarray, limits) -> str:
+    """The per-tick IK's straight carry at 120 Hz: "arrived", or why it lost the setpoint."""
+    motion = OnlineMotion(kin, q, 1.0 / 120.0, limits)
+    motion.set_target(end, limits=limits)
+    for _ in range(4000):
+        try:
+            motion.step()
+        except MotionError as e:
+            return str(e)
+        if motion.finished:
+            return "arrived"
+    return "still going"
+
+
+def test_a_straight_carry_that_would_pin_a_joint_at_its_limit_is_refused() -> None:
+    """A 1 cm/s belt, seed 33: the hand picked the cube far right with joint 1 turned to 2.14 rad and
+    carried it left along a straight line; the check (24 points) passed it 0.03 rad inside joint 1's
+    limit, the per-tick IK (finer steps) drifted onto the limit and lost the setpoint. The line must
+    keep clear of the limits, and a carry the check passes must be one the per-tick IK follows."""
+    kin = panda_kinematics()
+    p = MachineParams()
+    limits = p.free
+    start, end = np.array([0.547, -0.287, 0.155, 0.679]), np.array([0.25, 0.3, 0.155, 0.679])
+    place = top_down_pose(np.array([0.25, 0.3, 0.035, 0.679]))
+    seed = np.array([2.14, -0.45, -2.59, -2.0, -0.34, 2.36, -0.14])
+    q = kin.track(top_down_pose(start).to_se3(), seed, max_iterations=50).q
+    assert kin.limit_margin(q) > 0.25 and np.allclose(kin.forward(q).position, start[:3], atol=1e-4)
+    assert "IK lost the Cartesian setpoint" in _carry(kin, start, end, q, limits)
+    kw = dict(speed_m_s=limits.velocity, posture=q)
+    assert not straight_carry_ok(kin, q, start, end, place, **kw, params=p.goals)
+    # (the margin is what refuses it: without it the line passes)
+    assert straight_carry_ok(kin, q, start, end, place, **kw, params=dataclasses.replace(p.goals, line_margin_rad=0.0))
+    # The same carry from the arm's usual branch (elbow up, joint 1 near the hand's bearing) is passed
+    # and followed.
+    q_ok = kin.solve(top_down_pose(start), rm.HOME_Q, np.random.default_rng(0)).q
+    assert straight_carry_ok(kin, q_ok, start, end, place, speed_m_s=limits.velocity, posture=q_ok, params=p.goals)
+    assert _carry(kin, start, end, q_ok, limits) == "arrived"
