@@ -84,6 +84,10 @@ def wrap_angle(angle_rad: float | np.ndarray, period_rad: float = 2.0 * np.pi) -
     return (np.asarray(angle_rad) + period_rad / 2.0) % period_rad - period_rad / 2.0
 
 
+#: Which of a box's 8 corners take the upper bound on each axis (x slowest, z fastest).
+CORNER_IS_HI = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=bool)
+
+
 @dataclass(frozen=True, eq=False)
 class OrientedBox:
     """A box in the world: ``lo``..``hi`` (m) in the frame placed by ``pose`` (a robot link's
@@ -100,6 +104,4 @@ class OrientedBox:
 
     def corners(self) -> np.ndarray:
         """Its 8 corners in the world (8, 3)."""
-        c = np.array([[x, y, z] for x in (self.lo[0], self.hi[0]) for y in (self.lo[1], self.hi[1])
-                      for z in (self.lo[2], self.hi[2])])  # fmt: skip
-        return self.pose.transform_points(c)
+        return self.pose.transform_points(np.where(CORNER_IS_HI, self.hi, self.lo))

@@ -17,9 +17,9 @@ from pickdemo.camera import (
     backproject,
     backproject_image,
     holes_as_nan,
-    project,
     strided_intrinsics,
 )
+from pickdemo.geometry import CORNER_IS_HI as _CORNER_IS_HI
 from pickdemo.perception.model import PerceptionError, PerceptionParams, TargetModel
 
 #: A blob of the target's colour is the target only if its brightness (the norm of its median RGB) is
@@ -59,33 +59,48 @@ def color_match(rgb: np.ndarray, color: tuple[float, float, float], cos_min: flo
 def robot_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
     """Which of the ``candidates`` (an (H, W) mask) are the robot's own body: their points lie in one
     of the frame's :attr:`~pickdemo.camera.RGBDFrame.robot_boxes` (the links where the joint states
-    put them). Only the links whose box can reach a pixel of the frame are tested."""
+    put them). A box wholly in front of the camera is tested only on the candidates within its
+    image's bounding box (a point in the box projects inside the hull of its corners'
+    projections): none if that misses the frame."""
     out = np.zeros(candidates.shape, dtype=bool)
-    if not frame.robot_boxes or not candidates.any():
+    boxes = frame.robot_boxes
+    if not boxes or not candidates.any():
         return out
     K, T = frame.intrinsics, frame.T_world_cam
-    T_cam_world = T.inverse()
-    h, w = candidates.shape
-    near = []
-    for box in frame.robot_boxes:
-        c = T_cam_world.transform_points(box.corners())
-        if np.all(c[:, 2] <= 1e-3):
-            continue  # behind the camera
-        if np.all(c[:, 2] > 1e-3):
-            uv = project(c, K)
-            if uv[:, 0].max() < -1 or uv[:, 0].min() > w or uv[:, 1].max() < -1 or uv[:, 1].min() > h:
-                continue  # projects outside the frame
-        near.append(box)
-    if not near:
-        return out
     ys, xs = np.nonzero(candidates)
     z = frame.depth_m[ys, xs]
     ok = np.isfinite(z) & (z > 0)
     ys, xs, z = ys[ok], xs[ok], z[ok]
+    if len(z) == 0:
+        return out
+    # Every box's corners in the camera frame at once: (boxes, 8, 3).
+    local = np.where(
+        _CORNER_IS_HI, np.array([b.hi for b in boxes])[:, None, :], np.array([b.lo for b in boxes])[:, None, :]
+    )
+    R = np.array([b.pose.rotation for b in boxes])
+    world = np.einsum("bij,bkj->bki", R, local) + np.array([b.pose.position for b in boxes])[:, None, :]
+    cam = (world - T.position) @ T.rotation
+    zc = cam[:, :, 2]
+    front = np.all(zc > 1e-3, axis=1)  # wholly in front of the camera
+    across = ~front & np.any(zc > 1e-3, axis=1)  # the camera within its depth span: any candidate may be in it
+    zs = np.where(front[:, None], zc, 1.0)
+    u = K.fx * cam[:, :, 0] / zs + K.cx
+    v = K.fy * cam[:, :, 1] / zs + K.cy
+    u0, u1 = u.min(axis=1) - 1.0, u.max(axis=1) + 1.0  # (a pixel for rounding)
+    v0, v1 = v.min(axis=1) - 1.0, v.max(axis=1) + 1.0
+    seen = across | (front & (u1 >= xs.min()) & (u0 <= xs.max()) & (v1 >= ys.min()) & (v0 <= ys.max()))
+    if not seen.any():
+        return out
     pts = T.transform_points(backproject(np.column_stack([xs, ys]).astype(float), z, K))
-    inside = np.zeros(len(pts), dtype=bool)
-    for box in near:
-        inside |= box.contains(pts)
+    inside = np.zeros(len(z), dtype=bool)
+    for k in np.flatnonzero(seen):
+        if front[k]:
+            sel = np.flatnonzero((xs >= u0[k]) & (xs <= u1[k]) & (ys >= v0[k]) & (ys <= v1[k]))
+            if len(sel) == 0:
+                continue
+            inside[sel] |= boxes[k].contains(pts[sel])
+        else:
+            inside |= boxes[k].contains(pts)
     out[ys[inside], xs[inside]] = True
     return out
 
