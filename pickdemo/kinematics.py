@@ -95,6 +95,11 @@ class PandaKinematics:
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return Pose.from_se3(self.data.oMf[self.tcp_id])
 
+    def forward_se3(self, q: np.ndarray) -> pin.SE3:
+        """:meth:`forward` as a ``pin.SE3`` (a copy), without a :class:`Pose`."""
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        return pin.SE3(self.data.oMf[self.tcp_id])
+
     def tcp_to_frame(self, name: str) -> Pose:
         """``T_tcp_frame`` of a frame fixed to the hand (a camera's mount): the same at any configuration."""
         pin.framesForwardKinematics(self.model, self.data, pin.neutral(self.model))

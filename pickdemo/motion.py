@@ -135,21 +135,30 @@ def top_down_se3(x4: np.ndarray) -> pin.SE3:
     return pin.SE3(pin.rpy.rpyToMatrix(np.pi, 0.0, float(x4[3])), np.array(x4[:3], dtype=float))
 
 
-def pose_to_x4(pose: Pose) -> np.ndarray:
+def pose_to_x4(pose: Pose | pin.SE3) -> np.ndarray:
     """``(x, y, z, yaw)`` of a top-down TCP pose (``R = Rz(yaw) Rx(pi)``)."""
-    r = pose.rotation
-    return np.array([*pose.position, float(np.arctan2(r[0, 1], r[0, 0]))])
+    if isinstance(pose, pin.SE3):
+        r, t = pose.rotation, pose.translation
+    else:
+        r, t = pose.rotation, pose.position
+    return np.array([*t, float(np.arctan2(r[0, 1], r[0, 0]))])
 
 
-def _advance(otg: Ruckig, inp: InputParameter, out: OutputParameter, what: str) -> tuple[bool, bool]:
+def _tcp_x4(kin: PandaKinematics, q: np.ndarray) -> np.ndarray:
+    """:func:`pose_to_x4` of the TCP at ``q`` (without a :class:`Pose`: this runs every tick)."""
+    return pose_to_x4(kin.forward_se3(q))
+
+
+def _advance(otg: Ruckig, inp: InputParameter, out: OutputParameter, what: Callable[[], str]) -> tuple[bool, bool]:
     """One tick of an online Ruckig trajectory, its output passed back to its input: (finished, whether
-    Ruckig recomputed). A rejected input is a :class:`MotionError` naming ``what`` it was asked for."""
+    Ruckig recomputed). A rejected input is a :class:`MotionError` naming ``what()`` it was asked for
+    (said only then: this runs every tick)."""
     try:
         result = otg.update(inp, out)
     except RuckigError as exc:  # raised (not returned) for some invalid inputs
-        raise MotionError(f"Ruckig rejected {what}: {exc or 'invalid input'}") from None
+        raise MotionError(f"Ruckig rejected {what()}: {exc or 'invalid input'}") from None
     if result not in (Result.Working, Result.Finished):
-        raise MotionError(f"Ruckig returned {result.name} for {what}")
+        raise MotionError(f"Ruckig returned {result.name} for {what()}")
     new_calc = bool(out.new_calculation)
     out.pass_to_input(inp)
     return result == Result.Finished, new_calc
@@ -326,7 +335,7 @@ class OnlineMotion:
             q, dq = self._joints(out_pos)
             return MotionSample(q, dq, out_pos, vel, zero, zero, True, False)
         self._finished, new_calc = _advance(
-            self._otg, self._inp, self._out, f"target {np.round(self.target, 4).tolist()}"
+            self._otg, self._inp, self._out, lambda: f"target {np.round(self.target, 4).tolist()}"
         )
         out = self._out
         pos = np.array(out.new_position)
@@ -431,13 +440,13 @@ class JointMotion:
         """Advance one tick: the joint command, and the TCP it puts there (as the setpoint)."""
         if self._finished:
             zero = np.zeros(4)
-            return MotionSample(self.q.copy(), np.zeros(7), pose_to_x4(self.kin.forward(self.q)), zero, zero, zero,
+            return MotionSample(self.q.copy(), np.zeros(7), _tcp_x4(self.kin, self.q), zero, zero, zero,
                                 True, False)  # fmt: skip
         self._finished, new_calc = _advance(
-            self._otg, self._inp, self._out, f"joint goal {np.round(self.target, 3).tolist()}"
+            self._otg, self._inp, self._out, lambda: f"joint goal {np.round(self.target, 3).tolist()}"
         )
         out = self._out
         self.q = np.array(out.new_position)
         zero = np.zeros(4)
-        x4 = pose_to_x4(self.kin.forward(self.q))
+        x4 = _tcp_x4(self.kin, self.q)
         return MotionSample(self.q.copy(), np.array(out.new_velocity), x4, zero, zero, zero, self._finished, new_calc)
