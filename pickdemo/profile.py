@@ -47,6 +47,12 @@ REFERENCE_STEPS = 2400
 class StageTime:
     calls: int = 0
     seconds: float = 0.0  # exclusive of the wrapped calls it made
+    samples: list[float] = field(default_factory=list, repr=False)  # each call's exclusive seconds
+
+    @property
+    def median_s(self) -> float | None:
+        """A call's exclusive time, the median over the calls (None: not counted call by call)."""
+        return statistics.median(self.samples) if self.samples else None
 
 
 @dataclass
@@ -77,6 +83,7 @@ class Profiler:
                 inner = stack.pop()
                 stat.calls += 1
                 stat.seconds += dt - inner
+                stat.samples.append(dt - inner)
                 if stack:
                     stack[-1] += dt
 
@@ -217,6 +224,7 @@ class ProfileReport:
             for name, s in e.stages.items():
                 out[name].calls += s.calls
                 out[name].seconds += s.seconds
+                out[name].samples.extend(s.samples)
         return out
 
     @property
@@ -271,6 +279,7 @@ class ProfileReport:
                     "seconds": s.seconds,
                     "share": s.seconds / max(self.loop_s, 1e-12),
                     "us_per_call": (s.seconds / s.calls * 1e6) if s.calls else None,
+                    "median_us_per_call": None if s.median_s is None else s.median_s * 1e6,
                 }
                 for k, s in totals.items()
             },
@@ -291,12 +300,14 @@ class ProfileReport:
             f"{self.ratio:.3f} of the bare physics'",
             f"control decision: {self.control_decision_ms:.3f} ms a tick (median of the episodes' medians)",
             "",
-            f"{'stage':<11} {'share':>6} {'wall s':>8} {'calls':>8} {'per call':>10}  what",
+            f"{'stage':<11} {'share':>6} {'wall s':>8} {'calls':>8} {'per call':>10} {'median':>10}  what",
         ]
         for name, s in totals.items():
             share = 100.0 * s.seconds / max(self.loop_s, 1e-12)
-            per = _per_call(s)
-            lines.append(f"{name:<11} {share:5.1f}% {s.seconds:8.3f} {s.calls or '':>8} {per:>10}  {STAGES[name]}")
+            per, med = _per_call(s), _duration(s.median_s)
+            lines.append(
+                f"{name:<11} {share:5.1f}% {s.seconds:8.3f} {s.calls or '':>8} {per:>10} {med:>10}  {STAGES[name]}"
+            )
         for e in self.episodes:
             if not e.success:
                 lines.append(f"seed {e.seed} failed: {e.failure}")
@@ -304,9 +315,13 @@ class ProfileReport:
 
 
 def _per_call(s: StageTime) -> str:
-    if not s.calls:
+    return _duration(s.seconds / s.calls) if s.calls else ""
+
+
+def _duration(seconds: float | None) -> str:
+    if seconds is None:
         return ""
-    us = s.seconds / s.calls * 1e6
+    us = seconds * 1e6
     return f"{us / 1e3:.2f} ms" if us >= 1000.0 else f"{us:.0f} us"
 
 
