@@ -88,11 +88,11 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
         iv = np.clip(np.round(outline_uv[:, 1]).astype(int), 0, K.height - 1)
         if rim[iv, iu].sum() >= 10:
             outline_uv = outline_uv[rim[iv, iu]]
-    px_m = float(np.nanmedian(depth[face])) / K.fx  # one pixel's footprint, m
+    face_depth = float(np.nanmedian(depth[face]))
+    px_m = face_depth / K.fx  # one pixel's footprint, m
     # An outline point is an image feature: the paper's sigma_u = sigma_v = 1 px (eq. 14) applies.
     var_edge = (params.edge_sigma_px * px_m) ** 2
     # Where something stands in front of the face, its outline is that thing's edge: leave it out.
-    face_depth = float(np.nanmedian(depth[face]))
     visible = unoccluded(outline_uv, depth, face_depth)
     if visible.sum() >= 10:
         outline_uv = outline_uv[visible]
