@@ -19,7 +19,7 @@ from pickdemo.camera import (
     holes_as_nan,
     strided_intrinsics,
 )
-from pickdemo.geometry import CORNER_IS_HI as _CORNER_IS_HI
+from pickdemo.geometry import CORNER_IS_HI
 from pickdemo.perception.model import PerceptionError, PerceptionParams, TargetModel
 
 #: A blob of the target's colour is the target only if its brightness (the norm of its median RGB) is
@@ -75,7 +75,7 @@ def robot_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
         return out
     # Every box's corners in the camera frame at once: (boxes, 8, 3).
     local = np.where(
-        _CORNER_IS_HI, np.array([b.hi for b in boxes])[:, None, :], np.array([b.lo for b in boxes])[:, None, :]
+        CORNER_IS_HI, np.array([b.hi for b in boxes])[:, None, :], np.array([b.lo for b in boxes])[:, None, :]
     )
     R = np.array([b.pose.rotation for b in boxes])
     world = np.einsum("bij,bkj->bki", R, local) + np.array([b.pose.position for b in boxes])[:, None, :]
