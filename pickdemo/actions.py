@@ -191,7 +191,7 @@ class PayloadParams:
     #: this / payload): a 0.8 kg cube at 0.61, 1.2 kg at 0.5
     gentle_above_kg: float = 0.3
     #: grip force per kg held, per finger: 50 N/kg holds a 0.8 kg cube without turning in the pads
-    #: (20 N let it creep 20-35 deg about the finger axis in transit; measured on pick_heavy)
+    #: (evidence: docs/decisions.md#grasps-and-holds)
     grip_n_per_kg: float = 50.0
 
 

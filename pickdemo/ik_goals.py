@@ -33,8 +33,7 @@ class GoalParams:
     line_velocity_share: float = 0.8  # ... the joints it needs within this share of their speed limits
     min_line_speed_scale: float = 0.1  # a line slower than this share of the speed (near a singular posture): refused
     #: a straight carry keeps its joints this far inside their limits at every checked point: the per-tick
-    #: IK walks it in finer steps and drifts off the checked path (measured: 0.08 rad over a 45 cm carry,
-    #: joint 1 pinned at its limit and the setpoint lost where the check had kept 0.03 rad)
+    #: IK walks it in finer steps and drifts off the checked path (evidence: docs/decisions.md#motion-and-ik)
     line_margin_rad: float = 0.1
     max_dip_m: float = 0.01  # a transfer's hand may pass at most this far below the lower of its two ends
     path_steps: int = 16  # ... checked at this many points of its path
@@ -76,9 +75,8 @@ def line_trackable(
     """Whether the per-tick IK can follow the straight line from ``start`` (where the arm is at ``q``)
     to ``end`` (same orientation): converging at every point with joint speeds within a share of
     their limits at the line's speed. (That is the test of a singular posture that matters: a floor on
-    manipulability turned down a descent near the robot's base that the joints follow at full speed,
-    manipulability 0.016-0.020, and sent the arm to a goal on a far branch whose transfer swung the
-    hand 5 cm below both its ends, measured.)"""
+    manipulability alone turns down lines the joints follow at full speed; evidence:
+    docs/decisions.md#motion-and-ik.)"""
     n = params.line_steps
     dt = float(np.linalg.norm(end.position - start.position)) / params.line_speed_m_s / n
     q_prev = np.asarray(q, dtype=float)
@@ -152,8 +150,7 @@ def path_dip(kin: PandaKinematics, q_from: np.ndarray, q_to: np.ndarray, params:
     """How far (m) the hand (its TCP) passes below the lower of its two ends on a transfer from
     ``q_from`` to ``q_to`` (0 if never). A transfer from rest to rest with Ruckig's phase
     synchronisation follows the straight line in joint space, and that line can swing the hand down
-    through the table and whatever stands on it (measured: 2-10 cm below both ends in 4 of 40
-    ``pick_anywhere`` seeds, each a failure or a near one)."""
+    through the table and whatever stands on it (evidence: docs/decisions.md#motion-and-ik)."""
     z_from = kin.forward(np.asarray(q_from, dtype=float)).position[2]
     z_to = kin.forward(np.asarray(q_to, dtype=float)).position[2]
     return max(0.0, float(min(z_from, z_to) - path_low_z(kin, q_from, q_to, params)))

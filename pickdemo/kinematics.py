@@ -9,8 +9,8 @@ the arm one degree of freedom (the elbow's swing), and damped least squares alon
 a long line. Each tick then also steps in the task's null space (the motion that leaves the hand where
 it is) towards the posture and away from any joint within :attr:`PostureParams.limit_zone_rad` of its
 limit: a secondary task as in Siciliano's and Nakamura's redundancy resolution. Chosen over a QP
-(pin-pink) by measurement (``tests/ik_bench.py``): 0.03-0.05 ms a tick against pink's 0.07 ms, both on
-the line to 0.002 mm, and no new dependency.
+(pin-pink) by measurement (``tests/ik_bench.py``): faster a tick, as close to the line, and no new
+dependency (evidence: docs/decisions.md#motion-and-ik).
 """
 
 from __future__ import annotations
@@ -149,8 +149,7 @@ class PandaKinematics:
         # each norm is taken once. np.minimum(np.maximum()) is np.clip without its dispatch cost.
         # A start that is stuck (a joint held at its limit, or no solution near) stops once its best
         # error has not halved in ``stall_iterations`` steps: Gauss-Newton converges much faster than
-        # that when it converges at all (measured over 2 x 5 episodes: no solve that would have
-        # converged is given up; 85 % of the steps of failing starts saved).
+        # that when it converges at all (evidence: docs/decisions.md#speed).
         q = np.minimum(np.maximum(q0, lo), hi)
         e_pos = e_rot = 0.0
         stall = params.stall_iterations

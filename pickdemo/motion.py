@@ -8,7 +8,8 @@ each tick ``update`` then ``pass_to_input``; re-targeting writes ``target_positi
 motion stays within the limits it was given, jerk included, across every re-target.
 
 Phase synchronisation makes rest-to-rest moves straight lines in Cartesian space (the fingers move
-straight near the object: joint-space moves were measured to stray 10-28 mm from the vertical).
+straight near the object, where joint-space moves stray from the vertical; evidence:
+docs/decisions.md#motion-and-ik).
 Each tick's setpoint becomes joint angles by a few damped least-squares steps warm-started from the
 last command (:meth:`pickdemo.kinematics.PandaKinematics.track`), with a posture task in the hand's
 null space: the arm's free swing is held to the posture the motion was seated in (home, or the IK goal

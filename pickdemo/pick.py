@@ -165,8 +165,8 @@ class MachineParams:
     #: space to IK goals chosen well; else straight Cartesian lines (as before)
     joint_transfers: bool = True
     #: the carry to above the place in joint space too (with joint_transfers); off: a straight top-down
-    #: line. Measured: carried in joint space, the fingers of a PyBullet Panda that had turned and tilted
-    #: the held box sometimes did not open at the release (2 of 40 pick_anywhere seeds)
+    #: line: carried in joint space, a held box the hand turned and tilted can jam the fingers at the
+    #: release (evidence: docs/decisions.md#motion-and-ik)
     carry_in_joint_space: bool = False
     goals: GoalParams = GoalParams()  # how a transfer's IK goal is chosen
     transfer_scale: float = 0.5  # transfers in joint space, the hand empty: this share of the datasheet's limits
@@ -527,7 +527,8 @@ class PickMachine:
 
     def _judge_run(self, run: list, camera: str, frame_time_s: float) -> None:
         """``moved_views`` in a row, one of them at least a whole view (partial views alone can mislead
-        consistently: the fixed camera's, of the face the hand leaves, 45-49 mm off): it moved."""
+        consistently: the fixed camera's, of the face the hand leaves): it moved (evidence:
+        docs/decisions.md#the-loop-and-the-tracker)."""
         if len(run) >= self.p.moved_views and any(not partial for *_, partial in run):
             self._moved_seen = (max(off for off, *_ in run), camera, frame_time_s)
 
@@ -947,7 +948,8 @@ class PickMachine:
         without the hand going below ``floor_z``, and from which the straight line down to ``pose``
         can be followed; None if there is none. The one on the branch of ``q_goal`` (the goal chosen
         for ``pose``, from which what follows was checked) first: on another branch the line down
-        arrives where the lowering after it crawled near a singular posture (measured: 15 s)."""
+        arrives where the lowering after it crawls near a singular posture (evidence:
+        docs/decisions.md#motion-and-ik)."""
         via = self._raised(pose, h)
         g = self.p.goals
         same = self.kin.solve(via, q_goal, self.rng, g.ik)
@@ -1029,8 +1031,8 @@ class PickMachine:
             res = self.kin.solve(pose, seeded, self.rng, self.p.goals.ik)
             if res.success and self._joint and not self.joints.finished:
                 # Mid-transfer, the goal stays on its branch while it has a solution there: a goal on
-                # another branch bends the transfer's path off its straight line in joint space, and
-                # that swung the hand down onto the target (measured, pick_anywhere seed 6).
+                # another branch bends the transfer's path off its straight line in joint space, which
+                # can swing the hand down onto the target (evidence: docs/decisions.md#motion-and-ik).
                 return res.q, 0
             if res.success and self.kin.limit_margin(res.q) >= self.p.goals.min_margin_rad:
                 # a re-plan a hair from a goal whose line was checked keeps that check (the tracker
@@ -1293,11 +1295,9 @@ class PickMachine:
         where it was seen; closing there would close on nothing or on it askew. The fixed camera, with
         the hand over the target, cannot say so; the fingers can. At most ``touch_back_offs`` times
         (then the descent goes on as before), and not again where it touched before if the look since
-        found the target there (a neighbour, not a move: measured on `pick_two_colours`, a finger
-        brushed the other cube 1-10 mm above the grasp in 4 of 50 episodes, twice each). Not for an
-        object nobody described: its grasps, from its cloud, go down close to its surface (measured
-        on `pick_duck`, seeds 0-49: a finger brushed the duck in 32 episodes; looking again doubled
-        their time and placed 47 ducks, not 48)."""
+        found the target there (a neighbour brushed, not a move). Not for an object nobody described:
+        its grasps, from its cloud, go down close to its surface, so a finger brushing it is no news
+        (evidence: docs/decisions.md#the-loop-and-the-tracker)."""
         left, right = obs.finger_contacts
         if not (left or right) or self._touch_back_offs >= self.p.touch_back_offs:
             return None

@@ -120,7 +120,8 @@ class Box:
     def yaw_symmetry_rad(self) -> float:
         """A quarter turn for a square top, else a half turn. Sides within :data:`SQUARE_TOLERANCE_M`
         of each other make a square top: no camera tells them apart, and either pair fits the fingers
-        (taken as a half turn, a 59.7 x 59.8 mm box had the tracker see its yaw flip by 90 deg)."""
+        (taken as a half turn, a nearly square box's yaw can flip by a quarter turn in the tracker;
+        evidence: docs/decisions.md#the-loop-and-the-tracker)."""
         return np.pi / 2.0 if abs(self.size_m[0] - self.size_m[1]) < SQUARE_TOLERANCE_M else np.pi
 
     @property

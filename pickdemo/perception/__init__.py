@@ -33,8 +33,9 @@ The modules, in the order the method runs: :mod:`.model` (what crosses the bound
 (the paper's eqs. 8-14), :mod:`.segmentation`, :mod:`.features`, :mod:`.fit2d`, :mod:`.fit6d` and
 :mod:`.pipeline` (:func:`estimate_pose`). Everything is re-exported here.
 
-Measured choices are documented where they are made (the mixture's variance but each pixel's own
-depth; features selected on the outline in the image; the cylinder's side arc left out).
+Each choice is stated where it is made (the mixture's variance but each pixel's own depth; features
+selected on the outline in the image; the cylinder's side arc left out); its evidence is in
+docs/decisions.md#perception.
 """
 
 from pickdemo.perception.equations import (

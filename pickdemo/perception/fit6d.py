@@ -33,8 +33,8 @@ def surface_along_rays(
 
     A depth reading errs along its ray, so the surface it belongs to is the one its ray meets, not
     the one nearest to it: beside an edge, a reading pushed behind the top face by noise lies nearer
-    the side face, and matching it there would drag the top face up (measured: boxes estimated
-    0.06 mm too high with the D435's noise, as much as their median error).
+    the side face, and matching it there would drag the top face up (evidence:
+    docs/decisions.md#perception).
     """
     cast = getattr(model.geometry, "ray_entry", None)
     if cast is None:
@@ -130,7 +130,7 @@ def refine_pose_6dof(
         r_d = np.einsum("ij,ij->i", nw, pts - (q @ R.T + t))
         # Each point's depth variance (eq. 8) at the depth the model predicts there, not at its own
         # noisy reading: weights drawn from the noise they weigh would pull the fit toward the camera
-        # (a nearer reading would count for more; measured, 2-3 um of the median error).
+        # (a nearer reading would count for more; evidence: docs/decisions.md#perception).
         vz = frame.depth_variance(((q @ R.T + t) - Tc.position) @ Rc[:, 2])
         nc = nw @ Rc  # normals in the camera frame
         var_n = vz * np.einsum("ij,ij->i", nc, ray) ** 2 + s2z2 * (nc[:, 0] ** 2 / K.fx**2 + nc[:, 1] ** 2 / K.fy**2)

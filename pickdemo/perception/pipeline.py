@@ -81,7 +81,8 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     outline_uv = outline_pixels(face)
     if isinstance(shape, Cylinder):
         # Only the arc that is also the silhouette: where the flat cap meets the smooth-shaded side,
-        # the colour boundary sits up to a pixel off (measured: 0.24 mm bias toward the camera).
+        # the colour boundary sits up to a pixel off, a bias toward the camera (evidence:
+        # docs/decisions.md#perception).
         rim = mask & ~cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
         rim = cv2.dilate(rim.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
         iu = np.clip(np.round(outline_uv[:, 0]).astype(int), 0, K.width - 1)
@@ -148,8 +149,7 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     # Dense points: each pixel's own depth with eq. (8)'s variance. Not the mixture (eqs. 9-10): its
     # mean smears a surface across a depth step, and its variance is undefined beside a hole, which
     # on a real sensor lies on the silhouette (edge dropout), so the points there would go and the
-    # fit would lean inward. Measured on perceive_tall_oblique_d435 (seeds 0-99): 0.09 mm median
-    # error with the mixture's mean; with its variance, 0.040 mm, and 0.036 mm with eq. (8).
+    # fit would lean inward (evidence: docs/decisions.md#perception).
     pose, cov6, quality = refine_pose_6dof(
         f, mask, depth, model, Pose(center, R), edge_uv, edge_var, max_points=params.fit_points
     )

@@ -68,9 +68,8 @@ FEATURE_STEP_SIGMAS = 4.0
 #: at its silhouette changes with the noise, by a pixel or so.
 SILHOUETTE_FLOOR_M = 0.0005
 #: The spread of its seen centre from its true one per metre of its height, along the line of sight,
-#: across it and up: what the view hides of its shape. Calibrated on seeds 100-199 of
-#: ``perceive_meshes`` (test-split objects at 0.6, 52 mm tall at the median: RMS 3.6, 2.7 and 4.5 mm);
-#: ``perceive perceive_meshes`` evaluates on seeds 0-29.
+#: across it and up: what the view hides of its shape. Calibrated on held-out test-split meshes, on
+#: other seeds than those it is evaluated on (evidence: docs/decisions.md#perception).
 HIDDEN_SHAPE_PER_HEIGHT = (0.079, 0.054, 0.083)
 #: The footprint's ends are taken at these quantiles of its points (a stray pixel does not move them).
 FOOTPRINT_QUANTILE = 0.01
@@ -361,7 +360,7 @@ def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPa
         obstacles = obstacles[:: int(np.ceil(len(obstacles) / MAX_CLOUD_POINTS))]
     # Its footprint along its principal axes, seen from above (the far side's top edge bounds it): its
     # middle is the object's centre, which the camera sees from any side alike (the visible surface's
-    # mean moves with the view: measured up to 40 mm on a duck seen from two places).
+    # mean moves with the view; evidence: docs/decisions.md#perception).
     c, s = np.cos(yaw), np.sin(yaw)
     axes = np.array([[c, -s], [s, c]])
     seen = pts[mask]

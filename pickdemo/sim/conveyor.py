@@ -39,7 +39,8 @@ class Belt:
         self.direction = np.array(slab.direction)
         half = list(slab.half_extents)
         col = client.createCollisionShape(p.GEOM_BOX, halfExtents=half)
-        # Seen from above only its top: two triangles (a box's twelve cost TinyRenderer 50 % more per frame).
+        # Seen from above only its top: two triangles (a box's twelve cost TinyRenderer more per frame;
+        # evidence: docs/decisions.md#speed).
         hx, hy, hz = half
         vis = client.createVisualShape(
             p.GEOM_MESH,

@@ -3,8 +3,9 @@
 TinyRenderer (CPU) is used because it needs no GPU and is deterministic. Its optical axis lands at
 pixel ``(W / 2, H / 2 - 1)`` for a symmetric frustum (measured, and checked by a test that projects
 known points), so the intrinsics handed to perception say exactly that. Shadows are off (they
-persist between calls and cost +75 %). Depth is converted from the non-linear depth buffer to
-metric z-depth, then optionally corrupted with the paper's eq. (8) noise from the camera's own RNG.
+persist between calls and cost render time; evidence: docs/decisions.md#speed). Depth is converted
+from the non-linear depth buffer to metric z-depth, then optionally corrupted with the paper's eq. (8)
+noise from the camera's own RNG.
 """
 
 from __future__ import annotations

@@ -30,11 +30,11 @@ FINGER_FRICTION = 1.0  # measured: 1.0 with 20 N holds a 5 cm cube with ~1 mm sl
 #: The pads' torsional friction (m: torque per newton pressed). PyBullet's contact is a point, whose
 #: friction about the normal is near zero: an object held at one point pivots about the finger axis.
 #: A rubber pad pressed onto a patch of radius a resists with about (2/3) mu a: 0.003 m is a 4.5 mm
-#: patch (with it, a top-down oracle grasp held 96 % of the random_urdfs test split, against 89 %).
+#: patch (evidence: docs/decisions.md#physics-and-the-scene).
 PAD_TORSIONAL_FRICTION_M = 0.003
 #: Rolling friction of round objects (cylinders, meshes); a box rests and is held on its faces and
-#: has none: its rolling-friction rows were a fifth of a held step's solver time (measured: 420 ->
-#: 330 us a step while the fingers hold a 5 cm cube).
+#: has none: its rolling-friction rows would cost a held step's solver time for nothing (evidence:
+#: docs/decisions.md#speed).
 ROLLING_FRICTION_M = 0.0001
 
 
