@@ -50,13 +50,13 @@ PERCEPTION_HELP = (
 )
 
 
-def _check_method(name: str) -> None:
+def _check_method(name: str, flag: str = "--perception") -> None:
     from pickdemo.estimators import EstimatorError, resolve_estimator
 
     try:
         resolve_estimator(name)
     except EstimatorError as exc:
-        raise UsageError(f"--perception: {exc}") from None
+        raise UsageError(f"{flag}: {exc}") from None
 
 
 class UsageError(Exception):
@@ -489,11 +489,15 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
         methods = [m for m in perceive.METHODS if not (undescribed and m in perceive.NEEDS_DESCRIPTION)]
     else:
         methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    unknown = [m for m in methods if m not in perceive.METHODS]
+    unknown = [m for m in methods if m not in perceive.METHODS and ":" not in m]
     if unknown or not methods:
         raise UsageError(
-            f"--methods: unknown {', '.join(unknown) or '(none given)'}; known: {', '.join(perceive.METHODS)}"
+            f"--methods: unknown {', '.join(unknown) or '(none given)'}; known: {', '.join(perceive.METHODS)}, "
+            "or module:function for your own"
         )
+    for m in methods:
+        if m not in perceive.METHODS:
+            _check_method(m, "--methods")
     blind = [m for m in methods if undescribed and m in perceive.NEEDS_DESCRIPTION]
     if blind:
         raise UsageError(

@@ -18,7 +18,7 @@ from typing import Any, TypeAlias
 import numpy as np
 
 from pickdemo import robot_model as rm
-from pickdemo.estimators import BUILTIN
+from pickdemo.estimators import BUILTIN, resolve_estimator
 from pickdemo.evaluation import pose_errors
 from pickdemo.geometry import Pose
 from pickdemo.metrics import position_nees
@@ -30,9 +30,22 @@ from pickdemo.stats import describe
 
 MethodFn = Callable[..., PoseEstimate]
 METHODS: dict[str, MethodFn] = dict(BUILTIN)
-ORIENTED = {"paper", "centroid", "icp"}  # pixel gives a position only
+ORIENTED = {"paper", "centroid", "icp"}  # pixel gives a position only; a user's own: when its yaw has a variance
 #: The baselines need the target described (its shape and colour): not for an object nobody described.
 NEEDS_DESCRIPTION = {"pixel", "centroid", "icp"}
+
+
+def method(name: str) -> MethodFn:
+    """A built-in method by name, or a user's own ``module:function`` (an
+    :class:`~pickdemo.estimators.EstimatorError` when it cannot be found)."""
+    return METHODS[name] if name in METHODS else resolve_estimator(name)
+
+
+def _oriented(name: str, est: PoseEstimate) -> bool:
+    """Whether an estimate's orientation is scored: a built-in's by name, a user's when it gives its yaw a
+    finite variance."""
+    return name in ORIENTED if name in METHODS else bool(np.isfinite(est.rpy_cov[2, 2]))
+
 
 #: One method on one target of one seed's frame, as perception.json holds it: ``method``, ``seed``,
 #: ``target``, ``time_ms``, ``camera_distance_m``, ``failure`` (None or perception's reason), the
@@ -70,6 +83,7 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
         truths = {t.name: _seen_truth(world, t.name) for t in scenario.targets}  # truth: scoring only
     distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))
     samples = []
+    fns = {name: method(name) for name in methods}
     for spec in scenario.targets:
         model = target_model(scenario, world.placement(spec.name))
         truth = truths[spec.name]
@@ -78,7 +92,7 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
             for _ in range(max(repeat, 1)):
                 t0 = time.perf_counter()
                 try:
-                    est = METHODS[name](frame, model)
+                    est = fns[name](frame, model)
                     error = None
                 except PerceptionError as exc:
                     est, error = None, str(exc)
@@ -90,7 +104,7 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
                 sample.update({k: None for k in ERROR_KEYS}, nees=None)
             else:
                 unknown = isinstance(model.geometry, Unknown)  # its principal axes are no axis of its body
-                sample.update(_score(est, truth, model, oriented=name in ORIENTED and not unknown))
+                sample.update(_score(est, truth, model, oriented=_oriented(name, est) and not unknown))
             if spec.reference is not None:
                 sample["reference"] = spec.reference.model_dump()
             samples.append(sample)
@@ -153,7 +167,8 @@ def _fmt(st: dict[str, float] | None, digits: int = 2) -> str:
 
 
 def format_summary(summary: dict[str, MethodSummary]) -> str:
-    head = (f"{'method':<9} {'3-D mm (med/p95/max)':<22} {'x / y / z mm (median)':<22} {'yaw deg':<20} "
+    w = max([9, *(len(m) for m in summary)])  # a user's module:function may be longer than the built-ins
+    head = (f"{'method':<{w}} {'3-D mm (med/p95/max)':<22} {'x / y / z mm (median)':<22} {'yaw deg':<20} "
             f"{'pitch deg':<20} {'roll deg':<20} {'NEES':>6} {'ms':>6} fail")  # fmt: skip
     lines = [head, "-" * len(head)]
     for method, s in summary.items():
@@ -162,7 +177,7 @@ def format_summary(summary: dict[str, MethodSummary]) -> str:
         )
         nees = "-" if s["nees_mean"] is None else f"{s['nees_mean']:.2f}"
         lines.append(
-            f"{method:<9} {_fmt(s['position_error_mm']):<22} {axes:<22} {_fmt(s['yaw_error_deg']):<20} "
+            f"{method:<{w}} {_fmt(s['position_error_mm']):<22} {axes:<22} {_fmt(s['yaw_error_deg']):<20} "
             f"{_fmt(s['pitch_error_deg']):<20} {_fmt(s['roll_error_deg']):<20} {nees:>6} "
             f"{s['time_ms']['median']:>6.2f} {s['failures']}"
         )

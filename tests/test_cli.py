@@ -26,6 +26,8 @@ def _run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str
         ("frobnicate",),
         ("profile", "pick_cube", "--seeds", "x"),
         ("profile", "perceive_boxes"),
+        ("perceive", "pick_cube", "--methods", "paper,no_such_module:estimate"),
+        ("perceive", "pick_cube", "--methods", "nope"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(args: tuple[str, ...]) -> None:
