@@ -1,4 +1,4 @@
-"""Make assets/episode.png (the README's picture): two frames of a real episode's video, stacked.
+"""Make docs/img/episode.png (the README's picture): two frames of a real episode's video, stacked.
 
     python assets/episode_png.py            # pick_pushed seed 1: just after the push, and the descent
 
@@ -32,7 +32,7 @@ def main() -> int:
     parser.add_argument("--scenario", default="pick_pushed")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--push-after-s", type=float, default=0.4, help="the first frame: this long after the push")
-    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "episode.png")
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent.parent / "docs" / "img" / "episode.png")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         pickdemo(["run", args.scenario, "--seed", str(args.seed), "--out", tmp, "--video", "--quiet"])

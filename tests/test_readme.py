@@ -1,12 +1,12 @@
-"""The README tells the truth: its example outputs are what the code prints (``readme_examples``),
-and its two first commands are the ones a newcomer should type."""
+"""The README and the docs tell the truth: their example outputs are what the code prints
+(``readme_examples``), and the README's two first commands are the ones a newcomer should type."""
 
 from __future__ import annotations
 
 import re
 
 import pytest
-from readme_examples import README, differences, examples, run
+from readme_examples import PAGES, README, ROOT, differences, examples, run
 
 LOG = """\
 pickdemo: pick_pushed seed 1 (closed loop): a pushed cube
@@ -66,9 +66,31 @@ def test_the_readme_starts_with_the_two_commands_from_the_lock() -> None:
     assert "-c .ci/constraints.txt" in tests and tests.endswith("python -m pytest -q")
 
 
+def test_a_bench_line_said_only_when_there_is_something_to_say_reads_true() -> None:
+    bench = "a: 20/20 succeeded\n  pose error 1\n  wall time per episode: 3 s\n"
+    said = bench.replace("  wall", "  estimates > 5 mm off the truth: 9; rejected 9\n  wall")
+    assert differences(bench, said) == [] and differences(said, bench) == []
+
+
+def test_a_wall_time_in_another_unit_reads_true() -> None:
+    here = "physics      37.8%    1.754     2634     666 us     209 us  PyBullet's steps\n"
+    there = "physics      41.0%    3.100     2634    1.18 ms     0.41 ms  PyBullet's steps\n"
+    assert differences(here, there) == []
+
+
+EXAMPLES = [(page, ex) for page in PAGES for ex in examples(page.read_text())]
+
+
+def test_the_readme_shows_run_bench_perceive_and_profile() -> None:
+    commands = [ex.command.split()[3] for page, ex in EXAMPLES if page == README]
+    assert {"run", "bench", "perceive", "profile"} <= set(commands), commands
+
+
 @pytest.mark.sim
-@pytest.mark.parametrize("example", examples(README.read_text()), ids=lambda e: e.command.split(" --")[0])
-def test_readme_example_is_what_the_code_prints(example) -> None:
+@pytest.mark.parametrize(
+    ("page", "example"), EXAMPLES, ids=[f"{p.relative_to(ROOT)}:{e.command.split(' --')[0]}" for p, e in EXAMPLES]
+)
+def test_example_is_what_the_code_prints(page, example) -> None:
     problems = differences(example.output, run(example.command))
-    assert not problems, f"README.md's example `{example.command}` has drifted (python tests/readme_examples.py " \
-        f"--write makes it anew): " + "; ".join(problems)  # fmt: skip
+    assert not problems, f"{page.relative_to(ROOT)}'s example `{example.command}` has drifted (python " \
+        f"tests/readme_examples.py --write makes it anew): " + "; ".join(problems)  # fmt: skip
