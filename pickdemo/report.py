@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import html
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -247,7 +248,8 @@ def write_bench_plots(
     for a in fig.axes:
         a.grid(alpha=0.3)
         a.tick_params(axis="x", labelsize=9)
-    fig.suptitle(title or "bench")
+    # a long list of scenarios wraps within the figure's width (about 8 characters an inch at this size)
+    fig.suptitle(textwrap.fill(title or "bench", width=int(fig.get_figwidth() * 8)))
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
