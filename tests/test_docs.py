@@ -171,3 +171,12 @@ def test_the_example_estimator_sees_the_cube_beside_the_papers_method() -> None:
     row = next(line for line in proc.stdout.splitlines() if line.startswith("my_estimator:estimate "))
     median_mm = float(row.split()[1])
     assert median_mm < 2.0, row
+
+
+@pytest.mark.sim
+def test_the_python_examples_of_getting_started_run(capsys: pytest.CaptureFixture[str]) -> None:
+    blocks = re.findall(r"```python\n(.*?)```", (DOCS / "getting-started.md").read_text(), re.S)
+    assert len(blocks) == 2
+    for block in blocks:
+        exec(compile(block, "docs/getting-started.md", "exec"), {})  # noqa: S102 - the docs' own example
+    assert " s: " in capsys.readouterr().out  # the observer saw frames
