@@ -1,7 +1,7 @@
 """A pose estimator of your own, in pickdemo's loop (the example of docs/extending.md).
 
     cd docs/examples
-    python -m pickdemo perceive perceive_boxes --seeds 0-9 --methods paper,my_estimator:estimate
+    python -m pickdemo perceive pick_cube --seeds 0-9 --methods paper,my_estimator:estimate
     python -m pickdemo bench pick_cube --seeds 0-9 --perception my_estimator:estimate
 
 The contract: ``estimate(frame, model) -> PoseEstimate``, raising ``PerceptionError`` with a reason
