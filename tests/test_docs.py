@@ -147,6 +147,13 @@ def test_every_relative_link_of_the_readme_resolves() -> None:
     assert not problems, problems
 
 
+def test_every_code_fence_is_closed() -> None:
+    """An unclosed fence turns the rest of a page into code, which no link check sees."""
+    pages = [ROOT / "README.md", *sorted(DOCS.rglob("*.md"))]
+    odd = [str(p.relative_to(ROOT)) for p in pages if len(re.findall(r"^```", p.read_text(), re.M)) % 2]
+    assert not odd, odd
+
+
 def test_the_scenario_example_is_the_file_the_tests_run() -> None:
     text = (DOCS / "scenarios.md").read_text()
     assert f"```toml\n{(EXAMPLES / 'my_part.toml').read_text()}```" in text
