@@ -35,12 +35,6 @@ ORIENTED = {"paper", "centroid", "icp"}  # pixel gives a position only; a user's
 NEEDS_DESCRIPTION = {"pixel", "centroid", "icp"}
 
 
-def method(name: str) -> MethodFn:
-    """A built-in method by name, or a user's own ``module:function`` (an
-    :class:`~pickdemo.estimators.EstimatorError` when it cannot be found)."""
-    return METHODS[name] if name in METHODS else resolve_estimator(name)
-
-
 def _oriented(name: str, est: PoseEstimate) -> bool:
     """Whether an estimate's orientation is scored: a built-in's by name, a user's when it gives its yaw a
     finite variance."""
@@ -83,7 +77,7 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
         truths = {t.name: _seen_truth(world, t.name) for t in scenario.targets}  # truth: scoring only
     distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))
     samples = []
-    fns = {name: method(name) for name in methods}
+    fns = {name: resolve_estimator(name) for name in methods}  # a built-in, or module:function
     for spec in scenario.targets:
         model = target_model(scenario, world.placement(spec.name))
         truth = truths[spec.name]
