@@ -17,7 +17,7 @@ import av
 import cv2
 import numpy as np
 
-from pickdemo.cli import main as pickdemo
+from pickdemo.apps.cli import main as pickdemo
 
 
 def frames_at(video: Path, times_s: list[float]) -> list[np.ndarray]:
@@ -32,7 +32,7 @@ def main() -> int:
     parser.add_argument("--scenario", default="pick_pushed")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--push-after-s", type=float, default=0.4, help="the first frame: this long after the push")
-    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent.parent / "docs" / "img" / "episode.png")
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs/img/episode.png")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         pickdemo(["run", args.scenario, "--seed", str(args.seed), "--out", tmp, "--video", "--quiet"])

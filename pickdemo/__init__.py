@@ -19,11 +19,11 @@ Or stepped, one control tick at a time (the same result)::
     result = episode.result()
 
 Importing the package stays light: the simulator and the kinematics load on the first episode (and
-``EpisodeOptions`` and ``Episode``, which live beside them in :mod:`pickdemo.episode`, on first use).
+``EpisodeOptions`` and ``Episode``, which live beside them in :mod:`pickdemo.runtime.episode`, on first use).
 """
 
-from pickdemo.result import EpisodeResult, Failure, Stage
-from pickdemo.scenario import Scenario, ScenarioError, load_scenario
+from pickdemo.core.result import EpisodeResult, Failure, Stage
+from pickdemo.scenario.load import Scenario, ScenarioError, load_scenario
 
 __all__ = [
     "Episode",
@@ -40,8 +40,9 @@ __version__ = "0.1.0"
 
 
 def run_episode(scenario: Scenario, seed: int, **kwargs):  # type: ignore[no-untyped-def]
-    """Run one seeded episode and return its :class:`EpisodeResult` (see :func:`pickdemo.episode.run_episode`)."""
-    from pickdemo.episode import run_episode as _run
+    """Run one seeded episode and return its :class:`EpisodeResult`
+    (see :func:`pickdemo.runtime.episode.run_episode`)."""
+    from pickdemo.runtime.episode import run_episode as _run
 
     return _run(scenario, seed, **kwargs)
 
@@ -50,7 +51,7 @@ def __getattr__(name: str):  # type: ignore[no-untyped-def]
     """``pickdemo.EpisodeOptions`` and ``pickdemo.Episode`` on first use (PEP 562), so that
     ``import pickdemo`` stays light."""
     if name in ("EpisodeOptions", "Episode"):
-        from pickdemo import episode
+        from pickdemo.runtime import episode
 
         return getattr(episode, name)
     raise AttributeError(f"module 'pickdemo' has no attribute {name!r}")

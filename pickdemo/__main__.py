@@ -1,5 +1,5 @@
 import sys
 
-from pickdemo.cli import main
+from pickdemo.apps.cli import main
 
 sys.exit(main())

@@ -12,8 +12,8 @@ from __future__ import annotations
 import argparse
 import statistics
 
-from pickdemo.episode import run_episode
-from pickdemo.scenario import load_scenario
+from pickdemo.runtime.episode import run_episode
+from pickdemo.scenario.load import load_scenario
 
 
 def main() -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from pickdemo.scenario import Scenario, load_scenario
+from pickdemo.scenario.load import Scenario, load_scenario
 
 
 @pytest.fixture(scope="session")

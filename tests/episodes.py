@@ -12,7 +12,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Iterable, Sequence
 
-from pickdemo.result import EpisodeResult
+from pickdemo.core.result import EpisodeResult
 
 
 @functools.cache
@@ -26,7 +26,7 @@ def episodes(
 ) -> tuple[EpisodeResult, ...]:
     """The episodes of a shipped scenario (or a path) over ``seeds``; cached for the session."""
     from pickdemo import load_scenario, run_episode
-    from pickdemo.episode import EpisodeOptions
+    from pickdemo.runtime.episode import EpisodeOptions
 
     sc = load_scenario(scenario)
     options = EpisodeOptions(open_loop=open_loop, perception_method=method, record_trace=record_trace)

@@ -13,9 +13,9 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from pickdemo import robot_model as rm
-from pickdemo.grasp import top_down
-from pickdemo.kinematics import panda_kinematics
+from pickdemo.grasping.top_down import top_down
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
 
 TICKS = 1200
 

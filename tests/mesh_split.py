@@ -21,8 +21,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from pickdemo.bench import wilson_interval
-from pickdemo.meshes import usable
+from pickdemo.apps.bench import wilson_interval
+from pickdemo.core.meshes import usable
 
 if sys.version_info >= (3, 11):
     import tomllib

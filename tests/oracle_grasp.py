@@ -24,18 +24,18 @@ import time
 
 import numpy as np
 
-from pickdemo import robot_model as rm
-from pickdemo.bench import wilson_interval
-from pickdemo.grasp import GraspParams, top_down
-from pickdemo.interfaces import Command
-from pickdemo.kinematics import panda_kinematics
-from pickdemo.layout import sample_layout
-from pickdemo.meshes import expand
-from pickdemo.motion import CartesianLimits, OnlineMotion
-from pickdemo.rate_limit import RateLimiter
-from pickdemo.schema import parse_scenario
-from pickdemo.shapes import caliper_widths
-from pickdemo.streams import spawn_rngs
+from pickdemo.apps.bench import wilson_interval
+from pickdemo.core.interfaces import Command
+from pickdemo.core.meshes import expand
+from pickdemo.core.shapes import caliper_widths
+from pickdemo.core.streams import spawn_rngs
+from pickdemo.grasping.top_down import GraspParams, top_down
+from pickdemo.motion.online import CartesianLimits, OnlineMotion
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot.rate_limit import RateLimiter
+from pickdemo.scenario.layout import sample_layout
+from pickdemo.scenario.schema import parse_scenario
 
 GRIP_N = 20.0
 LIFT_M = 0.10

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from pickdemo.cli import main
-from pickdemo.meshes import pybullet_data_dir
+from pickdemo.apps.cli import main
+from pickdemo.core.meshes import pybullet_data_dir
 
 GOOD = """name = "t"
 description = "a good scenario"
@@ -447,7 +447,7 @@ def test_out_must_be_a_writable_directory(tmp_path: Path, capsys: pytest.Capture
 
 
 def test_junit_is_valid_xml_whatever_the_names_and_messages_hold() -> None:
-    from pickdemo.bench import junit_xml
+    from pickdemo.apps.bench import junit_xml
 
     nasty = "fingers \x00\x01\x1b[31m <closed> & \"'\ud800 \ufffe"
     results = [

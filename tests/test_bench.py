@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from pickdemo.bench import (
+from pickdemo.apps.bench import (
     BenchError,
     Job,
     LocalExecutor,
@@ -26,7 +26,7 @@ from pickdemo.bench import (
     summarise,
     wilson_interval,
 )
-from pickdemo.result import WALL_CLOCK_KEYS
+from pickdemo.core.result import WALL_CLOCK_KEYS
 
 
 def _result(scenario: str, seed: int, ok: bool, stage: str = "grasp") -> dict:
@@ -209,7 +209,7 @@ def _strip(rs: list[dict]) -> dict:
 
 @pytest.mark.sim
 def test_same_results_whatever_the_worker_count(cube_scenario) -> None:
-    from pickdemo.scenario import resolve_scenario_path
+    from pickdemo.scenario.load import resolve_scenario_path
 
     jobs = [Job(str(resolve_scenario_path("pick_cube")), "pick_cube", s) for s in range(3)]
     one = run_bench(jobs, LocalExecutor(1), progress=False).results
@@ -268,8 +268,8 @@ def test_cli_bench_refuses_to_resume_on_part_of_a_run(tmp_path: Path) -> None:
 
 
 def test_bench_gate_has_a_real_default() -> None:
-    from pickdemo.bench import DEFAULT_MIN_SUCCESS
-    from pickdemo.cli import build_parser
+    from pickdemo.apps.bench import DEFAULT_MIN_SUCCESS
+    from pickdemo.apps.cli import build_parser
 
     assert build_parser().parse_args(["bench"]).min_success == DEFAULT_MIN_SUCCESS == 0.95
     help_text = " ".join(_cli("bench", "--help").stdout.split())
@@ -368,8 +368,8 @@ def test_ray_executor_gives_the_same_results() -> None:
     pytest.importorskip("ray")
     import ray
 
-    from pickdemo.bench import RayExecutor
-    from pickdemo.scenario import resolve_scenario_path
+    from pickdemo.apps.bench import RayExecutor
+    from pickdemo.scenario.load import resolve_scenario_path
 
     jobs = [Job(str(resolve_scenario_path("pick_cube")), "pick_cube", s) for s in range(2)]
     try:
@@ -383,8 +383,8 @@ def test_ray_executor_gives_the_same_results() -> None:
 def test_a_failed_job_is_an_episode_result() -> None:
     """A job that produced no result becomes :meth:`EpisodeResult.failed`, serialised by its ``to_dict``:
     the keys of every other result, in their order, nothing measured."""
-    from pickdemo.bench import Job, failed_result
-    from pickdemo.result import EpisodeResult, Stage
+    from pickdemo.apps.bench import Job, failed_result
+    from pickdemo.core.result import EpisodeResult, Stage
 
     made = failed_result(Job("x.toml", "ghost", 3, open_loop=True, perception="icp"), Stage.TIMEOUT, "hung", 300.0)
     real = EpisodeResult("ghost", 3, False, None, None, None, None, None, 0.0, 1.0).to_dict()

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pickdemo.camera import (
+from pickdemo.core.camera import (
     Intrinsics,
     backproject,
     backproject_image,

@@ -10,18 +10,18 @@ import numpy as np
 import pytest
 from test_unknown_object import T_CAM, Block, K, render
 
-from pickdemo import robot_model as rm
-from pickdemo.bench import clear_summary, format_summary, summarise
-from pickdemo.clear import ClearSequencer
-from pickdemo.interfaces import Observation
-from pickdemo.kinematics import panda_kinematics
-from pickdemo.layout import Tray, sample_round
+from pickdemo.apps.bench import clear_summary, format_summary, summarise
+from pickdemo.core.interfaces import Observation
+from pickdemo.core.result import Stage
+from pickdemo.core.streams import spawn_rngs
 from pickdemo.perception import PerceptionParams
 from pickdemo.perception.unknown import SeenObject, Survey, segment_objects, split_heap, survey_objects
-from pickdemo.pick import CameraModel, State
-from pickdemo.result import Stage
-from pickdemo.scenario import Scenario, load_scenario, parse_scenario
-from pickdemo.streams import spawn_rngs
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.scenario.layout import Tray, sample_round
+from pickdemo.scenario.load import Scenario, load_scenario, parse_scenario
+from pickdemo.skills.clear import ClearSequencer
+from pickdemo.skills.pick import CameraModel, State
 
 PARAMS = PerceptionParams()
 
@@ -197,7 +197,7 @@ def test_the_bench_counts_objects_and_grasps_with_wilson_intervals() -> None:
 def test_rounds_clear_the_table_into_the_tray() -> None:
     """Rounds of 3 objects packed and piled, 2 seeds each: nearly every object ends in the tray (the
     truth's count), the figures agree with one another, and result.json says it all."""
-    from pickdemo.episode import run_episode
+    from pickdemo.runtime.episode import run_episode
 
     cleared = total = 0
     for layout in ("packed", "pile"):

@@ -82,7 +82,7 @@ def test_run_writes_result_json(tmp_path: Path) -> None:
 
 
 def test_list() -> None:
-    from pickdemo.scenario import list_scenarios, load_scenario
+    from pickdemo.scenario.load import list_scenarios, load_scenario
 
     proc = _run("list")
     assert proc.returncode == 0 and "pick_cube" in proc.stdout.split()
@@ -95,7 +95,7 @@ def test_list() -> None:
 
 
 def test_list_names_is_for_scripts() -> None:
-    from pickdemo.scenario import list_scenarios
+    from pickdemo.scenario.load import list_scenarios
 
     proc = _run("list", "--names")
     assert proc.returncode == 0 and proc.stdout.splitlines() == list_scenarios()
@@ -116,12 +116,12 @@ def _help(*args: str) -> str:
     ],
 )
 def test_help_names_every_file_written(command: str, files: tuple[str, ...]) -> None:
-    import pickdemo.cli
+    import pickdemo.apps.cli
 
     text = _help(command)
     out_help = text.rsplit("--out DIR", 1)[-1].split(" --", 1)[0]  # the --out option's own line
     assert all(f in out_help or (f == "episode.mp4" and f in text) for f in files), (files, out_help)
-    usage = " ".join(pickdemo.cli.__doc__.split())
+    usage = " ".join(pickdemo.apps.cli.__doc__.split())
     assert all(f in usage for f in files), files  # the module's one-line usages say it too
 
 
@@ -130,7 +130,7 @@ def test_episode_options_from_the_package_and_import_stays_light() -> None:
         "import sys, pickdemo\n"
         "assert 'pybullet' not in sys.modules and 'pinocchio' not in sys.modules\n"
         "from pickdemo import EpisodeOptions\n"
-        "from pickdemo.episode import EpisodeOptions as E\n"
+        "from pickdemo.runtime.episode import EpisodeOptions as E\n"
         "assert EpisodeOptions is E and EpisodeOptions(open_loop=True).open_loop\n"
         "assert 'EpisodeOptions' in pickdemo.__all__\n"
     )
@@ -139,9 +139,9 @@ def test_episode_options_from_the_package_and_import_stays_light() -> None:
 
 
 def test_yaw_is_said_modulo_the_targets_symmetry() -> None:
-    from pickdemo.cli import summary_line, yaw_modulus_deg
-    from pickdemo.result import EpisodeResult, PerceptionScore
-    from pickdemo.scenario import load_scenario
+    from pickdemo.apps.cli import summary_line, yaw_modulus_deg
+    from pickdemo.core.result import EpisodeResult, PerceptionScore
+    from pickdemo.scenario.load import load_scenario
 
     assert yaw_modulus_deg(load_scenario("pick_cube", check=False).target) == 90.0
     assert yaw_modulus_deg(load_scenario("pick_box", check=False).target) == 180.0

@@ -15,12 +15,12 @@ import pytest
 from episodes import at_least, episodes
 
 from pickdemo import Stage, run_episode
-from pickdemo import robot_model as rm
-from pickdemo.kinematics import panda_kinematics
-from pickdemo.motion import OnlineMotion
-from pickdemo.pick import MachineParams
-from pickdemo.result import WALL_CLOCK_KEYS
-from pickdemo.scenario import ScenarioError, load_scenario, parse_scenario
+from pickdemo.core.result import WALL_CLOCK_KEYS
+from pickdemo.motion.online import OnlineMotion
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.scenario.load import ScenarioError, load_scenario, parse_scenario
+from pickdemo.skills.pick import MachineParams
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -121,7 +121,7 @@ def test_the_checks_keep_off_the_footprint_the_simulated_slab_sweeps() -> None:
     import tomllib
     from pybullet_utils.bullet_client import BulletClient
 
-    from pickdemo.checks import belt_sweep_mm
+    from pickdemo.scenario.checks import belt_sweep_mm
     from pickdemo.sim.conveyor import Belt
 
     data = tomllib.loads(_conveyor_toml(**DIAGONAL))
@@ -152,8 +152,8 @@ def test_the_checks_keep_off_the_footprint_the_simulated_slab_sweeps() -> None:
 
 
 def test_objects_on_the_belt_rest_on_its_top(tmp_path: Path) -> None:
-    from pickdemo.layout import sample_layout
-    from pickdemo.streams import spawn_rngs
+    from pickdemo.core.streams import spawn_rngs
+    from pickdemo.scenario.layout import sample_layout
 
     sc = load_scenario("pick_conveyor")
     (cube,) = sample_layout(sc, spawn_rngs(0)["layout"])
@@ -205,9 +205,9 @@ def test_hand_arrives_with_the_target_and_moves_with_it() -> None:
 @pytest.mark.sim
 @pytest.mark.parametrize("speed", [0.05, 0.2])
 def test_belt_carries_a_cube_at_its_speed_by_friction(tmp_path: Path, speed: float) -> None:
-    from pickdemo.layout import sample_layout
+    from pickdemo.core.streams import spawn_rngs
+    from pickdemo.scenario.layout import sample_layout
     from pickdemo.sim.scene import Scene
-    from pickdemo.streams import spawn_rngs
 
     sc = _load(tmp_path, _conveyor_toml(**{"velocity_m_s = [0.0, 0.05]": f"velocity_m_s = [0.0, {speed}]"}))
     with Scene(sc, sample_layout(sc, spawn_rngs(0)["layout"])) as scene:
@@ -263,8 +263,8 @@ def test_target_too_fast_to_meet_in_reach_fails_by_name(tmp_path: Path) -> None:
 
 @pytest.mark.sim
 def test_conveyor_episodes_are_the_same_with_one_or_two_workers() -> None:
-    from pickdemo.bench import Job, LocalExecutor, run_bench
-    from pickdemo.scenario import resolve_scenario_path
+    from pickdemo.apps.bench import Job, LocalExecutor, run_bench
+    from pickdemo.scenario.load import resolve_scenario_path
 
     path = str(resolve_scenario_path("pick_conveyor_fast"))
     jobs = [Job(path, "pick_conveyor_fast", s) for s in (3, 8)]

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from pydantic import BaseModel
 
-from pickdemo import schema
-from pickdemo.result import EpisodeResult, Stage
+from pickdemo.core.result import EpisodeResult, Stage
+from pickdemo.scenario import schema
 
 if sys.version_info >= (3, 11):
     import tomllib

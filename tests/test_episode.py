@@ -8,8 +8,8 @@ import pytest
 from episodes import at_least, episodes
 
 from pickdemo import Stage, run_episode
-from pickdemo.result import WALL_CLOCK_KEYS
-from pickdemo.scenario import Scenario, load_scenario
+from pickdemo.core.result import WALL_CLOCK_KEYS
+from pickdemo.scenario.load import Scenario, load_scenario
 
 pytestmark = pytest.mark.sim
 

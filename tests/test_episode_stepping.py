@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from pickdemo import Episode, EpisodeOptions, Stage, load_scenario, run_episode
-from pickdemo.interfaces import Observation
-from pickdemo.observers import Observer
-from pickdemo.result import WALL_CLOCK_KEYS
+from pickdemo.core.interfaces import Observation
+from pickdemo.core.result import WALL_CLOCK_KEYS
+from pickdemo.runtime.observers import Observer
 
 pytestmark = pytest.mark.sim
 
@@ -106,7 +106,7 @@ def test_a_stepped_episode_is_run_episodes() -> None:
 def test_stepping_can_be_reset_and_closed_early() -> None:
     """reset() again starts the same episode over; close() stops one before its end. Its world is
     the one perceive builds for the seed (one layout, one camera)."""
-    from pickdemo.world import World
+    from pickdemo.runtime.world import World
 
     scenario = load_scenario("pick_cube")
     with Episode(scenario, 3) as ep:

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from episodes import at_least, episodes, none_fails_in
 
-from pickdemo.estimators import EstimatorError, resolve_estimator
-from pickdemo.geometry import Pose
+from pickdemo.core.geometry import Pose
 from pickdemo.perception import PoseEstimate, estimate_pose
+from pickdemo.perception.estimators import EstimatorError, resolve_estimator
 
 CALLS: list[float] = []
 
@@ -44,7 +44,7 @@ def test_names_resolve() -> None:
 @pytest.mark.sim
 def test_a_users_estimator_runs_in_the_loop(cube_scenario) -> None:
     from pickdemo import run_episode
-    from pickdemo.episode import EpisodeOptions
+    from pickdemo.runtime.episode import EpisodeOptions
 
     options = EpisodeOptions(perception_method="test_estimators:counting_estimator")
     results = []
@@ -61,7 +61,7 @@ def test_a_users_estimator_runs_in_the_loop(cube_scenario) -> None:
 @pytest.mark.sim
 def test_a_wrong_estimate_is_diagnosed_as_perception(cube_scenario) -> None:
     from pickdemo import run_episode
-    from pickdemo.episode import EpisodeOptions
+    from pickdemo.runtime.episode import EpisodeOptions
 
     sc = cube_scenario.model_copy(update={"control": cube_scenario.control.model_copy(update={"max_attempts": 1})})
     r = run_episode(sc, 3, options=EpisodeOptions(perception_method="test_estimators:biased_estimator"))
@@ -70,7 +70,7 @@ def test_a_wrong_estimate_is_diagnosed_as_perception(cube_scenario) -> None:
 
 
 def test_cli_refuses_an_unknown_method(capsys) -> None:
-    from pickdemo.cli import main
+    from pickdemo.apps.cli import main
 
     assert main(["run", "pick_cube", "--perception", "magic"]) == 2
     assert "--perception: unknown perception method 'magic'" in capsys.readouterr().err

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo.evaluation import pose_errors
-from pickdemo.geometry import Pose
+from pickdemo.core.geometry import Pose
+from pickdemo.runtime.evaluation import pose_errors
 
 
 def test_cube_quarter_turn_is_no_error() -> None:
@@ -48,8 +48,8 @@ def test_no_orientation() -> None:
 
 
 def test_place_scoring_accepts_a_cube_on_any_face_but_not_a_box_on_its_side() -> None:
-    from pickdemo.metrics import score_place
-    from pickdemo.shapes import Box, Cylinder
+    from pickdemo.core.shapes import Box, Cylinder
+    from pickdemo.runtime.metrics import score_place
 
     start = Pose.from_xyz_rpy([0.5, 0.0, 0.025])
     common = dict(start=start, max_z_m=0.2, final_speed_m_s=0.0, place_xy=(0.45, 0.3), lift_height_m=0.05,

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo.geometry import Pose
-from pickdemo.grasp import GraspPlanningError, hand_yaw_for, plan_grasp
+from pickdemo.core.geometry import Pose
+from pickdemo.core.shapes import Box
+from pickdemo.grasping.top_down import GraspPlanningError, hand_yaw_for, plan_grasp
 from pickdemo.perception import TargetModel
-from pickdemo.shapes import Box
 
 
 def _estimate(yaw_deg: float, z: float = 0.025) -> Pose:
@@ -36,8 +36,8 @@ def test_square_box_uses_quarter_turn_symmetry() -> None:
 
 
 def test_a_box_has_two_hand_angles_a_square_top_four_a_cylinder_any() -> None:
-    from pickdemo.grasp import equivalent_hand_yaws
-    from pickdemo.shapes import Cylinder
+    from pickdemo.core.shapes import Cylinder
+    from pickdemo.grasping.top_down import equivalent_hand_yaws
 
     pose = _estimate(20.0)
     box = equivalent_hand_yaws(pose, TargetModel(Box((0.06, 0.03, 0.04)), (1.0, 0.0, 0.0)))
@@ -73,8 +73,8 @@ def test_hand_yaw_near_keeps_the_hand_angle() -> None:
 
 
 def test_a_grip_wider_than_a_known_object_is_no_hold_of_it_alone() -> None:
-    from pickdemo.actions import Grip, GripParams
-    from pickdemo.interfaces import Observation
+    from pickdemo.core.interfaces import Observation
+    from pickdemo.skills.actions import Grip, GripParams
 
     box = TargetModel(Box((0.05, 0.05, 0.05)), color=(1.0, 0.0, 0.0))
     plan = plan_grasp(_estimate(0.0), box, (0.3, 0.3))

@@ -7,13 +7,13 @@ import dataclasses
 
 import numpy as np
 
-from pickdemo import robot_model as rm
-from pickdemo.grasp import top_down
-from pickdemo.ik_goals import Goal, GoalParams, choose_goal, goal_candidates, line_trackable, straight_carry_ok
-from pickdemo.kinematics import panda_kinematics
-from pickdemo.motion import JointMotion, MotionError, OnlineMotion, top_down_pose
-from pickdemo.pick import MachineParams, _half_turn
-from pickdemo.result import peak_limit_ratios
+from pickdemo.core.result import peak_limit_ratios
+from pickdemo.grasping.top_down import top_down
+from pickdemo.motion.ik_goals import Goal, GoalParams, choose_goal, goal_candidates, line_trackable, straight_carry_ok
+from pickdemo.motion.online import JointMotion, MotionError, OnlineMotion, top_down_pose
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.skills.pick import MachineParams, _half_turn
 
 
 def test_a_pose_whose_hand_angle_is_out_of_reach_is_reached_turned_half_a_turn() -> None:
@@ -66,7 +66,7 @@ def test_a_joint_path_that_swings_the_hand_down_is_measured() -> None:
     """From home to a goal on the far branch, the straight joint-space path takes the hand far below
     both of its ends (it knocked over the target it was sent to; measured, pick_anywhere); a goal
     nearby takes it straight there."""
-    from pickdemo.ik_goals import path_dip
+    from pickdemo.motion.ik_goals import path_dip
 
     kin = panda_kinematics()
     far_branch = np.array([2.119, 0.923, -1.547, -2.669, 1.258, 2.148, -1.203])  # above (0.35, 0.15), 12 cm up

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from pickdemo import robot_model as rm
-from pickdemo.geometry import Pose
-from pickdemo.grasp import top_down
-from pickdemo.kinematics import panda_kinematics
+from pickdemo.core.geometry import Pose
+from pickdemo.grasping.top_down import top_down
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
 
 
 def test_home_tcp_matches_field_notes() -> None:
@@ -49,7 +49,7 @@ def test_unreachable_target_fails_with_reason() -> None:
 
 def test_tracking_a_setpoint_as_se3_is_the_same_solve_as_from_a_pose() -> None:
     """The control tick's fast path (an SE3 built straight from (x, y, z, yaw)) changes no number."""
-    from pickdemo.motion import top_down_pose, top_down_se3
+    from pickdemo.motion.online import top_down_pose, top_down_se3
 
     kin = panda_kinematics()
     rng = np.random.default_rng(2)
@@ -96,7 +96,7 @@ def test_the_posture_task_swings_the_elbow_without_moving_the_hand() -> None:
 
 def test_the_posture_task_keeps_off_the_joint_limits() -> None:
     """A joint inside the avoidance zone is pushed away from its limit, in the null space."""
-    from pickdemo.kinematics import POSTURE
+    from pickdemo.robot.kinematics import POSTURE
 
     kin = panda_kinematics()
     q = np.array(rm.HOME_Q, dtype=float)

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo import robot_model as rm
-from pickdemo.result import limit_exceedances, peak_limit_ratios
+from pickdemo.core.result import limit_exceedances, peak_limit_ratios
+from pickdemo.robot import panda as rm
 
 
 def _sine(amplitude_rad: float, omega: float) -> tuple[np.ndarray, np.ndarray]:

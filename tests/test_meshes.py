@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo.geometry import Pose
-from pickdemo.layout import sample_layout
-from pickdemo.meshes import expand, obj_vertices, pybullet_data_dir, read_urdf
-from pickdemo.schema import parse_scenario
-from pickdemo.shapes import Box, Mesh
-from pickdemo.streams import spawn_rngs
+from pickdemo.core.geometry import Pose
+from pickdemo.core.meshes import expand, obj_vertices, pybullet_data_dir, read_urdf
+from pickdemo.core.shapes import Box, Mesh
+from pickdemo.core.streams import spawn_rngs
+from pickdemo.scenario.layout import sample_layout
+from pickdemo.scenario.schema import parse_scenario
 
 
 def _scenario(*objects: dict) -> dict:
@@ -55,7 +55,7 @@ def test_a_urdf_s_frames_are_applied() -> None:
 
 def test_a_broken_file_is_left_out_of_a_glob_s_choice() -> None:
     """random_urdfs/168 has only NaN vertices: named alone it is an error, in a glob it is left out."""
-    from pickdemo.meshes import MeshFileError, usable
+    from pickdemo.core.meshes import MeshFileError, usable
 
     assert "pybullet_data:random_urdfs/168/168.urdf" in expand("pybullet_data:random_urdfs/16?/*.urdf", None)
     kept = usable("pybullet_data:random_urdfs/16?/*.urdf")
@@ -95,7 +95,7 @@ def test_a_glob_walks_a_sorted_set_and_a_seed_draws_the_same_file() -> None:
 def test_the_scene_builds_a_mesh_resting_where_the_layout_put_it(urdf: str, scale: float) -> None:
     """PyBullet's base frame is the frame of the vertices: the body starts at the layout's pose with its
     lowest point on the table, and settling moves it little (a stable pose, upright as the file stands)."""
-    from pickdemo.world import World
+    from pickdemo.runtime.world import World
 
     mesh = {"name": "m", "shape": "mesh", "urdf": urdf, "scale": scale, "position": [0.55, -0.2], "yaw_deg": 30.0}
     sc = parse_scenario(_scenario(mesh))

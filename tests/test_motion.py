@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo import robot_model as rm
-from pickdemo.kinematics import panda_kinematics
-from pickdemo.motion import CartesianLimits, OnlineMotion, pose_to_x4, top_down_pose
+from pickdemo.motion.online import CartesianLimits, OnlineMotion, pose_to_x4, top_down_pose
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
 
 DT = 1.0 / 120.0
 
@@ -80,8 +80,8 @@ def test_a_turn_of_the_hand_goes_the_way_round_the_joints_can_follow() -> None:
     """Which way round a Cartesian turn goes is chosen by IK (every joint's limits); where that way
     ends within the limits, the motion turns that way with the per-tick IK never losing the setpoint
     and every joint in range. 36 moves from home across the table, turns of up to 175 deg."""
-    from pickdemo.actions import Move
-    from pickdemo.ik_goals import turn_path
+    from pickdemo.motion.ik_goals import turn_path
+    from pickdemo.skills.actions import Move
 
     kin = panda_kinematics()
     lim = CartesianLimits(velocity=0.3, acceleration=1.5, jerk=15.0)
@@ -105,7 +105,7 @@ def test_a_turn_of_the_hand_goes_the_way_round_the_joints_can_follow() -> None:
 
 
 def test_a_half_turn_the_nearer_way_would_stop_joint_7_goes_the_other_way() -> None:
-    from pickdemo.ik_goals import way_round
+    from pickdemo.motion.ik_goals import way_round
 
     kin = panda_kinematics()
     sp = pose_to_x4(kin.forward(rm.HOME_Q))
@@ -119,7 +119,7 @@ def test_a_move_with_no_turn_never_goes_a_whole_revolution_round() -> None:
     """With a joint already near its limit, a straight move down with the hand's angle unchanged (up
     to the last bit) keeps the angle: the other way round is a whole revolution (seen: a lowering
     after an over-the-top carry turned the hand 2 pi and lost the setpoint)."""
-    from pickdemo.ik_goals import way_round
+    from pickdemo.motion.ik_goals import way_round
 
     kin = panda_kinematics()
     q = np.array(rm.HOME_Q, dtype=float)

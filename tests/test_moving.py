@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from test_tracker import _est
 
-from pickdemo.belief import Counters, GateParams, TargetBelief
+from pickdemo.core.shapes import Box
 from pickdemo.perception import TargetModel
-from pickdemo.pick import BELT_MOVING_SPEED_M_S, MachineParams
-from pickdemo.shapes import Box
+from pickdemo.skills.pick import BELT_MOVING_SPEED_M_S, MachineParams
+from pickdemo.tracking.belief import Counters, GateParams, TargetBelief
 
 BELT = MachineParams().on_a_belt()
 

@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pickdemo.actions import GRAVITY_M_S2, PayloadParams, Scale
-from pickdemo.interfaces import Observation
+from pickdemo.core.interfaces import Observation
+from pickdemo.skills.actions import GRAVITY_M_S2, PayloadParams, Scale
 from tests.episodes import at_least, episodes
 
 HEAVY_SEEDS = tuple(range(8))
@@ -52,8 +52,8 @@ def test_a_cube_seen_off_the_place_is_placed_again() -> None:
     """Gripped too gently to hold a 0.8 kg cube straight, it lands off; the camera sees it, the arm
     picks it up again (within max_attempts)."""
     from pickdemo import load_scenario, run_episode
-    from pickdemo.episode import EpisodeOptions
-    from pickdemo.pick import MachineParams
+    from pickdemo.runtime.episode import EpisodeOptions
+    from pickdemo.skills.pick import MachineParams
 
     sc = load_scenario("pick_heavy")
     weak = MachineParams(payload=PayloadParams(grip_n_per_kg=0.0))  # never grips harder than 20 N

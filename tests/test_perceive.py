@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pickdemo.geometry import Pose
-from pickdemo.perceive import perceive_seed
-from pickdemo.scenario import load_scenario
+from pickdemo.apps.perceive import perceive_seed
+from pickdemo.core.geometry import Pose
+from pickdemo.scenario.load import load_scenario
 
 pytestmark = pytest.mark.sim
 

@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from pickdemo.core.shapes import Box
 from pickdemo.perception import (
     MIXTURE_KERNEL,
     TargetModel,
@@ -19,7 +20,6 @@ from pickdemo.perception import (
     point_covariance,
     refine_circle,
 )
-from pickdemo.shapes import Box
 
 
 def test_mixture_weights() -> None:

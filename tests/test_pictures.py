@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pickdemo.cli import main
-from pickdemo.result import WALL_CLOCK_KEYS
+from pickdemo.apps.cli import main
+from pickdemo.core.result import WALL_CLOCK_KEYS
 
 pytestmark = pytest.mark.sim
 av = pytest.importorskip("av")
@@ -132,7 +132,7 @@ def test_a_browser_test_would_catch_a_console_error(tmp_path: Path) -> None:
 def test_debug_lines_change_nothing() -> None:
     """`--gui` draws the overlays as debug lines; drawing them (here in DIRECT mode) changes nothing."""
     from pickdemo import load_scenario, run_episode
-    from pickdemo.episode import EpisodeOptions
+    from pickdemo.runtime.episode import EpisodeOptions
 
     sc = load_scenario("pick_cube")
     plain = run_episode(sc, 3).to_dict()
@@ -144,9 +144,9 @@ def test_bench_plot_of_a_batch_where_every_episode_failed(tmp_path: Path) -> Non
     """No place errors at all (every episode failed): the plot is still drawn (it once raised on a
     log scale with nothing to scale)."""
     pytest.importorskip("matplotlib")
-    from pickdemo.bench import Job, failed_result, summarise
-    from pickdemo.report import write_bench_plots
-    from pickdemo.result import Stage
+    from pickdemo.apps.bench import Job, failed_result, summarise
+    from pickdemo.apps.report import write_bench_plots
+    from pickdemo.core.result import Stage
 
     results = [failed_result(Job("x.toml", "ghost", s), Stage.GRASP, "missed", 1.0) for s in range(3)]
     path = write_bench_plots(summarise(results), results, tmp_path / "bench.png")
@@ -166,7 +166,7 @@ def _kinked(dt: float = 0.125, n: int = 40, kink: int = 20) -> tuple[np.ndarray,
 
 
 def test_limit_exceedances_flag_exactly_the_samples_over_the_limit() -> None:
-    from pickdemo.result import joint_derivatives, limit_exceedances
+    from pickdemo.core.result import joint_derivatives, limit_exceedances
 
     t, q = _kinked()
     m = joint_derivatives(t, q)
@@ -193,7 +193,7 @@ def test_limit_exceedances_flag_exactly_the_samples_over_the_limit() -> None:
 
 
 def _trace(t: np.ndarray, q: np.ndarray):
-    from pickdemo.result import EpisodeTrace
+    from pickdemo.core.result import EpisodeTrace
 
     n = len(t)
     z4 = np.zeros((n, 4))
@@ -209,8 +209,8 @@ def _red_pixels(path: Path) -> int:
 def test_motion_plot_marks_the_ticks_over_a_limit(tmp_path: Path) -> None:
     """Red rings and a red note where the command goes beyond the datasheet; none where it stays inside."""
     pytest.importorskip("matplotlib")
-    from pickdemo import robot_model as rm
-    from pickdemo.report import phase_changes, write_motion_plot
+    from pickdemo.apps.report import phase_changes, write_motion_plot
+    from pickdemo.robot import panda as rm
 
     t = np.arange(400) / 120.0
     acc = np.where((t >= 1.0) & (t < 1.1), 1.2, 0.0) - np.where((t >= 1.1) & (t < 1.2), 1.2, 0.0)
@@ -227,8 +227,8 @@ def test_result_json_carries_the_limit_check_with_or_without_a_trace(run_dir: Pa
     """The limit check is in result.json whether or not a trace was kept for the plot (a bench
     episode keeps none), the same both ways, and equal to the plot's check of the recorded trace."""
     from pickdemo import load_scenario, run_episode
-    from pickdemo.episode import EpisodeOptions
-    from pickdemo.result import limit_exceedances
+    from pickdemo.core.result import limit_exceedances
+    from pickdemo.runtime.episode import EpisodeOptions
 
     with_trace = run_episode(load_scenario("pick_pushed"), 1, options=EpisodeOptions(record_trace=True))
     plain = run_episode(load_scenario("pick_pushed"), 1).to_dict()
@@ -243,8 +243,8 @@ def test_result_json_carries_the_limit_check_with_or_without_a_trace(run_dir: Pa
 
 
 def test_a_bench_failure_has_the_keys_of_a_result() -> None:
-    from pickdemo.bench import Job, failed_result
-    from pickdemo.result import EpisodeResult, Stage
+    from pickdemo.apps.bench import Job, failed_result
+    from pickdemo.core.result import EpisodeResult, Stage
 
     made = failed_result(Job("x.toml", "ghost", 0), Stage.ERROR, "boom", 1.0)
     real = EpisodeResult("ghost", 0, False, None, None, None, None, None, 0.0, 1.0).to_dict()
@@ -253,7 +253,7 @@ def test_a_bench_failure_has_the_keys_of_a_result() -> None:
 
 # --------------------------------------------------------------------------- the video (issue 17, 10)
 def test_the_camera_view_follows_the_target_then_the_hand_then_the_place() -> None:
-    from pickdemo.video import panel_centre
+    from pickdemo.runtime.video import panel_centre
 
     tracked, hand, place = np.array([0.5, 0.0, 0.025]), np.array([0.5, 0.1, 0.2]), np.array([0.45, 0.3, 0.025])
     for state in ("look", "approach", "descend", "close", "back_off"):
@@ -269,7 +269,7 @@ def test_video_frames_have_a_legend_and_no_stale_features(run_dir: Path) -> None
     """Below the caption, a legend in the overlays' colours; once the target is lifted (no frames
     are taken while carrying) no feature ellipses are drawn, while the truth's white axes still are;
     the last frame shows how it ended."""
-    from pickdemo.video import CAPTION_BAR_PX, ELLIPSE_COLOUR, GRASP_COLOUR, LEGEND_BAR_PX, PATH_COLOUR
+    from pickdemo.runtime.video import CAPTION_BAR_PX, ELLIPSE_COLOUR, GRASP_COLOUR, LEGEND_BAR_PX, PATH_COLOUR
 
     result = json.loads((run_dir / "result.json").read_text())
     with av.open(str(run_dir / "episode.mp4")) as container:
@@ -298,11 +298,11 @@ def test_third_person_view_holds_the_whole_arm() -> None:
     8 cm around it projects inside the third-person view."""
     import itertools
 
-    from pickdemo import robot_model as rm
-    from pickdemo.camera import project
-    from pickdemo.episode import THIRD_PERSON_K, THIRD_PERSON_POSE
-    from pickdemo.kinematics import panda_kinematics
-    from pickdemo.motion import top_down_pose
+    from pickdemo.core.camera import project
+    from pickdemo.motion.online import top_down_pose
+    from pickdemo.robot import panda as rm
+    from pickdemo.robot.kinematics import panda_kinematics
+    from pickdemo.runtime.episode import THIRD_PERSON_K, THIRD_PERSON_POSE
 
     pin = pytest.importorskip("pinocchio")
     kin = panda_kinematics()
@@ -341,8 +341,8 @@ def test_run_report_has_the_attempts_reasons_and_the_limit_check(run_dir: Path) 
 
 
 def test_run_report_reason_of_a_failed_attempt(tmp_path: Path) -> None:
-    from pickdemo.report import write_run_report
-    from pickdemo.result import AttemptRecord, EpisodeResult, Failure, PhaseRecord, Stage
+    from pickdemo.apps.report import write_run_report
+    from pickdemo.core.result import AttemptRecord, EpisodeResult, Failure, PhaseRecord, Stage
 
     attempts = (AttemptRecord(1, "missed", "fingers closed on nothing", 0.1, 3.0, 20.0, None, 1.0),
                 AttemptRecord(2, "placed", "", 3.0, 8.0, 20.0, None, 1.0))  # fmt: skip
@@ -373,9 +373,9 @@ def test_bench_table_and_plot_of_several_scenarios(tmp_path: Path) -> None:
     """A table row per scenario with its successes, interval and failures by stage; the plot has no
     failures panel when nothing failed, and plain tick labels on its log axes."""
     pytest.importorskip("matplotlib")
-    from pickdemo.bench import Job, failed_result, summarise
-    from pickdemo.report import bench_table, plain_number, write_bench_plots
-    from pickdemo.result import Stage
+    from pickdemo.apps.bench import Job, failed_result, summarise
+    from pickdemo.apps.report import bench_table, plain_number, write_bench_plots
+    from pickdemo.core.result import Stage
 
     ok = {"success": True, "failure": None, "perception": {"position_error_mm": 0.5, "yaw_error_deg": 0.1},
           "place_error_mm": 1.5, "tracking_error_mm": 2.0, "wall_time_s": 1.0, "sim_time_s": 10.0,

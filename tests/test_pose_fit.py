@@ -11,12 +11,12 @@ import re
 import numpy as np
 import pytest
 
-from pickdemo.baselines import closest_on_model, estimate_centroid, estimate_icp, icp_point_to_plane
-from pickdemo.camera import Intrinsics, RGBDFrame, add_kinect_noise, look_at_pose
-from pickdemo.evaluation import pose_errors
-from pickdemo.geometry import Pose
+from pickdemo.core.camera import Intrinsics, RGBDFrame, add_kinect_noise, look_at_pose
+from pickdemo.core.geometry import Pose
+from pickdemo.core.shapes import Box, Cylinder
 from pickdemo.perception import FitQuality, PerceptionError, PerceptionParams, TargetModel, estimate_pose
-from pickdemo.shapes import Box, Cylinder
+from pickdemo.perception.baselines import closest_on_model, estimate_centroid, estimate_icp, icp_point_to_plane
+from pickdemo.runtime.evaluation import pose_errors
 
 LIGHT = np.array([0.4, -0.3, 1.0]) / np.linalg.norm([0.4, -0.3, 1.0])
 

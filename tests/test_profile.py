@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from pickdemo.kinematics import panda_kinematics
-from pickdemo.profile import STAGES, Profiler, profile
-from pickdemo.scenario import load_scenario
+from pickdemo.apps.profile import STAGES, Profiler, profile
+from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.scenario.load import load_scenario
 
 
 def test_a_stage_counts_its_calls_without_the_wrapped_calls_they_make() -> None:

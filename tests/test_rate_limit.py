@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo import robot_model as rm
-from pickdemo.rate_limit import LIMITER_SHARE, JointRates, RateLimiter, Reflex, ReflexError
-from pickdemo.result import peak_limit_ratios
+from pickdemo.core.result import peak_limit_ratios
+from pickdemo.robot import panda as rm
+from pickdemo.robot.rate_limit import LIMITER_SHARE, JointRates, RateLimiter, Reflex, ReflexError
 from tests.episodes import episodes
 
 DT = 1.0 / 120.0

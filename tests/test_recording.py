@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from pickdemo import load_scenario, run_episode
-from pickdemo.cli import main
-from pickdemo.result import WALL_CLOCK_KEYS
+from pickdemo.apps.cli import main
+from pickdemo.core.result import WALL_CLOCK_KEYS
 
 pytestmark = pytest.mark.sim
 
@@ -44,7 +44,7 @@ def test_run_writes_a_recording_that_rerun_reads(tmp_path: Path, capsys: pytest.
     pytest.importorskip("rerun")
     from rerun.chunk import RrdReader
 
-    from pickdemo.recording import ENTITIES
+    from pickdemo.runtime.recording import ENTITIES
 
     out = tmp_path / "out"
     rrd = out / "episode.rrd"

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pickdemo.scenario import ScenarioError, list_scenarios, load_scenario
+from pickdemo.scenario.load import ScenarioError, list_scenarios, load_scenario
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -129,7 +129,7 @@ def test_camera_ranges_come_together(tmp_path: Path) -> None:
 def test_layout_samples_sizes_tilts_and_camera() -> None:
     import numpy as np
 
-    from pickdemo.layout import camera_position, sample_layout
+    from pickdemo.scenario.layout import camera_position, sample_layout
 
     sc = load_scenario("perceive_boxes")
     rng = np.random.default_rng(0)
@@ -146,8 +146,8 @@ def test_layout_samples_sizes_tilts_and_camera() -> None:
 
 
 def test_a_place_region_is_drawn_per_seed_clear_of_the_objects() -> None:
-    from pickdemo.layout import sample_layout, sample_place
-    from pickdemo.streams import spawn_rngs
+    from pickdemo.core.streams import spawn_rngs
+    from pickdemo.scenario.layout import sample_layout, sample_place
 
     sc = load_scenario("pick_anywhere")
     (x0, x1), (y0, y1) = sc.place.position_range

@@ -12,8 +12,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from pickdemo.checks import check_scenario
-from pickdemo.scenario import ScenarioError, load_scenario, parse_scenario, resolve_scenario_path
+from pickdemo.scenario.checks import check_scenario
+from pickdemo.scenario.load import ScenarioError, load_scenario, parse_scenario, resolve_scenario_path
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -8,9 +8,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pickdemo import robot_model as rm
-from pickdemo.geometry import OrientedBox, Pose
-from pickdemo.robot_geometry import link_bounds, robot_body, stl_vertices
+from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.robot import panda as rm
+from pickdemo.robot.self_geometry import link_bounds, robot_body, stl_vertices
 
 
 def test_a_binary_stl_is_read() -> None:
@@ -33,7 +33,7 @@ def test_every_link_of_the_arm_and_hand_is_bounded() -> None:
 def test_the_boxes_follow_the_joints() -> None:
     """The TCP lies between the fingers' boxes and below the hand's, wherever the arm is; a point a
     few centimetres beside the hand is in none."""
-    from pickdemo.kinematics import panda_kinematics
+    from pickdemo.robot.kinematics import panda_kinematics
 
     kin = panda_kinematics()
     rng = np.random.default_rng(0)
@@ -62,8 +62,8 @@ def test_the_arm_in_view_is_filtered_out_and_the_rest_is_not() -> None:
     the robot's (by the simulator's labels: a test may use them), and almost all of the robot's
     pixels above the table are marked."""
     from pickdemo.perception.segmentation import robot_pixels, world_heights
-    from pickdemo.scenario import load_scenario
-    from pickdemo.world import World
+    from pickdemo.runtime.world import World
+    from pickdemo.scenario.load import load_scenario
 
     sc = load_scenario("pick_cube")
     q = rm.HOME_Q + np.array([0.3, 0.5, 0.0, 0.4, 0.0, -0.2, 0.0])  # the hand down into the view

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo.camera import (
+from pickdemo.core.camera import (
     MIN_VALID_DEPTH_M,
     calibration_error,
     depth_edges,
@@ -13,7 +13,7 @@ from pickdemo.camera import (
     holes_as_nan,
     sensor_faults,
 )
-from pickdemo.scenario import CameraSpec
+from pickdemo.scenario.load import CameraSpec
 
 
 def test_d4xx_noise_follows_intels_rms_model() -> None:
@@ -78,13 +78,13 @@ def test_preset_fills_what_the_file_leaves_out() -> None:
 def test_perception_through_holes_written_as_zero() -> None:
     """20 % of the object's edge pixels as 0.0 (what drivers write) and 2 % at random: never a point
     at the camera; the estimate stays within a millimetre."""
-    from pickdemo.layout import sample_layout
+    from pickdemo.core.streams import spawn_rngs
     from pickdemo.perception import estimate_pose
-    from pickdemo.scenario import load_scenario
+    from pickdemo.scenario.layout import sample_layout
+    from pickdemo.scenario.load import load_scenario
+    from pickdemo.scenario.task import target_model
     from pickdemo.sim.render import Camera
     from pickdemo.sim.scene import Scene
-    from pickdemo.streams import spawn_rngs
-    from pickdemo.task import target_model
 
     base = load_scenario("pick_cube")
     cam = base.camera.model_copy(update={"depth_holes": 0.02, "depth_edge_dropout": 0.5, "depth_invalid": 0.0})
@@ -108,8 +108,8 @@ def test_perception_through_holes_written_as_zero() -> None:
 def test_covariance_stays_honest_under_a_real_sensors_faults(name: str) -> None:
     """Position NEES in [1.5, 6] (3 is honest) with the D435 preset, with and without miscalibration;
     the outline term was calibrated on seeds 100-199, this checks seeds 0-39."""
-    from pickdemo.perceive import perceive_seed
-    from pickdemo.scenario import load_scenario
+    from pickdemo.apps.perceive import perceive_seed
+    from pickdemo.scenario.load import load_scenario
 
     sc = load_scenario(name)
     nees = [s["nees"] for seed in range(40) for s in perceive_seed(sc, seed, ["paper"]) if s["nees"] is not None]

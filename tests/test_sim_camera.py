@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo.camera import backproject, pixel_rays_cam, project
-from pickdemo.layout import sample_layout
-from pickdemo.scenario import parse_scenario
+from pickdemo.core.camera import backproject, pixel_rays_cam, project
+from pickdemo.scenario.layout import sample_layout
+from pickdemo.scenario.load import parse_scenario
 
 pytestmark = pytest.mark.sim
 

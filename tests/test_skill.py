@@ -14,18 +14,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo import robot_model as rm
-from pickdemo.belief import Verdict
-from pickdemo.camera import Intrinsics, hand_camera_pose, look_at_pose
-from pickdemo.geometry import Pose
-from pickdemo.interfaces import Command, Observation
-from pickdemo.kinematics import panda_kinematics
-from pickdemo.layout import sample_layout
+from pickdemo.core.camera import Intrinsics, hand_camera_pose, look_at_pose
+from pickdemo.core.geometry import Pose
+from pickdemo.core.interfaces import Command, Observation
+from pickdemo.core.result import Stage
 from pickdemo.perception import PerceptionError, PoseEstimate
-from pickdemo.pick import WRIST_CAMERA, CameraModel, PickMachine, State, WristCameraModel
-from pickdemo.result import Stage
-from pickdemo.scenario import load_scenario
-from pickdemo.task import target_model
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.scenario.layout import sample_layout
+from pickdemo.scenario.load import load_scenario
+from pickdemo.scenario.task import target_model
+from pickdemo.skills.pick import WRIST_CAMERA, CameraModel, PickMachine, State, WristCameraModel
+from pickdemo.tracking.belief import Verdict
 
 DT = 1.0 / 120.0
 FRAME_TICKS = 12  # 10 Hz
@@ -232,8 +232,10 @@ def test_the_skill_and_its_parts_import_no_simulator() -> None:
 
     code = (
         "import sys\n"
-        "import pickdemo.pick, pickdemo.belief, pickdemo.actions, pickdemo.grasp_selection, pickdemo.ik_goals\n"
-        "import pickdemo.tracker, pickdemo.grasp, pickdemo.motion, pickdemo.kinematics, pickdemo.metrics\n"
+        "import pickdemo.skills.pick, pickdemo.tracking.belief, pickdemo.skills.actions\n"
+        "import pickdemo.grasping.selection, pickdemo.motion.ik_goals, pickdemo.tracking.tracker\n"
+        "import pickdemo.grasping.top_down, pickdemo.motion.online, pickdemo.robot.kinematics\n"
+        "import pickdemo.runtime.metrics\n"
         "assert 'pybullet' not in sys.modules, 'pybullet imported'\n"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
@@ -243,8 +245,8 @@ def test_the_skill_and_its_parts_import_no_simulator() -> None:
 def test_a_pick_with_joint_space_transfers_keeps_the_franka_within_its_limits() -> None:
     import dataclasses as dc
 
-    from pickdemo.pick import MachineParams
-    from pickdemo.result import peak_limit_ratios
+    from pickdemo.core.result import peak_limit_ratios
+    from pickdemo.skills.pick import MachineParams
 
     cell = Cell(xy=(0.36, -0.25), yaw_deg=75.0)
     m = cell.machine(params=dc.replace(MachineParams(), joint_transfers=True))

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo.geometry import Pose
+from pickdemo.core.geometry import Pose
 from pickdemo.perception import PoseEstimate
-from pickdemo.tracker import TargetTracker, TrackerParams
+from pickdemo.tracking.tracker import TargetTracker, TrackerParams
 
 
 def _est(x: float, y: float, yaw_deg: float = 0.0, sd_m: float = 1e-4, z: float = 0.025) -> PoseEstimate:
@@ -104,7 +104,7 @@ def test_an_estimate_without_orientation_updates_the_position_only() -> None:
 
 
 def test_tracker_learns_a_belts_speed_and_follows_a_speed_change() -> None:
-    from pickdemo.pick import MachineParams
+    from pickdemo.skills.pick import MachineParams
 
     tracker = TargetTracker(np.pi / 2.0, MachineParams().on_a_belt().tracker)
     rng = np.random.default_rng(0)

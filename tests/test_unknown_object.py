@@ -8,14 +8,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pickdemo.camera import Intrinsics, RGBDFrame, look_at_pose
-from pickdemo.geometry import Pose
-from pickdemo.grasp import GraspParams, GraspPlanningError
-from pickdemo.grasp_cloud import CloudGrasps, sample_grasps
-from pickdemo.grasp_selection import GraspRequest
+from pickdemo.core.camera import Intrinsics, RGBDFrame, look_at_pose
+from pickdemo.core.geometry import Pose
+from pickdemo.core.shapes import Unknown
+from pickdemo.grasping.cloud import CloudGrasps, sample_grasps
+from pickdemo.grasping.selection import GraspRequest
+from pickdemo.grasping.top_down import GraspParams, GraspPlanningError
 from pickdemo.perception import ObjectCloud, PerceptionError, PerceptionParams, TargetModel
 from pickdemo.perception.unknown import estimate_unknown, hidden_in_part, principal_yaw, segment_objects
-from pickdemo.shapes import Unknown
 
 K = Intrinsics.from_fov(320, 240, 57.0, 43.0)
 T_CAM = look_at_pose(np.array([1.0, 0.0, 0.7]), np.array([0.5, 0.0, 0.0]))
@@ -228,8 +228,8 @@ def test_another_perception_method_needs_a_model() -> None:
 def test_a_box_of_black_is_not_taken_for_a_larger_white_object() -> None:
     """Grey, black and white point the same way in RGB: the segmentation of a box or cylinder by its
     colour leaves out a blob far brighter (or darker) than the target's colour."""
+    from pickdemo.core.shapes import Box
     from pickdemo.perception import segment_target, world_heights
-    from pickdemo.shapes import Box
 
     frame = render([Block((0.45, -0.1), (0.04, 0.04, 0.04), rgb=(22, 22, 22)),
                     Block((0.55, 0.1), (0.07, 0.07, 0.06), rgb=(250, 232, 232))])  # fmt: skip

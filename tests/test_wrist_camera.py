@@ -8,16 +8,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pickdemo import robot_model as rm
-from pickdemo.episode import run_episode
-from pickdemo.geometry import Pose
-from pickdemo.kinematics import panda_kinematics
+from pickdemo.core.geometry import Pose
+from pickdemo.core.result import Stage
 from pickdemo.perception import PerceptionParams, estimate_pose
-from pickdemo.result import Stage
-from pickdemo.robot_geometry import robot_body
-from pickdemo.scenario import load_scenario
-from pickdemo.task import target_model
-from pickdemo.world import World
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot.self_geometry import robot_body
+from pickdemo.runtime.episode import run_episode
+from pickdemo.runtime.world import World
+from pickdemo.scenario.load import load_scenario
+from pickdemo.scenario.task import target_model
 
 
 def _hand_over(world: World, position: np.ndarray, height_m: float) -> np.ndarray:

@@ -20,8 +20,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from pickdemo.camera import RGBDFrame
-from pickdemo.geometry import Pose
+from pickdemo.core.camera import RGBDFrame
+from pickdemo.core.geometry import Pose
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel, world_points
 
 COS_MIN = 0.97  # a pixel is the target's when its colour points this close to the model's (cosine in RGB)

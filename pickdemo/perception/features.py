@@ -9,7 +9,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from pickdemo.camera import RGBDFrame
+from pickdemo.core.camera import RGBDFrame
 from pickdemo.perception.equations import MIXTURE_KERNEL, SIGMA_COLOR, point_covariance
 from pickdemo.perception.model import FeaturePoint, PerceptionParams
 

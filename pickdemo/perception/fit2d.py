@@ -9,9 +9,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from pickdemo.camera import RGBDFrame, pixel_rays_cam
+from pickdemo.core.camera import RGBDFrame, pixel_rays_cam
+from pickdemo.core.shapes import Box, Cylinder
 from pickdemo.perception.model import PerceptionError, TargetModel
-from pickdemo.shapes import Box, Cylinder
 
 
 def fit_plane_weighted(points: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:

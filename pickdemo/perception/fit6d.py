@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from pickdemo.camera import RGBDFrame, pixel_rays_cam
-from pickdemo.geometry import Pose, wrap_angle
+from pickdemo.core.camera import RGBDFrame, pixel_rays_cam
+from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.perception.equations import SIGMA_UV_PX
 from pickdemo.perception.model import FitQuality, TargetModel
 

@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.camera import Intrinsics
-from pickdemo.geometry import Pose
-from pickdemo.shapes import Shape
+from pickdemo.core.camera import Intrinsics
+from pickdemo.core.geometry import Pose
+from pickdemo.core.shapes import Shape
 
 
 class PerceptionError(RuntimeError):
@@ -60,7 +60,7 @@ class PerceptionParams:
 @dataclass(frozen=True)
 class TargetModel:
     """What the task says about the target: its shape with its size (m), and its nominal colour (0-1;
-    None: not said, for an object nobody described, whose shape is :class:`~pickdemo.shapes.Unknown`)."""
+    None: not said, for an object nobody described, whose shape is :class:`~pickdemo.core.shapes.Unknown`)."""
 
     geometry: Shape
     color: tuple[float, float, float] | None

@@ -11,8 +11,9 @@ import dataclasses
 import cv2
 import numpy as np
 
-from pickdemo.camera import RGBDFrame
-from pickdemo.geometry import Pose
+from pickdemo.core.camera import RGBDFrame
+from pickdemo.core.geometry import Pose
+from pickdemo.core.shapes import Box, Cylinder, Unknown
 from pickdemo.perception.equations import mixture_moments
 from pickdemo.perception.features import measure_features, shi_tomasi_features
 from pickdemo.perception.fit2d import (
@@ -34,7 +35,6 @@ from pickdemo.perception.segmentation import (
     unoccluded,
     world_heights,
 )
-from pickdemo.shapes import Box, Cylinder, Unknown
 
 
 def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None) -> PoseEstimate:
@@ -42,7 +42,8 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
 
     Raises :class:`PerceptionError` with the reason when the target cannot be measured, a degenerate
     fit included (too little of it visible: a singular system); nothing else escapes. An object
-    nobody described (:class:`~pickdemo.shapes.Unknown`) goes to :func:`~pickdemo.perception.unknown.estimate_unknown`.
+    nobody described (:class:`~pickdemo.core.shapes.Unknown`) goes to
+    :func:`~pickdemo.perception.unknown.estimate_unknown`.
     """
     if isinstance(model.geometry, Unknown):
         from pickdemo.perception.unknown import estimate_unknown

@@ -11,7 +11,7 @@ import dataclasses
 import cv2
 import numpy as np
 
-from pickdemo.camera import (
+from pickdemo.core.camera import (
     Intrinsics,
     RGBDFrame,
     backproject,
@@ -19,7 +19,7 @@ from pickdemo.camera import (
     holes_as_nan,
     strided_intrinsics,
 )
-from pickdemo.geometry import CORNER_IS_HI
+from pickdemo.core.geometry import CORNER_IS_HI
 from pickdemo.perception.model import PerceptionError, PerceptionParams, TargetModel
 
 #: A blob of the target's colour is the target only if its brightness (the norm of its median RGB) is
@@ -58,7 +58,7 @@ def color_match(rgb: np.ndarray, color: tuple[float, float, float], cos_min: flo
 
 def robot_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
     """Which of the ``candidates`` (an (H, W) mask) are the robot's own body: their points lie in one
-    of the frame's :attr:`~pickdemo.camera.RGBDFrame.robot_boxes` (the links where the joint states
+    of the frame's :attr:`~pickdemo.core.camera.RGBDFrame.robot_boxes` (the links where the joint states
     put them). A box wholly in front of the camera is tested only on the candidates within its
     image's bounding box (a point in the box projects inside the hull of its corners'
     projections): none if that misses the frame."""

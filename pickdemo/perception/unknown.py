@@ -12,7 +12,7 @@ Pure: arrays in, dataclasses out; no simulator. Steps:
 2. Which cluster: a colour the task names is a cue (the cluster whose median colour is nearest
    it), not a requirement; else, on a region the robot asked for around its belief, the cluster
    nearest that region's centre; on the whole image, the one whose size seen is nearest a size the
-   task names (:attr:`~pickdemo.shapes.Unknown.size_cue_m`), else the largest.
+   task names (:attr:`~pickdemo.core.shapes.Unknown.size_cue_m`), else the largest.
 3. The paper's method on it: Shi-Tomasi features on the cluster, each with the 3x3 mixture's depth
    and colour (eqs. 9-12), back-projected (eqs. 5-7) with eq. (14)'s covariance. Features whose
    window spans a depth step (the object's silhouette against the table behind it) are left out:
@@ -33,7 +33,7 @@ Pure: arrays in, dataclasses out; no simulator. Steps:
    does not act on such a view).
 6. Its points: every cluster pixel back-projected, thinned to a few thousand, with the other
    clusters' points near it as obstacles (:class:`~pickdemo.perception.model.ObjectCloud`): the grasp
-   is planned from them (:mod:`pickdemo.grasp_cloud`).
+   is planned from them (:mod:`pickdemo.grasping.cloud`).
 """
 
 from __future__ import annotations
@@ -43,13 +43,13 @@ import dataclasses
 import cv2
 import numpy as np
 
-from pickdemo.camera import RGBDFrame, holes_as_nan, strided_intrinsics
-from pickdemo.geometry import Pose
+from pickdemo.core.camera import RGBDFrame, holes_as_nan, strided_intrinsics
+from pickdemo.core.geometry import Pose
+from pickdemo.core.shapes import Unknown
 from pickdemo.perception.equations import MIXTURE_KERNEL, mixture_moments, point_covariance
 from pickdemo.perception.features import measure_features, shi_tomasi_features
 from pickdemo.perception.model import ObjectCloud, PerceptionError, PerceptionParams, PoseEstimate, TargetModel
 from pickdemo.perception.segmentation import crop_frame, nearest_in_colour, robot_pixels, world_points
-from pickdemo.shapes import Unknown
 
 #: The noise of the 3x3 mixture's mean (eq. 9) against one pixel's: sqrt(sum of the squared weights).
 MIXTURE_NOISE_FRACTION = float(np.sqrt(np.sum(MIXTURE_KERNEL**2)))

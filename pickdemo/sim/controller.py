@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pybullet as p
 
-from pickdemo import robot_model as rm
-from pickdemo.interfaces import Command, Observation
-from pickdemo.rate_limit import Reflex
+from pickdemo.core.interfaces import Command, Observation
+from pickdemo.robot import panda as rm
+from pickdemo.robot.rate_limit import Reflex
 from pickdemo.sim.scene import Scene
 
 ARM_EFFORT_NM = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
@@ -30,8 +30,8 @@ class RobotInterface:
     """The Panda's encoders, finger contacts, wrist force and motors inside a :class:`Scene`.
 
     Like the Franka's controller, it checks each arm command against the datasheet before it sends
-    it (:class:`~pickdemo.rate_limit.Reflex`, one check per control tick of ``dt_s``): a command beyond
-    raises :class:`~pickdemo.rate_limit.ReflexError` and is not sent.
+    it (:class:`~pickdemo.robot.rate_limit.Reflex`, one check per control tick of ``dt_s``): a command beyond
+    raises :class:`~pickdemo.robot.rate_limit.ReflexError` and is not sent.
     """
 
     def __init__(self, scene: Scene, dt_s: float) -> None:

@@ -10,7 +10,7 @@ was. The slab does not collide with the table it lies on.
 
 The belt's clock starts with :meth:`Belt.start` (the robot's first control tick); at that moment
 everything resting on it is given the belt's velocity, as if it had been riding for a while. Speed
-changes ramp (:meth:`~pickdemo.scenario.ConveyorSpec.speed_at`). Stepped by the scene before each physics step; all
+changes ramp (:meth:`~pickdemo.scenario.load.ConveyorSpec.speed_at`). Stepped by the scene before each physics step; all
 of it is a function of the simulated step count, so an episode is the same in any process.
 """
 
@@ -20,7 +20,7 @@ import numpy as np
 import pybullet as p
 from pybullet_utils.bullet_client import BulletClient
 
-from pickdemo.scenario import BELT_REWIND_M, ConveyorSpec
+from pickdemo.scenario.load import BELT_REWIND_M, ConveyorSpec
 
 #: How far the slab travels before it is slid back (m); the geometry is :meth:`ConveyorSpec.slab`'s.
 REWIND_M = BELT_REWIND_M

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pickdemo.geometry import Pose
+from pickdemo.core.geometry import Pose
+from pickdemo.runtime.video import Overlay
 from pickdemo.sim.scene import Scene
-from pickdemo.video import Overlay
 
 AXIS_M = 0.08  # longer than the video's: the window is seen from farther away
 
@@ -18,7 +18,7 @@ _RGB = ((0.9, 0.15, 0.15), (0.15, 0.8, 0.15), (0.25, 0.35, 0.95))
 
 
 class DebugDraw:
-    """Draws an :class:`~pickdemo.video.Overlay` into the scene's debug visualiser."""
+    """Draws an :class:`~pickdemo.runtime.video.Overlay` into the scene's debug visualiser."""
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pickdemo.geometry import Pose
-from pickdemo.scenario import DisturbanceSpec
+from pickdemo.core.geometry import Pose
+from pickdemo.scenario.load import DisturbanceSpec
 from pickdemo.sim.scene import Scene
 
 

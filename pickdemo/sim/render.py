@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pybullet as p
 
-from pickdemo.camera import (
+from pickdemo.core.camera import (
     Intrinsics,
     RGBDFrame,
     add_kinect_noise,
@@ -27,8 +27,8 @@ from pickdemo.camera import (
     rendered_intrinsics,
     sensor_faults,
 )
-from pickdemo.geometry import Pose
-from pickdemo.scenario import CameraSpec, WristCameraSpec
+from pickdemo.core.geometry import Pose
+from pickdemo.scenario.load import CameraSpec, WristCameraSpec
 from pickdemo.sim.scene import Scene
 
 LIGHT_DIRECTION = (0.4, -0.3, 1.0)  # world frame; mostly from above, so faces shade differently

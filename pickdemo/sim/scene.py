@@ -14,12 +14,12 @@ import numpy as np
 import pybullet as p
 from pybullet_utils.bullet_client import BulletClient
 
-from pickdemo import robot_model as rm
-from pickdemo.geometry import Pose
-from pickdemo.layout import Placement, Tray
-from pickdemo.meshes import resolve
-from pickdemo.scenario import ObjectSpec, Scenario
-from pickdemo.shapes import Box, Cylinder, Mesh
+from pickdemo.core.geometry import Pose
+from pickdemo.core.meshes import resolve
+from pickdemo.core.shapes import Box, Cylinder, Mesh
+from pickdemo.robot import panda as rm
+from pickdemo.scenario.layout import Placement, Tray
+from pickdemo.scenario.load import ObjectSpec, Scenario
 from pickdemo.sim import quiet_c_stdout
 
 #: The scene's bodies that are not objects on the table.

@@ -1,0 +1,617 @@
+"""Command line: ``python -m pickdemo COMMAND``.
+
+- ``run SCENARIO [--seed N] [--out DIR [--video]] [--rerun FILE.rrd] [--gui] [--quiet] [--open-loop]
+  [--perception METHOD]``: one episode; ``--out DIR`` writes ``result.json``, ``motion.png`` and
+  ``report.html`` there (and ``episode.mp4`` with ``--video``); ``--rerun`` a rerun recording
+  (``rerun FILE.rrd`` opens it).
+- ``bench [SCENARIO ...] [--seeds 0-19] [--min-success 0.95] [--out DIR [--resume]] [--junit FILE]``:
+  many episodes in parallel, gated on the success rate; ``DIR`` gets ``episodes.jsonl``,
+  ``summary.json``, ``bench.png`` and ``report.html``.
+- ``perceive SCENARIO [--seeds ...] [--out DIR]``: perception only; ``DIR`` gets
+  ``perception.json``, ``perception.png`` and ``report.html``.
+- ``profile SCENARIO [--seeds 0-2] [--json]``: where the loop's wall time goes, stage by stage, beside the
+  bare physics of the same cell measured in the same run.
+- ``validate SCENARIO ...``, ``list [--names]``.
+
+Exit codes: 0 the episode (or every scenario of a bench) succeeded, 1 it failed, 2 bad scenario or
+bad arguments (one line on stderr, no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from pickdemo.apps.bench import DEFAULT_MIN_SUCCESS
+from pickdemo.core.result import EpisodeResult, PhaseRecord
+from pickdemo.scenario.load import (
+    ObjectSpec,
+    Scenario,
+    ScenarioError,
+    list_scenarios,
+    load_scenario,
+    resolve_scenario_path,
+    suite_scenarios,
+)
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+MAX_SEED = 2**63 - 1
+MAX_WORKERS = 256
+MAX_GUARD_S = 86400.0
+PERCEPTION_HELP = (
+    "perception in the loop: paper (default), icp, centroid, pixel, or module:function for your own "
+    "estimator (frame, target model) -> PoseEstimate"
+)
+
+
+def _check_method(name: str, flag: str = "--perception") -> None:
+    from pickdemo.perception.estimators import EstimatorError, resolve_estimator
+
+    try:
+        resolve_estimator(name)
+    except EstimatorError as exc:
+        raise UsageError(f"{flag}: {exc}") from None
+
+
+class UsageError(Exception):
+    """Bad command-line input; the message is one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit 2, instead of argparse's usage dump
+        raise UsageError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="pickdemo", description="A simulated Franka Panda picks an object it has only seen.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    run = sub.add_parser("run", help="run one episode of a scenario")
+    run.add_argument("scenario", help="a scenario name (see `pickdemo list`) or a path to a .toml file")
+    run.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
+    run.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="directory to write result.json, motion.png and report.html into (and episode.mp4 with --video)",
+    )
+    run.add_argument("--gui", action="store_true", help="open the PyBullet window (needs a display)")
+    run.add_argument("--quiet", action="store_true", help="print only the summary line")
+    run.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
+    run.add_argument("--perception", default="paper", metavar="METHOD", help=PERCEPTION_HELP)
+    run.add_argument(
+        "--video",
+        action="store_true",
+        help="with --out: write DIR/episode.mp4 (needs pip install -c .ci/constraints.txt '.[video]' in the checkout)",
+    )
+    run.add_argument(
+        "--rerun",
+        type=Path,
+        metavar="FILE.rrd",
+        help="write a rerun recording of the episode (open it with `rerun FILE.rrd`; needs the rerun extra: "
+        "pip install -c .ci/constraints.txt '.[rerun]')",
+    )
+    bench = sub.add_parser(
+        "bench",
+        help="run many seeded episodes in parallel and gate on the success rate",
+        description="Runs every scenario x seed as an episode in parallel workers, streams each result to "
+        "DIR/episodes.jsonl, prints a summary and writes it to DIR/summary.json, DIR/bench.png and DIR/report.html "
+        f"(and JUnit XML with --junit). Exit 1 when a scenario's success rate is below --min-success (default "
+        f"{DEFAULT_MIN_SUCCESS:g}; --min-success 0 turns the gate off).",
+    )
+    bench.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="names or paths (default: the suite)")
+    bench.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-199 or 0-9,20 (default 0-19)")
+    bench.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)")
+    bench.add_argument(
+        "--min-success",
+        type=float,
+        default=DEFAULT_MIN_SUCCESS,
+        metavar="RATE",
+        help=f"exit 1 if a scenario's success rate is below RATE (default {DEFAULT_MIN_SUCCESS:g}; 0: no gate)",
+    )
+    bench.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="directory for episodes.jsonl, summary.json, bench.png and report.html",
+    )
+    bench.add_argument("--junit", type=Path, help="write JUnit XML (one test case per episode) to this file")
+    bench.add_argument(
+        "--resume",
+        action="store_true",
+        help="skip the episodes already in DIR/episodes.jsonl (it may hold only episodes this run asks for)",
+    )
+    bench.add_argument("--executor", choices=("local", "ray"), default="local", help="worker processes or Ray tasks")
+    bench.add_argument("--address", help="Ray cluster address (default: RAY_ADDRESS, else a local Ray instance)")
+    bench.add_argument(
+        "--episode-timeout", type=float, default=300.0, help="wall-clock guard per episode, s (default 300)"
+    )
+    bench.add_argument("--no-progress", action="store_true", help="no progress bar")
+    bench.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
+    bench.add_argument("--perception", default="paper", metavar="METHOD", help=PERCEPTION_HELP)
+    perceive = sub.add_parser(
+        "perceive",
+        help="perception only: every method on the same frames, errors against the truth",
+        description="Renders each seed's scene (no arm motion), runs each perception method on that frame and "
+        "prints position, yaw, pitch and roll errors per method, the covariance's calibration (NEES) and the "
+        "time per frame. --out DIR writes perception.json, perception.png and report.html. A file without a "
+        "`task` key is read as a perception task.",
+    )
+    perceive.add_argument("scenario", help="a scenario name or path")
+    perceive.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-99 (default 0-19)")
+    perceive.add_argument(
+        "--methods", default=None, help="comma-separated (default: all that apply to the scenario's targets)"
+    )
+    perceive.add_argument(
+        "--out", type=Path, metavar="DIR", help="directory for perception.json, perception.png and report.html"
+    )
+    perceive.add_argument("--repeat", type=int, default=1, help="time each method N times per frame (median)")
+    prof = sub.add_parser(
+        "profile",
+        help="where an episode's wall time goes, stage by stage, beside the bare physics",
+        description="Runs the seeds' episodes one after another in this process, each stage of the loop timed "
+        "(physics, robot I/O, render, perception, tracker, skill, motion, kinematics, observers), and first the "
+        "bare physics of the same cell (its robot and table, no objects) as the reference: the loop's real-time "
+        "factor is printed as a share of the reference's, measured in the same run.",
+    )
+    prof.add_argument("scenario", help="a scenario name or path")
+    prof.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-9 (default 0-2)")
+    prof.add_argument("--json", action="store_true", help="print the figures as JSON instead")
+    validate = sub.add_parser(
+        "validate",
+        help="check scenarios without running them",
+        description="Loads each scenario and checks everything that can be checked without running it: the "
+        "schema, the geometry (objects on the table, apart, out of the robot), reach of the pick and place "
+        "regions, the camera's view of the target. Prints `ok NAME` or the error; exit 0 if all are ok, else 2.",
+    )
+    validate.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="names or paths")
+    listing = sub.add_parser("list", help="list the shipped scenarios with their descriptions")
+    listing.add_argument("--names", action="store_true", help="only the names, one a line (for scripts)")
+    return parser
+
+
+def yaw_modulus_deg(target: ObjectSpec) -> float | None:
+    """The turn (deg) after which the target looks the same, modulo which its yaw is estimated and
+    scored (90 for a square box, 180 for another box); None for a cylinder, which has no yaw."""
+    if target.shape == "mesh":
+        return 180.0  # seen as an unknown object: its principal axes, a half turn
+    symmetry = target.largest_shape.yaw_symmetry_rad
+    if symmetry == 0.0:
+        return None
+    if target.size is None:  # drawn per seed: square only if both sides are one fixed value
+        (a0, a1), (b0, b1) = target.size_range[:2]  # type: ignore[index]
+        if not a0 == a1 == b0 == b1:
+            return 180.0  # a box's half turn
+    return math.degrees(symmetry)
+
+
+def summary_line(result: EpisodeResult, yaw_modulus: float | None = None) -> str:
+    head = "SUCCESS" if result.success else f"FAILED in {result.failure.stage.value}"  # type: ignore[union-attr]
+    parts = [f"{head}: {result.scenario} seed {result.seed}"]
+    if result.perception_method != "paper":
+        parts[0] += f" [{result.perception_method}]"
+    if result.perception is not None:
+        yaw = result.perception.yaw_error_deg
+        modulo = f" modulo {yaw_modulus:g} deg" if yaw_modulus else ""
+        parts.append(
+            f"pose error {result.perception.position_error_mm:.2f} mm"
+            + (f", yaw error {yaw:.2f} deg{modulo}" if yaw is not None else "")
+        )
+    if result.place_error_mm is not None:
+        parts.append(f"place error {result.place_error_mm:.1f} mm")
+    c = result.clear
+    if c is not None:
+        rate = c["grasp_success_rate"]
+        parts.append(
+            f"cleared {c['cleared']}/{c['total']} ({c['percent_cleared']:.0f} %), "
+            f"grasps {c['successful_grasps']}/{c['grasp_attempts']}"
+            + (f" ({100 * rate:.0f} %)" if rate is not None else "")
+            + f", {c['picks_per_hour']:.0f} picks/h"
+        )
+    if result.attempts:
+        parts.append(f"{len(result.attempts)} attempt(s)")
+    parts.append(f"{result.perception_frames} frames")
+    video = result.stage_wall_times_s.get("video")
+    parts.append(
+        f"{result.sim_time_s:.1f} s simulated in {result.wall_time_s:.2f} s"
+        + (f" ({video:.2f} s of it the video)" if video else "")
+    )
+    line = " | ".join(parts)
+    if result.failure is not None:
+        line += f"\n  reason: {result.failure.reason}"
+        line += f"\n  diagnosis (from the truth): {result.diagnosis}"
+    return line
+
+
+def _check_seed(seed: int) -> None:
+    if not 0 <= seed <= MAX_SEED:
+        raise UsageError(f"--seed must be in 0..{MAX_SEED}, got {seed}")
+
+
+def _writable_dir(path: Path, flag: str) -> None:
+    """Create ``path`` if needed and prove it writable, before any work is done."""
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{flag} {path}: exists and is not a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".pickdemo-probe-"):
+            pass
+    except OSError as exc:
+        raise UsageError(f"{flag} {path}: not writable ({exc.strerror or exc})") from None
+
+
+def _pick_scenario(name: str) -> Scenario:
+    scenario = load_scenario(name)
+    if scenario.task == "perceive":
+        raise UsageError(f'{name}: a perception-only scenario (task = "{scenario.task}"); use `pickdemo perceive`')
+    return scenario
+
+
+def _save_result(result: EpisodeResult, out: Path) -> Path:
+    """Write result.json; if that fails after all, write it where it can be written and say so."""
+    text = result.to_json() + "\n"
+    path = out / "result.json"
+    try:
+        path.write_text(text)
+        return path
+    except OSError as exc:
+        fd, fallback = tempfile.mkstemp(prefix="pickdemo-result-", suffix=".json")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        print(f"pickdemo: error: {path}: cannot write ({exc.strerror or exc}); the result is in {fallback}",
+              file=sys.stderr)  # fmt: skip
+        return Path(fallback)
+
+
+def _run_pictures(result: EpisodeResult, out: Path, *, video: bool) -> list[Path]:
+    """motion.png and report.html beside result.json (the plots extra); never fails the run."""
+    from pickdemo.apps import report
+
+    images: list[Path] = []
+    try:
+        if result.trace is not None and len(result.trace.time_s) > 3:
+            title = f"{result.scenario} seed {result.seed}: commanded arm motion"
+            images.append(report.write_motion_plot(result.trace, out / "motion.png", title))
+    except report.PlotsUnavailable as exc:
+        print(f"pickdemo: note: no plots ({exc})", file=sys.stderr)
+    except Exception as exc:  # noqa: BLE001 - a plot must never lose the episode's result
+        print(f"pickdemo: note: motion.png not drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
+    mp4 = out / "episode.mp4"
+    page = report.write_run_report(result, out, video=mp4 if video and mp4.exists() else None, images=images)
+    return [*images, *([mp4] if video and mp4.exists() else []), page]
+
+
+def _bench_pictures(outcome, out: Path, title: str, open_loop: bool) -> list[Path]:
+    """bench.png and report.html beside summary.json (the plots extra); never fails the bench."""
+    from pickdemo.apps import bench, report
+
+    sections = [("Scenarios", report.bench_table(outcome.summary, outcome.results))]
+    written: list[Path] = []
+    try:
+        plot = report.write_bench_plots(outcome.summary, outcome.results, out / "bench.png", title)
+        sections.append(("Plots", report.image(plot)))
+        written.append(plot)
+    except report.PlotsUnavailable as exc:
+        print(f"pickdemo: note: no plots ({exc})", file=sys.stderr)
+    except Exception as exc:  # noqa: BLE001 - a plot must never lose what the bench measured
+        print(f"pickdemo: note: bench.png not drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
+    sections.append(("Summary, as printed", report.pre(bench.format_summary(outcome.summary))))
+    loop = " (open loop)" if open_loop else ""
+    written.append(report.write_page(out, f"pickdemo bench{loop}: {title}", sections))
+    return written
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from pickdemo.runtime.episode import EpisodeOptions, run_episode  # heavy imports only when running
+
+    _check_seed(args.seed)
+    _check_method(args.perception)
+    scenario = _pick_scenario(args.scenario)
+    if args.gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+        raise UsageError("--gui needs a display (DISPLAY is not set); run without --gui for headless")
+    if args.out is not None:
+        _writable_dir(args.out, "--out")
+    if args.video:
+        if args.out is None:
+            raise UsageError("--video needs --out DIR (where episode.mp4 is written)")
+        try:
+            import av  # noqa: F401
+        except ImportError:
+            raise UsageError(
+                "--video needs PyAV: pip install -c .ci/constraints.txt '.[video]' in the checkout"
+            ) from None
+    if args.rerun is not None:
+        try:
+            import rerun  # noqa: F401
+        except ImportError:
+            raise UsageError(
+                "--rerun needs rerun-sdk: pip install -c .ci/constraints.txt '.[rerun]' in the checkout"
+            ) from None
+        _writable_dir(args.rerun.parent, "--rerun")
+
+    t0 = time.perf_counter()
+
+    def on_phase(rec: PhaseRecord) -> None:
+        if not args.quiet:
+            wall = time.perf_counter() - t0
+            print(f"[sim {rec.sim_time_s:6.2f} s | wall {wall:5.2f} s] {rec.phase:<9} {rec.message}", flush=True)
+
+    if not args.quiet:
+        loop = "open loop: one look" if args.open_loop else "closed loop"
+        print(f"pickdemo: {scenario.name} seed {args.seed} ({loop}): {scenario.description}", flush=True)
+    options = EpisodeOptions(
+        gui=args.gui,
+        open_loop=args.open_loop,
+        perception_method=args.perception,
+        record_trace=args.out is not None,
+        video_path=str(args.out / "episode.mp4") if args.video else None,
+        rerun_path=str(args.rerun) if args.rerun is not None else None,
+    )
+    result = run_episode(scenario, args.seed, options=options, on_phase=on_phase)
+    modulus = yaw_modulus_deg(scenario.target) if scenario.task == "pick" else None
+    print(summary_line(result, modulus), flush=True)
+    if args.out is not None:
+        path = _save_result(result, args.out)
+        written = [path] + _run_pictures(result, args.out, video=args.video)
+        if not args.quiet:
+            print("wrote " + ", ".join(str(p) for p in [*written, *([args.rerun] if args.rerun else [])]))
+    if args.rerun is not None and args.out is None and not args.quiet:
+        print(f"wrote {args.rerun}")
+    return EXIT_OK if result.success else EXIT_FAILED
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from pickdemo.apps import bench
+
+    try:
+        seeds = bench.parse_seeds(args.seeds)
+    except bench.BenchError as exc:
+        raise UsageError(f"--seeds: {exc}") from None
+    if not 0.0 <= args.min_success <= 1.0:
+        raise UsageError(f"--min-success must be in [0, 1], got {args.min_success}")
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise UsageError(f"--workers must be in 1..{MAX_WORKERS}, got {args.workers}")
+    if not (math.isfinite(args.episode_timeout) and 0 < args.episode_timeout <= MAX_GUARD_S):
+        raise UsageError(
+            f"--episode-timeout must be a number of seconds in (0, {MAX_GUARD_S:.0f}], got {args.episode_timeout}"
+        )
+    if args.resume and args.out is None:
+        raise UsageError("--resume needs --out DIR (where episodes.jsonl is)")
+    _check_method(args.perception)
+    if args.out is not None:
+        _writable_dir(args.out, "--out")
+    if args.junit is not None:
+        if args.junit.is_dir():
+            raise UsageError(f"--junit {args.junit}: is a directory; give a file, e.g. {args.junit / 'junit.xml'}")
+        _writable_dir(args.junit.parent if str(args.junit.parent) else Path("."), "--junit")
+    names = args.scenarios or suite_scenarios()
+    if not names:
+        raise UsageError("no scenario given and none is tagged 'suite'")
+    jobs, seen = [], {}
+    if len(names) * len(seeds) > bench.MAX_EPISODES:
+        raise UsageError(
+            f"{len(names)} scenario(s) x {len(seeds)} seed(s) is more than {bench.MAX_EPISODES} episodes; split the run"
+        )
+    for name in names:
+        path = resolve_scenario_path(name)
+        scenario = _pick_scenario(str(path))  # validate every scenario before running anything
+        if scenario.name in seen and seen[scenario.name] != path.resolve():
+            raise UsageError(f"two scenarios are named {scenario.name!r}: {seen[scenario.name]} and {path}")
+        seen[scenario.name] = path.resolve()
+        jobs += [bench.Job(str(path.resolve()), scenario.name, seed, args.open_loop, args.perception) for seed in seeds]
+    jobs = list({j.key: j for j in jobs}.values())
+    done = None
+    if args.out is not None:  # before an executor starts: a directory this run cannot describe is refused here
+        try:
+            done = bench.prepare_out_dir(args.out, jobs, resume=args.resume)
+        except bench.BenchError as exc:
+            raise UsageError(str(exc)) from None
+    if args.junit is not None:
+        try:
+            args.junit.unlink(missing_ok=True)  # written at the end, for this run's episodes: never a stale one
+        except OSError as exc:
+            raise UsageError(f"--junit {args.junit}: cannot replace it ({exc.strerror or exc})") from None
+
+    if args.executor == "ray":
+        try:
+            executor = bench.RayExecutor(args.address, args.episode_timeout, num_cpus=args.workers)
+        except bench.BenchError as exc:
+            raise UsageError(str(exc)) from None
+    else:
+        executor = bench.LocalExecutor(min(args.workers, len(jobs)), args.episode_timeout)
+
+    def on_result(r: dict) -> None:
+        if not r["success"]:
+            from tqdm import tqdm
+
+            tqdm.write(f"FAIL {r['scenario']} seed {r['seed']}: {r['failure']['stage']}: {r['failure']['reason']}")
+
+    print(
+        f"pickdemo bench: {len(names)} scenario(s) x {len(seeds)} seed(s) = {len(jobs)} episodes, "
+        f"{args.executor} executor" + (f", {executor.workers} workers" if args.executor == "local" else ""),
+        flush=True,
+    )
+    t0 = time.perf_counter()
+    try:
+        outcome = bench.run_bench(
+            jobs,
+            executor,
+            out_dir=args.out,
+            resume=args.resume,
+            progress=not args.no_progress,
+            on_result=on_result,
+            done=done,
+        )
+    except bench.BenchError as exc:
+        raise UsageError(str(exc)) from None
+    elapsed = time.perf_counter() - t0
+    print(bench.format_summary(outcome.summary))
+    print(
+        f"ran {outcome.ran} episode(s) in {elapsed:.1f} s"
+        + (f", {outcome.skipped} already done" if outcome.skipped else "")
+    )
+    if args.out is not None:
+        (args.out / "summary.json").write_text(json.dumps(outcome.summary, indent=2) + "\n")
+        print(f"wrote {args.out / 'episodes.jsonl'} and {args.out / 'summary.json'}")
+    if args.out is not None:
+        written = _bench_pictures(outcome, args.out, f"{', '.join(names)}; seeds {args.seeds}", args.open_loop)
+        print("wrote " + ", ".join(str(p) for p in written))
+    if args.junit is not None:
+        args.junit.parent.mkdir(parents=True, exist_ok=True)
+        args.junit.write_text(bench.junit_xml(outcome.results))
+        print(f"wrote {args.junit}")
+    low = [n for n, s in outcome.summary.items() if s["success_rate"] < args.min_success]
+    if low:
+        print(f"GATE FAILED: success rate below {args.min_success:.2f} for {', '.join(low)}")
+        return EXIT_FAILED
+    if args.min_success > 0:
+        print(f"gate passed: every scenario at or above {args.min_success:.2f}")
+    return EXIT_OK
+
+
+def _cmd_perceive(args: argparse.Namespace) -> int:
+    from pickdemo.apps import bench, perceive
+
+    try:
+        seeds = bench.parse_seeds(args.seeds)
+    except bench.BenchError as exc:
+        raise UsageError(f"--seeds: {exc}") from None
+    # The command says the task: a file without a `task` key is read as a perception task (a static,
+    # tilted target is fine to look at); a file that says `task = "pick"` is checked as the pick it says it is.
+    scenario = load_scenario(args.scenario, default_task="perceive")
+    undescribed = any(t.shape == "mesh" for t in scenario.targets)  # seen as objects nobody described
+    if args.methods is None:
+        methods = [m for m in perceive.METHODS if not (undescribed and m in perceive.NEEDS_DESCRIPTION)]
+    else:
+        methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    unknown = [m for m in methods if m not in perceive.METHODS and ":" not in m]
+    if unknown or not methods:
+        raise UsageError(
+            f"--methods: unknown {', '.join(unknown) or '(none given)'}; known: {', '.join(perceive.METHODS)}, "
+            "or module:function for your own"
+        )
+    for m in methods:
+        if m not in perceive.METHODS:
+            _check_method(m, "--methods")
+    blind = [m for m in methods if undescribed and m in perceive.NEEDS_DESCRIPTION]
+    if blind:
+        raise UsageError(
+            f"--methods: {', '.join(blind)} {'needs' if len(blind) == 1 else 'need'} the target's shape and colour, "
+            f"which {args.scenario} does not give (a mesh is seen as an object nobody described)"
+        )
+    print(f"pickdemo perceive: {scenario.name}, {len(scenario.targets)} target(s) x {len(seeds)} seed(s), "
+          f"methods {', '.join(methods)}", flush=True)  # fmt: skip
+    samples: list[perceive.PerceptionSample] = []
+    from tqdm import tqdm
+
+    if not 1 <= args.repeat <= 100:
+        raise UsageError(f"--repeat must be in 1..100, got {args.repeat}")
+    batches = perceive.iter_samples(scenario, seeds, methods, repeat=args.repeat)
+    for batch in tqdm(batches, total=len(seeds), unit="seed", disable=not sys.stderr.isatty()):
+        samples += batch
+    summary = perceive.summarise(samples)
+    print(perceive.format_summary(summary))
+    rows = perceive.format_reference_rows(samples)
+    if rows:
+        print("\nThe reference's errors beside ours (paper method, the top face's centre as the main feature point):")
+        print(rows)
+    if args.out is not None:
+        written = perceive.write_outputs(args.out, samples, summary, f"{scenario.name}, seeds {args.seeds}")
+        from pickdemo.apps import report
+
+        sections = [("Summary", report.pre(perceive.format_summary(summary) + ("\n\n" + rows if rows else "")))]
+        sections += [("Plots", report.image(p)) for p in written if p.suffix == ".png"]
+        written.append(report.write_page(args.out, f"pickdemo perceive: {scenario.name}, seeds {args.seeds}", sections))
+        print("wrote " + ", ".join(str(p) for p in written))
+        if len(written) == 1:
+            print("(no plot: matplotlib is missing; it is a dependency of pickdemo: pip install matplotlib)")
+    return EXIT_OK
+
+
+def _cmd_profile(args: argparse.Namespace) -> int:
+    from pickdemo.apps import bench
+    from pickdemo.apps.profile import profile
+
+    try:
+        seeds = bench.parse_seeds(args.seeds)
+    except bench.BenchError as exc:
+        raise UsageError(f"--seeds: {exc}") from None
+    scenario = _pick_scenario(args.scenario)
+    if not args.json:
+        print(f"pickdemo profile: {scenario.name}, seeds {args.seeds}, one process", flush=True)
+
+    def on_episode(e) -> None:
+        if not args.json:
+            outcome = "ok" if e.success else f"FAILED ({e.failure})"
+            print(f"  seed {e.seed}: {outcome}, {e.sim_time_s:.1f} s simulated in {e.loop_s:.2f} s "
+                  f"({e.real_time_factor:.1f}x real time)", flush=True)  # fmt: skip
+
+    report = profile(scenario, seeds, on_episode)
+    print(json.dumps(report.to_dict(), indent=1) if args.json else "\n" + report.format())
+    return EXIT_OK
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    names = list_scenarios()
+    if args.names:
+        print("\n".join(names))
+        return EXIT_OK
+    width = max((len(n) for n in names), default=0)
+    for name in names:
+        try:
+            text = load_scenario(name, check=False).description or "(no description)"
+        except ScenarioError as exc:
+            text = f"(does not load: {str(exc).split(': ', 1)[-1]})"
+        print(f"{name:<{width}}  {text}")
+    return EXIT_OK
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    bad = 0
+    for name in args.scenarios:
+        try:
+            scenario = load_scenario(name)
+        except ScenarioError as exc:
+            print(f"error {exc}")
+            bad += 1
+        else:
+            print(f"ok {scenario.name}")
+    return EXIT_BAD_INPUT if bad else EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        if args.command == "run":
+            return _cmd_run(args)
+        if args.command == "bench":
+            return _cmd_bench(args)
+        if args.command == "perceive":
+            return _cmd_perceive(args)
+        if args.command == "profile":
+            return _cmd_profile(args)
+        if args.command == "validate":
+            return _cmd_validate(args)
+        if args.command == "list":
+            return _cmd_list(args)
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    except (ScenarioError, UsageError) as exc:
+        print(f"pickdemo: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("pickdemo: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # the reader went away (`| head`): stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_FAILED
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,167 @@
+"""Grasp planning: a top-down parallel-jaw grasp from the pose estimate, with the poses around it.
+
+Pure: no simulator. The hand's fingers close along its y axis; a top-down TCP orientation is
+``Rz(psi) Rx(pi)``, whose y axis points along ``(sin psi, -cos psi, 0)``. The grasp closes across
+the object's narrower side. The hand is symmetric under a half turn and a square box under a quarter
+turn, so a grasp has several equivalent hand angles (:func:`equivalent_hand_yaws`; a cylinder's is
+free). Which of them the arm takes is the skill's choice, by IK (:mod:`pickdemo.skills.pick`): this module
+knows nothing of the robot's joints.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo.core.geometry import Pose, wrap_angle
+from pickdemo.perception import TargetModel
+from pickdemo.robot import panda as rm
+
+FINGER_PAD_HALF_HEIGHT_M = 0.00925  # the rubber tip is 18.5 mm tall, centred on the TCP
+
+
+class GraspPlanningError(RuntimeError):
+    """No feasible grasp for this estimate (for example an object wider than the open gripper)."""
+
+
+@dataclass(frozen=True)
+class GraspParams:
+    """Distances in m."""
+
+    pregrasp_height_m: float = 0.10  # above the grasp, for a straight vertical approach
+    transport_height_m: float = 0.12  # lift above the grasp height before moving sideways
+    palm_clearance_m: float = 0.005  # the palm stays this far above the top face
+    min_tcp_height_m: float = 0.012  # keeps the finger tips off the table
+    place_clearance_m: float = 0.004  # release this far above the table
+    retreat_height_m: float = 0.10
+    #: the open gripper must exceed the object by this much: 2.5 mm a side, for the estimate's error
+    #: (sub-millimetre when the whole top face is seen) and the arm's tracking (under a millimetre)
+    width_margin_m: float = 0.005
+
+    def __post_init__(self) -> None:
+        if min(self.pregrasp_height_m, self.transport_height_m, self.retreat_height_m) <= 0:
+            raise ValueError("heights must be positive")
+
+
+@dataclass(frozen=True)
+class GraspPlan:
+    """TCP poses of a pick and place, all top-down, in the world frame."""
+
+    pregrasp: Pose
+    grasp: Pose
+    lift: Pose
+    place_above: Pose
+    place: Pose
+    retreat: Pose
+    object_width_m: float  # expected width between the fingers when closed on the object
+    hand_yaw_rad: float
+    #: the TCP from the object's centre when it is put down (m, world x and y): the centre, not the
+    #: hand, goes to the place (zero when the grasp is through the centre)
+    place_offset_xy: tuple[float, float] = (0.0, 0.0)
+    #: the object's width between the fingers is known (a described shape): a close that stops wider
+    #: than ``object_width_m`` by the grip's ``wide_margin_m`` held it askew, or held something else too
+    width_known: bool = False
+
+
+def top_down(position: np.ndarray, yaw_rad: float) -> Pose:
+    """A TCP pose pointing straight down, rotated ``yaw_rad`` about world z."""
+    return Pose.from_xyz_rpy(position, roll=np.pi, yaw=yaw_rad)
+
+
+def hand_yaw_for(pose: Pose, model: TargetModel, centre_rad: float = 0.0) -> tuple[float, float]:
+    """Hand angle (rad) that closes across the narrower side, nearest ``centre_rad``; the width (m)."""
+    shape = model.geometry
+    period = shape.yaw_symmetry_rad
+    if period == 0.0:  # the same from every side (a cylinder): the hand angle is free
+        return float(centre_rad), shape.grasp_width_m
+    obj_yaw = float(pose.rpy[2])
+    sx, sy = shape.size[0], shape.size[1]
+    # Finger axis along the object's x axis when x is the narrower side, else along its y axis.
+    psi = obj_yaw + np.pi / 2.0 if sx <= sy else obj_yaw
+    return float(centre_rad + wrap_angle(psi - centre_rad, period)), shape.grasp_width_m
+
+
+def equivalent_hand_yaws(pose: Pose, model: TargetModel, free_steps: int = 8) -> list[float]:
+    """Every hand angle (rad, wrapped to [-pi, pi)) that closes across the target's narrower side:
+    its symmetry with the hand's own half turn (2 for a box, 4 for a square top); for a shape with no
+    yaw (a cylinder) ``free_steps`` angles evenly round."""
+    period = model.geometry.yaw_symmetry_rad
+    if period == 0.0:
+        return [float(wrap_angle(-np.pi + 2.0 * np.pi * k / free_steps)) for k in range(free_steps)]
+    psi0, _ = hand_yaw_for(pose, model, 0.0)
+    step = min(period, np.pi)
+    n = int(round(2.0 * np.pi / step))
+    return [float(wrap_angle(psi0 + k * step)) for k in range(n)]
+
+
+def plan_grasp(
+    pose: Pose,
+    model: TargetModel,
+    place_xy: tuple[float, float],
+    params: GraspParams | None = None,
+    *,
+    hand_yaw_near_rad: float | None = None,
+) -> GraspPlan:
+    """All TCP poses of the pick and place from the estimated pose of the target.
+
+    ``hand_yaw_near_rad``: of the equivalent hand angles, take the one nearest this (the skill chooses
+    it; a re-plan keeps the hand's angle); by default the one nearest 0.
+    """
+    params = params or GraspParams()
+    centre = 0.0 if hand_yaw_near_rad is None else hand_yaw_near_rad
+    psi, width = hand_yaw_for(pose, model, centre)
+    if width > 2.0 * rm.FINGER_MAX_M - params.width_margin_m:
+        raise GraspPlanningError(
+            f"object is {width * 1e3:.0f} mm across its narrower side; the gripper opens to "
+            f"{2e3 * rm.FINGER_MAX_M:.0f} mm and needs {params.width_margin_m * 1e3:.0f} mm of clearance, "
+            f"so at most {(2.0 * rm.FINGER_MAX_M - params.width_margin_m) * 1e3:.0f} mm"
+        )
+    center = pose.position
+    top_z = center[2] + model.height_m / 2.0
+    # The pads close through the centre of mass (a held payload has no lever to turn on about the
+    # finger axis), or as deep as the palm allows on a taller object.
+    depth = min(model.height_m / 2.0, rm.PALM_ABOVE_TCP_M - params.palm_clearance_m)
+    grasp_z = max(top_z - depth, params.min_tcp_height_m)
+    bottom_z = center[2] - model.height_m / 2.0
+    grasp_above_bottom = grasp_z - bottom_z
+
+    grasp_p = np.array([center[0], center[1], grasp_z])
+    plan = poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params)
+    return dataclasses.replace(plan, width_known=True)
+
+
+def poses_of_pick(
+    grasp_p: np.ndarray,
+    psi: float,
+    grasp_above_bottom: float,
+    width: float,
+    place_xy: tuple[float, float],
+    params: GraspParams,
+    place_offset_xy: tuple[float, float] = (0.0, 0.0),
+) -> GraspPlan:
+    """Every TCP pose of a top-down pick and place from its grasp: the TCP at ``grasp_p`` with the hand
+    angle ``psi``, ``grasp_above_bottom`` above what the object rests on; put down with the object's
+    centre over ``place_xy`` (the TCP ``place_offset_xy`` from it) at that height over the table."""
+    grasp_z = float(grasp_p[2])
+    up = np.array([0.0, 0.0, 1.0])
+    place_p = np.array(
+        [
+            place_xy[0] + place_offset_xy[0],
+            place_xy[1] + place_offset_xy[1],
+            grasp_above_bottom + params.place_clearance_m,
+        ]
+    )
+    carry_z = grasp_z + params.transport_height_m
+    return GraspPlan(
+        pregrasp=top_down(grasp_p + params.pregrasp_height_m * up, psi),
+        grasp=top_down(grasp_p, psi),
+        lift=top_down(np.array([grasp_p[0], grasp_p[1], carry_z]), psi),
+        place_above=top_down(np.array([place_p[0], place_p[1], max(carry_z, place_p[2] + 0.05)]), psi),
+        place=top_down(place_p, psi),
+        retreat=top_down(place_p + params.retreat_height_m * up, psi),
+        object_width_m=float(width),
+        hand_yaw_rad=psi,
+        place_offset_xy=(float(place_offset_xy[0]), float(place_offset_xy[1])),
+    )

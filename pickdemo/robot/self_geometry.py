@@ -1,0 +1,97 @@
+"""The robot's own body as its joint states place it: each link's collision geometry bounded by a
+box in the link's frame, posed by forward kinematics. What a real cell's self-filter does (MoveIt's
+``robot_self_filter``): a camera that sees the arm is told which of its points are the arm.
+
+Pure: Pinocchio and numpy (no simulator). The boxes come from the collision meshes of the installed
+``example-robot-data`` Panda (binary STL, read once per process); the link poses from the arm's seven
+joint angles and the fingers' openings, which the robot measures. Padded by :data:`PAD_M` for the
+depth sensor's noise and the encoders' (sub-millimetre) error.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pinocchio as pin
+
+from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.robot import panda as rm
+
+#: A point this close to a link's bounding box counts as the link (depth noise, encoders).
+PAD_M = 0.005
+
+
+def stl_vertices(data: bytes) -> np.ndarray:
+    """The vertices (N, 3) of a binary STL file (its triangles' corners)."""
+    if len(data) < 84:
+        raise ValueError("not a binary STL file (too short)")
+    n = int(np.frombuffer(data, dtype="<u4", count=1, offset=80)[0])
+    if len(data) < 84 + 50 * n:
+        raise ValueError("not a binary STL file (fewer triangles than its header says)")
+    rec = np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    tri = np.frombuffer(data, dtype=rec, count=n, offset=84)
+    return tri["v"].reshape(-1, 3).astype(float)
+
+
+@functools.cache
+def link_bounds() -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each link's collision geometry (meshes and boxes) bounded by a box in the link's frame:
+    {link: (lo, hi)} (m)."""
+    files = rm.panda_files()
+    root = ET.fromstring(files.urdf.read_bytes())
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for link in root.findall("link"):
+        pts = []
+        for col in link.findall("collision"):
+            mesh, box = col.find("geometry/mesh"), col.find("geometry/box")
+            if mesh is not None:
+                rel = re.sub(r"^package://example-robot-data/", "", mesh.get("filename", ""))
+                v = stl_vertices((files.package_root / rel).read_bytes())
+            elif box is not None:
+                half = np.array([float(x) for x in box.get("size", "0 0 0").split()]) / 2.0
+                v = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+            else:
+                continue
+            origin = col.find("origin")
+            if origin is not None:
+                xyz = np.array([float(x) for x in origin.get("xyz", "0 0 0").split()])
+                rpy = np.array([float(x) for x in origin.get("rpy", "0 0 0").split()])
+                v = v @ pin.rpy.rpyToMatrix(rpy).T + xyz
+            pts.append(v)
+        if pts:
+            v = np.vstack(pts)
+            out[link.get("name", "")] = (v.min(axis=0), v.max(axis=0))
+    return out
+
+
+class RobotBody:
+    """The Panda's links posed by its joint states (forward kinematics of the full model, fingers
+    included)."""
+
+    def __init__(self) -> None:
+        self.model = pin.buildModelFromUrdf(str(rm.panda_files().urdf))
+        self.data = self.model.createData()
+        self.bounds = [(self.model.getFrameId(name), lo, hi) for name, (lo, hi) in link_bounds().items()]
+        self._arm = [self.model.joints[self.model.getJointId(n)].idx_q for n in rm.ARM_JOINTS]
+        self._fingers = [self.model.joints[self.model.getJointId(n)].idx_q for n in rm.FINGER_JOINTS]
+
+    def boxes(self, arm_q: np.ndarray, fingers_m: np.ndarray, pad_m: float = PAD_M) -> tuple[OrientedBox, ...]:
+        """Every link's bounding box in the world, padded by ``pad_m``, at these joint states."""
+        q = pin.neutral(self.model)
+        q[self._arm] = np.asarray(arm_q, dtype=float)
+        q[self._fingers] = np.asarray(fingers_m, dtype=float)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        out = []
+        for fid, lo, hi in self.bounds:
+            M = self.data.oMf[fid]
+            out.append(OrientedBox(Pose(M.translation.copy(), M.rotation.copy()), lo - pad_m, hi + pad_m))
+        return tuple(out)
+
+
+@functools.cache
+def robot_body() -> RobotBody:
+    """One shared model per process."""
+    return RobotBody()

@@ -1,0 +1,714 @@
+"""One episode, wired: scenario -> world -> the control loop -> the referee -> :class:`EpisodeResult`.
+
+:class:`Episode` is one seeded episode that can be stepped from outside: :meth:`Episode.reset` builds
+the world (:mod:`pickdemo.runtime.world`) and the controller and returns the first observation,
+:meth:`Episode.step` advances one control tick and says when the episode is over, and
+:meth:`Episode.result` scores it. :func:`run_episode` is that loop.
+
+The control loop is the only place that advances simulated time, one control tick at a time. Each
+tick: observe (joint states, finger opening, finger contacts), hand over the estimates whose latency
+has passed, decide (:class:`pickdemo.skills.pick.PickMachine`), command, take a camera frame when one is due
+(rendering only the region perception asked for), then step the physics. The step budget lives here:
+the scenario's simulated-time budget, counted in steps.
+
+The controller acts only on the camera frames (RGB, depth, intrinsics, camera pose) and the joint
+states. The simulator's true poses are read by the referee (:mod:`pickdemo.runtime.referee`, for scoring) and
+the observers (:mod:`pickdemo.runtime.observers`: the trace, the video, the debug drawing, the rerun
+recording; for viewers) only. Every random draw comes from one generator per stage
+(:mod:`pickdemo.core.streams`), so one seed makes one episode, bit for bit, observed or not.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pickdemo.core.interfaces import Observation
+from pickdemo.core.result import (
+    EpisodeFailure,
+    EpisodeResult,
+    Failure,
+    PhaseRecord,
+    Stage,
+    limit_exceedances,
+    peak_limit_ratios,
+)
+from pickdemo.core.shapes import Mesh, Unknown
+from pickdemo.grasping.top_down import GraspParams
+from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot.rate_limit import ReflexError
+from pickdemo.robot.self_geometry import robot_body
+from pickdemo.runtime.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX, Observer, TraceRecorder
+from pickdemo.runtime.referee import PERCEPTION_OFF_MM, ClearReferee, Referee, diagnose
+from pickdemo.runtime.world import World
+from pickdemo.scenario.layout import LayoutError
+from pickdemo.scenario.load import Scenario
+from pickdemo.scenario.task import target_model
+from pickdemo.skills.pick import (
+    HAND_OVER_TARGET,
+    TRACKING_STATES,
+    WRIST_CAMERA,
+    CameraModel,
+    FrameRequest,
+    MachineParams,
+    PickMachine,
+    State,
+    WristCameraModel,
+)
+
+if TYPE_CHECKING:
+    from pickdemo.sim.controller import RobotInterface
+
+__all__ = [
+    "PERCEPTION_OFF_MM",
+    "THIRD_PERSON_K",
+    "THIRD_PERSON_POSE",
+    "VIDEO_CROP_PX",
+    "Episode",
+    "EpisodeOptions",
+    "diagnose",
+    "run_episode",
+]
+
+PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each note), as it happens
+
+SETTLE_MAX_S = 2.0  # the objects come to rest before the first look, within this
+SETTLE_CLEAR_MAX_S = 4.0  # ... a clear round's (a pile falls into its heap)
+CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
+
+
+@dataclass(frozen=True)
+class EpisodeOptions:
+    gui: bool = False
+    open_loop: bool = False  # look once and play the plan (no perception while moving)
+    perception: PerceptionParams = PerceptionParams()
+    perception_method: str = "paper"  # or "icp", "centroid", "pixel", "module:function" (perception.estimators)
+    machine: MachineParams = MachineParams()
+    record_trace: bool = False  # keep the per-tick trace (EpisodeResult.trace)
+    video_path: str | None = None  # write the episode's video here (needs PyAV: the video extra)
+    video_fps: int = 10
+    debug_draw: bool = False  # draw the overlays as debug lines (always with gui)
+    rerun_path: str | None = None  # write a rerun recording (.rrd) here (needs rerun-sdk: the rerun extra)
+
+
+def run_episode(
+    scenario: Scenario,
+    seed: int,
+    *,
+    options: EpisodeOptions | None = None,
+    open_loop: bool | None = None,
+    on_phase: PhaseCallback | None = None,
+) -> EpisodeResult:
+    """Run one seeded episode of a scenario headless (or in the GUI) and score it.
+
+    ``open_loop=True`` (or ``options.open_loop``) looks once and plays the plan, for comparison.
+    Never raises for an episode that goes wrong: the result names the stage and the reason.
+    """
+    options = options or EpisodeOptions()
+    if open_loop is not None:
+        options = dataclasses.replace(options, open_loop=open_loop)
+    episode = Episode(scenario, seed, options, on_phase=on_phase)
+    episode.reset()
+    while not episode.step():
+        pass
+    return episode.result()
+
+
+class _Timer:
+    def __init__(self) -> None:
+        self.times: dict[str, float] = {}
+
+    @contextmanager
+    def __call__(self, name: str) -> Iterator[None]:
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - t0
+
+
+_HOOKS = ("tick", "frame", "estimate", "phase", "end")
+
+
+def _overrides(observer: Observer, hook: str) -> bool:
+    """Whether the observer does something on this hook (the others are not called at all)."""
+    return getattr(type(observer), hook) is not getattr(Observer, hook)
+
+
+@dataclass(frozen=True)
+class _InFlight:
+    """A frame's result on its way to the controller (perception's latency)."""
+
+    arrival_s: float
+    taken_s: float
+    result: PoseEstimate | PerceptionError
+    error_mm: float | None  # against the truth when the frame was taken: for the referee only
+    camera: str = "camera"  # which camera took the frame
+
+
+@dataclass
+class _Counts:
+    """What the loop counts as it runs (the truth's view is the referee's)."""
+
+    phases: list[PhaseRecord] = field(default_factory=list)
+    frames: int = 0
+    tracking_frames: int = 0  # frames taken while tracking (approach, descend, close, back off)
+    tracking_ticks: int = 0
+    tick_ms: list[float] = field(default_factory=list)
+    commanded: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (t, joint command) per tick
+
+
+class Episode:
+    """One seeded episode of a scenario, stepped one control tick at a time::
+
+        episode = Episode(load_scenario("pick_cube"), seed=0)
+        obs = episode.reset()  # the world built, the objects at rest: the robot's first observation
+        while not episode.step():  # one control tick
+            ...  # episode.time_s, episode.state, episode.observation, episode.machine ...
+        result = episode.result()  # the same EpisodeResult as run_episode's
+
+    ``reset`` returns ``None`` when the episode ends before its first tick (a scenario it cannot
+    build, an unknown perception method); ``step`` returns True from then on and ``result`` says why.
+    Never raises for an episode that goes wrong. ``observers``: more :class:`~pickdemo.runtime.observers.Observer`
+    to watch the loop (after the ones the options ask for).
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        seed: int,
+        options: EpisodeOptions | None = None,
+        *,
+        on_phase: PhaseCallback | None = None,
+        observers: tuple[Observer, ...] = (),
+    ) -> None:
+        self.scenario = scenario
+        self.seed = seed
+        self.options = options or EpisodeOptions()
+        self.on_phase = on_phase
+        self.extra_observers = tuple(observers)
+        self._clear()
+
+    def _clear(self) -> None:
+        self.timer = _Timer()
+        self.world: World | None = None
+        self.robot: RobotInterface | None = None
+        self.machine: PickMachine | None = None
+        self.model: TargetModel | None = None
+        self.target_name: str = ""
+        self.estimator: Callable[..., PoseEstimate] | None = None
+        self.referee: Referee | None = None
+        self.observers: list[Observer] = []
+        self.trace = TraceRecorder() if self.options.record_trace else None  # (an empty trace if it never ran)
+        self.pushes: list = []  # the disturbances, drawn at the first look
+        self.counts = _Counts()
+        self.substeps = 1  # physics steps per control tick
+        self.dt_ctl = 0.0  # one control tick (s)
+        self.max_steps = 0  # the simulated-time budget, in physics steps
+        self.frame_ticks = 1  # control ticks between frames
+        self.video_ticks = 1  # control ticks between video frames (and debug drawings)
+        self.tick = 0  # the control tick now (counted from 0)
+        self.observation: Observation | None = None  # the robot's newest observation
+        self._hooks: dict[str, list[tuple[str | None, Callable[..., None]]]] = {}
+        self._pending: deque[_InFlight] = deque()
+        self._last_frame_tick = -(10**9)
+        self._events_logged = 0
+        self._started = False
+        self._done = False
+        self._failure: Failure | None = None
+        self._sim_time_s = 0.0
+        self._wall_s = 0.0
+        self._result: EpisodeResult | None = None
+        self._round_score: dict | None = None  # a clear round's figures, read before the scene closes
+
+    # ================================================================================ stepping
+    @property
+    def done(self) -> bool:
+        return self._done
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time now."""
+        return self._sim_time_s if self._done else (self.world.sim_time_s if self.world is not None else 0.0)
+
+    @property
+    def state(self) -> State | None:
+        """The pick's state (``None`` before the controller exists)."""
+        return self.machine.state if self.machine is not None else None
+
+    def reset(self) -> Observation | None:
+        """Build the world and the controller (again, from the seed, if it was stepped before) and
+        let the objects come to rest; the robot's first observation (``None``: it ended already)."""
+        if self._started:
+            self._close()
+            self._clear()
+        self._started = True
+        t0 = time.perf_counter()
+
+        def build() -> bool:
+            self._build()
+            return False
+
+        failure, over = self._guarded(build)
+        if over:
+            self._finish(failure)
+        self._wall_s += time.perf_counter() - t0
+        if over:
+            return None
+        self.observation = self.robot.observe()
+        return self.observation
+
+    @staticmethod
+    def _guarded(part: Callable[[], bool]) -> tuple[Failure | None, bool]:
+        """Run a part of the episode: (None, whether it ended the episode), or a failure that ends it
+        (a typed one, or any error as ``error``: one bad episode must not take a batch down)."""
+        try:
+            return None, part()
+        except EpisodeFailure as exc:
+            return exc.failure, True
+        except Exception as exc:  # noqa: BLE001
+            return Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0]), True
+
+    def step(self) -> bool:
+        """One control tick; True when the episode is over (then :meth:`result` has it)."""
+        if not self._started:
+            raise RuntimeError("Episode.step() before reset()")
+        if self._done:
+            return True
+        t0 = time.perf_counter()
+
+        def tick() -> bool:
+            if self._tick():
+                return False
+            self._end_loop()
+            self.referee.score()
+            return True
+
+        failure, over = self._guarded(tick)
+        if over:
+            self._finish(failure)
+        self._wall_s += time.perf_counter() - t0
+        return self._done
+
+    def result(self) -> EpisodeResult:
+        """The scored episode (once :meth:`step` has said it is over)."""
+        if not self._done:
+            raise RuntimeError("the episode is not over: step() until it returns True")
+        if self._result is None:
+            self._result = self._make_result()
+        return self._result
+
+    def close(self) -> None:
+        """Stop an episode before its end: release the simulator and the observers' files."""
+        self._close()
+
+    def __enter__(self) -> Episode:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def truth_name(self) -> str:
+        """The object the viewers label with its true pose: the target, or in a clear round the object
+        nearest where the pick under way looks (truth: for viewers only, never for control)."""
+        if self.target_name or self.world is None:
+            return self.target_name
+        at = getattr(self.machine, "look_at", None) if self.machine is not None else None
+        names = [p.name for p in self.world.layout]
+        if at is None:
+            return names[0]
+        return min(names, key=lambda n: float(np.linalg.norm(self.world.true_pose(n).position[:2] - at[:2])))
+
+    # =================================================================================== build
+    def _build(self) -> None:
+        from pickdemo.sim.controller import RobotInterface  # simulator side, imported late
+
+        sc = self.scenario
+        clear = sc.task == "clear"
+        if not clear and len(sc.targets) != 1:
+            raise EpisodeFailure(Stage.ERROR, f"a pick needs exactly one target; the scenario has {len(sc.targets)}")
+        try:
+            world = World(sc, self.seed)  # the layout
+        except LayoutError as exc:
+            raise EpisodeFailure(Stage.ERROR, str(exc)) from None
+        self.world = world
+        if clear:
+            self._build_clear_task()
+        else:
+            self._build_pick_task(world)
+        with self.timer("scene"):
+            world.open(gui=self.options.gui)
+            kin = panda_kinematics()
+        scene = world.scene
+        dt = scene.time_step_s
+        self.substeps = max(1, round(1.0 / (sc.control.control_rate_hz * dt)))
+        self.dt_ctl = self.substeps * dt
+        self.robot = RobotInterface(scene, self.dt_ctl)
+        self.max_steps = int(round(sc.sim.max_sim_time_s / dt))
+        self.frame_ticks = max(1, round(1.0 / (sc.control.perception_rate_hz * self.dt_ctl)))
+        self.video_ticks = max(1, round(1.0 / (self.options.video_fps * self.dt_ctl)))
+        self.referee = ClearReferee(sc, world) if clear else Referee(sc, world, self.target_name)
+        self._add_observers()
+        with self.timer("settle"):
+            scene.settle(int((SETTLE_CLEAR_MAX_S if clear else SETTLE_MAX_S) / dt))
+        if clear:  # a round's objects lie still but for the one picked: those at rest leave the solver
+            scene.let_objects_sleep()
+        scene.start_belt()  # a conveyor runs from the robot's first tick
+        self.referee.started()  # truth: for scoring only
+        params = self.options.machine
+        if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
+            params = params.on_a_belt()
+        m = sc.motion
+        scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
+        if scales != (1.0, 1.0, 1.0):
+            params = dataclasses.replace(
+                params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales)
+            )
+        params = dataclasses.replace(params, joint_transfers=m.transfers == "joint")
+        camera = world.camera
+        wrist = world.wrist_camera
+        wrist_model = (
+            None
+            if wrist is None
+            else WristCameraModel(wrist.intrinsics, wrist.T_tcp_cam, wrist.spec.near_m, wrist.spec.far_m)
+        )
+        common = dict(  # what the controller is told of its cell and its arm, for either task
+            kin=kin,
+            camera=CameraModel(camera.intrinsics, camera.T_world_cam),
+            q0=self.robot.observe().arm_q,
+            dt_s=self.dt_ctl,
+            rng=world.rngs["ik"],
+            params=params,
+        )
+        if clear:
+            from pickdemo.skills.clear import ClearSequencer
+
+            assert sc.clear is not None and world.tray is not None
+            self.machine = ClearSequencer(
+                tray=world.tray,
+                max_consecutive_failures=sc.clear.max_consecutive_failures,
+                on_pick_end=self.referee.pick_ended,  # truth: for scoring only
+                **common,
+            )
+            return
+        self.machine = PickMachine(
+            model=self.model,
+            symmetry_rad=self.model.geometry.yaw_symmetry_rad,
+            place_xy=world.place_xy,
+            max_attempts=sc.control.max_attempts,
+            place_tolerance_m=sc.success.place_tolerance,
+            open_loop=self.options.open_loop,
+            surface_z=sc.surface_z,
+            wrist=wrist_model,
+            **common,
+        )
+
+    def _build_clear_task(self) -> None:
+        """A clear round: every object is one nobody described, found by its geometry (the paper's method)."""
+        method = self.options.perception_method
+        if method != "paper":
+            raise EpisodeFailure(
+                Stage.PERCEPTION, f"a clear round finds its objects by their geometry: perception {method!r} cannot"
+            )
+        if self.options.open_loop:
+            raise EpisodeFailure(Stage.ERROR, "a clear round runs closed loop only (--open-loop is for a pick)")
+        perception = self.options.perception
+        self.model = TargetModel(Unknown(), color=None)
+        self.estimator = lambda frame, model: estimate_pose(frame, model, perception)
+
+    def _build_pick_task(self, world: World) -> None:
+        """A pick: its target, what the robot is told of it, and how it is seen."""
+        sc = self.scenario
+        self.target_name = sc.target.name
+        drawn = world.placement(self.target_name).geometry
+        widest = 2.0 * rm.FINGER_MAX_M - GraspParams().width_margin_m
+        width = drawn.top_down_width_m() if isinstance(drawn, Mesh) else 0.0
+        if width > widest:  # a mesh no top-down grasp can hold: refused before it runs
+            raise EpisodeFailure(
+                Stage.GRASP_PLANNING,
+                f"this seed drew {drawn.urdf} at scale {drawn.scale:.3g}: no top-down grasp can hold it (it is "
+                f"{width * 1e3:.0f} mm across where the fingers would close; at most {widest * 1e3:.0f} mm)",
+            )
+        self.model = target_model(sc, world.placement(self.target_name))
+        method = self.options.perception_method
+        perception = self.options.perception
+        if isinstance(self.model.geometry, Unknown) and method != "paper":
+            raise EpisodeFailure(
+                Stage.PERCEPTION, f"the target is a mesh nobody described: perception {method!r} needs its model"
+            )
+        if method == "paper":  # (an object nobody described: estimate_pose sends it to estimate_unknown)
+            self.estimator = lambda frame, model: estimate_pose(frame, model, perception)
+        else:
+            from pickdemo.perception.estimators import EstimatorError, resolve_estimator
+
+            try:
+                self.estimator = resolve_estimator(method)
+            except EstimatorError as exc:
+                raise EpisodeFailure(Stage.PERCEPTION, str(exc)) from None
+
+    def _add_observers(self) -> None:
+        """The observers the options ask for, in this order: the trace, the video, the debug
+        drawing, the rerun recording; then the caller's."""
+        from pickdemo.runtime.observers import DebugDrawer, VideoRecorder
+
+        opts = self.options
+        if self.trace is not None:
+            self.observers.append(self.trace)
+        if opts.video_path is not None:
+            fps = round(1.0 / (self.video_ticks * self.dt_ctl))
+            self.observers.append(VideoRecorder(opts.video_path, self.video_ticks, fps))
+        if opts.gui or opts.debug_draw:
+            self.observers.append(DebugDrawer(self, self.video_ticks))
+        if opts.rerun_path is not None:
+            from pickdemo.runtime.recording import RerunRecorder
+
+            self.observers.append(RerunRecorder(self, opts.rerun_path))
+        self.observers.extend(self.extra_observers)
+        self._hooks = {
+            hook: [(ob.timer, getattr(ob, hook)) for ob in self.observers if _overrides(ob, hook)] for hook in _HOOKS
+        }
+
+    def _notify(self, hook: str, *args) -> None:
+        for timer, call in self._hooks.get(hook, ()):
+            if timer is None:
+                call(self, *args)
+            else:
+                with self.timer(timer):
+                    call(self, *args)
+
+    # ==================================================================================== loop
+    def _tick(self) -> bool:
+        """One control tick; False (nothing done) once the machine is done, failed or out of time."""
+        machine, scene, counts = self.machine, self.world.scene, self.counts
+        if machine.finished:
+            return False
+        if scene.steps + self.substeps > self.max_steps:
+            budget = self.scenario.sim.max_sim_time_s
+            machine.abort(Stage.TIMEOUT, f"simulated-time budget of {budget:.1f} s spent in {machine.state.value}")
+            return False
+        now = scene.sim_time_s
+        obs = self.observation = self.robot.observe()
+        while self._pending and self._pending[0].arrival_s <= now + 1e-9:
+            f = self._pending.popleft()
+            status = machine.on_estimate(f.result, f.taken_s, f.camera)
+            self.referee.delivered(f.result, f.error_mm, status)
+            self._notify("estimate", now, f.taken_s, f.result, status)
+        t0 = time.perf_counter()
+        cmd = machine.update(obs)
+        counts.tick_ms.append((time.perf_counter() - t0) * 1e3)
+        self._log_events(now)
+        if machine.finished:
+            return False
+        try:
+            self.robot.apply(cmd)
+        except ReflexError as exc:  # the robot stopped: nothing was sent
+            machine.abort(Stage.REFLEX, str(exc))
+            self._log_events(now)
+            return False
+        counts.commanded.append((now, cmd.arm_q))  # always: result.json's limit_exceedances
+        tracking = machine.state in TRACKING_STATES
+        counts.tracking_ticks += tracking
+        due = self.tick - self._last_frame_tick >= self.frame_ticks  # asked only then: a region costs a prediction
+        request = machine.frame_request(now) if due else None
+        wrist = machine.wrist_request(now) if due and self.world.wrist_camera is not None else None
+        if wrist is not None and machine.state in HAND_OVER_TARGET:
+            request = None  # the hand's camera sees the target whole; the fixed one, the hand over it
+        if request is not None:
+            self._last_frame_tick = self.tick
+            self._look(request, now)
+            counts.tracking_frames += tracking
+        if wrist is not None:  # the hand's camera looks in the same tick (each frame its own estimate)
+            self._last_frame_tick = self.tick
+            self._look(wrist, now)
+        self._notify("tick", now)
+        with self.timer("physics"):
+            for _ in range(self.substeps):
+                for push in self.pushes:
+                    push.step(scene)
+                scene.step()
+        if machine.state in CARRY_STATES:  # truth: how high it was carried, for scoring
+            self.referee.carried()
+        if isinstance(self.referee, ClearReferee):  # truth: what came into the tray, when
+            self.referee.watch()
+        self.tick += 1
+        return True
+
+    def _end_loop(self) -> None:
+        """After the last tick: the last events, the observers' end; the machine's failure raised."""
+        now = self.world.scene.sim_time_s
+        self._log_events(now)
+        self._notify("end", now)
+        if self.machine.failure is not None:
+            raise EpisodeFailure(self.machine.failure.stage, self.machine.failure.reason)
+
+    def _look(self, request: FrameRequest, now: float) -> None:
+        """Render the requested frame and run perception on it (its result is delivered later)."""
+        from pickdemo.sim.disturb import PushPlayer, draw_push
+
+        world = self.world
+        obs = self.observation  # the joint states when the frame was taken: where the arm is in it
+        if request.wrist:  # told where it was by the arm's kinematics at those joint states
+            with self.timer("render wrist"):
+                T_world_tcp = self.machine.kin.forward(obs.arm_q)
+                frame = world.wrist_camera.capture_from(world.scene, T_world_tcp, request.roi)
+            frame = dataclasses.replace(frame, camera=WRIST_CAMERA)
+        else:
+            with self.timer("render"):
+                frame = world.camera.capture(world.scene, request.roi)
+        if obs is not None:
+            boxes = robot_body().boxes(obs.arm_q, obs.fingers_m)
+            if world.tray is not None:  # the cell's tray, and what is in it, is no object on the table
+                boxes = (*boxes, world.tray.box())
+            frame = dataclasses.replace(frame, robot_boxes=boxes)
+        if request.survey:  # a clear round's look at the whole table
+            from pickdemo.perception.unknown import survey_objects
+
+            with self.timer("perceive"):
+                survey = survey_objects(frame, self.options.perception)
+            self.counts.frames += 1
+            self._pending.append(_InFlight(now + self.scenario.control.perception_latency_s, now, survey, None))
+            self._notify("frame", now, frame, survey)
+            return
+        with self.timer("perceive wrist" if request.wrist else "perceive"):
+            try:
+                result: PoseEstimate | PerceptionError = self.estimator(frame, self.machine.model)
+                if not isinstance(result, PoseEstimate):
+                    raise TypeError(f"the perception method returned {type(result).__name__}, not a PoseEstimate")
+            except PerceptionError as exc:
+                result = exc
+        self.counts.frames += 1
+        self.referee.first_estimate(result)  # truth: for scoring only
+        if self.counts.frames == 1:  # the first look: disturbances are timed from here
+            self.pushes = [
+                PushPlayer(draw_push(d, now, world.rngs["disturbance"]), self.target_name)
+                for d in self.scenario.disturbances
+            ]
+        # Truth: for scoring only (an estimate that perception's own checks rejected included).
+        error_mm = self.referee.error_mm(result)
+        latency = self.scenario.control.perception_latency_s
+        self._pending.append(_InFlight(now + latency, now, result, error_mm, frame.camera))
+        self._notify("frame", now, frame, result)
+
+    def _log_events(self, now: float) -> None:
+        m = self.machine
+        for ev in m.events[self._events_logged :]:
+            self._phase(PhaseRecord(ev.state.value, round(ev.time_s, 6), ev.message))
+            if ev.state is State.CLOSE and not ev.note:  # committing: the tracker against the truth
+                self.referee.committed(m.tracker.predict(now), m.symmetry)
+        self._events_logged = len(m.events)
+
+    def _phase(self, record: PhaseRecord) -> None:
+        self.counts.phases.append(record)
+        if self.on_phase is not None:
+            self.on_phase(record)
+        self._notify("phase", record)
+
+    # ==================================================================================== end
+    def _finish(self, failure: Failure | None) -> None:
+        """The episode is over: where the target ended, the failure as the last phase, all closed."""
+        self._sim_time_s = self.world.sim_time_s if self.world is not None else 0.0
+        try:
+            if self.referee is not None:
+                self.referee.ended()
+                self._round_score = self._clear_score()  # (the truth is read before the scene closes)
+            phases = self.counts.phases
+            if failure is not None and not (phases and phases[-1].phase == State.FAILED.value):
+                reason = f"{failure.stage.value}: {failure.reason}"
+                self._phase(PhaseRecord(State.FAILED.value, round(self._sim_time_s, 6), reason))
+        finally:
+            self._failure = failure
+            self._done = True
+            self._close()
+
+    def _close(self) -> None:
+        observers, self.observers, self._hooks = self.observers, [], {}
+        try:
+            for ob in observers:
+                if ob.timer is None:
+                    ob.close()
+                else:
+                    with self.timer(ob.timer):
+                        ob.close()
+        finally:
+            if self.world is not None:
+                self.world.close()
+
+    def _make_result(self) -> EpisodeResult:
+        counts, ref, m, failure = self.counts, self.referee, self.machine, self._failure
+        ticks = np.array(counts.tick_ms) if counts.tick_ms else np.zeros(1)
+        lifted = ref.lifted_mm() if ref is not None and m is not None and m.attempts else None
+        tracking_error_mm = ref.tracking_error_mm if ref is not None else None
+        return EpisodeResult(
+            scenario=self.scenario.name,
+            seed=self.seed,
+            success=failure is None,
+            failure=failure,
+            perception=ref.perception if ref is not None else None,
+            place_error_mm=ref.place_error_mm if ref is not None else None,
+            lift_height_mm=lifted,
+            grasp_width_mm=None if m is None or m.grasp_width_m is None else m.grasp_width_m * 1e3,
+            sim_time_s=self._sim_time_s,
+            wall_time_s=self._wall_s,
+            stage_wall_times_s={k: round(v, 6) for k, v in self.timer.times.items()},
+            phases=tuple(counts.phases),
+            open_loop=self.options.open_loop,
+            attempts=tuple(m.attempts) if m is not None else (),
+            perception_frames=counts.frames,
+            perception_rate_hz=(
+                counts.tracking_frames / (counts.tracking_ticks * self.dt_ctl) if counts.tracking_ticks else None
+            ),
+            estimates_rejected=m.counters.rejected if m is not None else 0,
+            perception_failures=m.counters.perception_errors if m is not None else 0,
+            target_moves_detected=m.counters.jumps if m is not None else 0,
+            retargets=m.counters.retargets if m is not None else 0,
+            tracking_error_mm=tracking_error_mm,
+            tracking_yaw_error_deg=ref.tracking_yaw_deg if ref is not None else None,
+            diagnosis=diagnose(failure, tracking_error_mm),
+            estimates_off=ref.wrong_estimates if ref is not None else 0,
+            estimates_off_accepted=ref.wrong_estimates_accepted if ref is not None else 0,
+            estimates_off_fit_rejected=ref.wrong_estimates_self_rejected if ref is not None else 0,
+            target_off_table=ref.off_table if ref is not None else None,
+            perception_method=self.options.perception_method,
+            disturbances=tuple(p.push.to_dict() for p in self.pushes),
+            control_tick_wall_ms={
+                "median": float(np.median(ticks)),
+                "p95": float(np.percentile(ticks, 95)),
+                "ticks": len(counts.tick_ms),
+            },
+            limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded)),
+            peak_joint_limit_ratio=_peak_ratios(counts.commanded),
+            place_position_m=None if self.world is None else self.world.place_xy,
+            clear=self._round_score,
+            trace=self.trace.freeze() if self.trace is not None else None,
+        )
+
+    def _clear_score(self) -> dict | None:
+        """A clear round's figures (truth: scored by the referee), or None."""
+        if not isinstance(self.referee, ClearReferee) or self.referee.in_round is None or self.machine is None:
+            return None
+        return self.referee.clear_score(self.machine.picks, self.machine.attempts)
+
+
+def _commanded_arrays(commanded: list[tuple[float, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    t, q = zip(*commanded, strict=True)
+    return np.array(t, dtype=float), np.array(q, dtype=float).reshape(-1, 7)
+
+
+def _peak_ratios(commanded: list[tuple[float, np.ndarray]]) -> dict[str, float] | None:
+    """The commanded joint motion's largest ratios to the datasheet limits (``peak_joint_limit_ratio``)."""
+    return None if len(commanded) < 4 else peak_limit_ratios(*_commanded_arrays(commanded))
+
+
+def _exceedances(commanded: list[tuple[float, np.ndarray]]):
+    """The joint command's excursions beyond the datasheet limits (as the motion plot marks them)."""
+    return [] if len(commanded) < 4 else limit_exceedances(*_commanded_arrays(commanded))

@@ -1,0 +1,281 @@
+"""Where each object of a scenario starts, its size, and where the camera stands: sampled from the
+scenario's ranges with the scene's RNG.
+
+Pure: no simulator. Objects are placed in file order; an object that would overlap one already
+placed is re-drawn (a bounded number of times), so a seed always gives the same layout. A draw is
+made only for what the scenario leaves open, so adding a range to one key does not change the other
+keys' draws of a scenario that does not use it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.core.meshes import MeshFileError
+from pickdemo.core.shapes import Shape
+from pickdemo.scenario.schema import CameraSpec, ObjectSpec, Scenario
+
+MAX_DRAWS = 200
+
+
+class LayoutError(ValueError):
+    """The scenario's ranges leave no room to place its objects apart."""
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where one object starts, and its shape at the size drawn for this seed."""
+
+    name: str
+    pose: Pose  # world pose of the object's centre
+    geometry: Shape
+
+    @property
+    def size(self) -> tuple[float, ...]:
+        """The size in the scenario's order (box: x, y, z; cylinder: diameter, height; mesh: its bounding box), m."""
+        return self.geometry.size
+
+    @property
+    def shape(self) -> str:
+        """The shape's name (``"box"``, ``"cylinder"``), as in the scenario file."""
+        return self.geometry.kind
+
+    @property
+    def height_m(self) -> float:
+        return self.geometry.height_m
+
+
+@dataclass(frozen=True)
+class Tray:
+    """A clear round's tray, fixed to the table: what the robot knows of it (the cell's layout) and
+    what the referee scores by. Its size is its URDF's collision geometry's bounding box at its scale."""
+
+    urdf: str
+    scale: float
+    position: tuple[float, float]  # m, its centre on the table
+    yaw_rad: float
+    half_extents: tuple[float, float]  # m, of its footprint in its own frame
+    rim_z: float  # m, its top edge above the table
+
+    #: drop spots in the tray, as shares of its half extents: spread so that objects do not stack
+    SPOTS = ((0.0, 0.0), (-0.4, -0.4), (0.4, 0.4), (-0.4, 0.4), (0.4, -0.4))
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> Tray | None:
+        """The scenario's tray (None without one); reads its URDF (a
+        :class:`~pickdemo.core.meshes.MeshFileError` for a bad one)."""
+        place = scenario.place
+        if place.tray is None:
+            return None
+        from pickdemo.core.meshes import read_urdf
+
+        v = read_urdf(place.tray).vertices * place.tray_scale
+        lo, hi = v.min(axis=0), v.max(axis=0)
+        assert place.position is not None  # the schema asks a tray for its position
+        # its footprint about its origin (symmetric: a tray's origin is its middle)
+        half = np.maximum(np.abs(lo[:2]), np.abs(hi[:2]))
+        z0 = float(lo[2])  # the body frame sits on the table where its lowest point does
+        return cls(place.tray, place.tray_scale, (float(place.position[0]), float(place.position[1])),
+                   float(np.radians(place.yaw_deg)), (float(half[0]), float(half[1])), float(hi[2] - z0))  # fmt: skip
+
+    @property
+    def base_z(self) -> float:
+        """Its body frame's height above the table (its lowest point on the table)."""
+        from pickdemo.core.meshes import read_urdf
+
+        return float(-read_urdf(self.urdf).vertices[:, 2].min() * self.scale)
+
+    @property
+    def pose(self) -> Pose:
+        return Pose.from_xyz_rpy(np.array([*self.position, 0.0]), yaw=self.yaw_rad)
+
+    def holds(self, xy: np.ndarray) -> bool:
+        """Whether a point seen from above lies over its footprint."""
+        dx, dy = float(xy[0]) - self.position[0], float(xy[1]) - self.position[1]
+        c, s = np.cos(self.yaw_rad), np.sin(self.yaw_rad)  # (into the tray's frame: the yaw's inverse)
+        return abs(c * dx + s * dy) <= self.half_extents[0] and abs(-s * dx + c * dy) <= self.half_extents[1]
+
+    def spot(self, k: int) -> tuple[float, float]:
+        """Where the ``k``-th object is dropped (the spots in turn)."""
+        sx, sy = self.SPOTS[k % len(self.SPOTS)]
+        local = np.array([sx * self.half_extents[0], sy * self.half_extents[1]])
+        xy = np.asarray(self.position) + self.pose.rotation[:2, :2] @ local
+        return (float(xy[0]), float(xy[1]))
+
+    def box(self, margin_m: float = 0.01, height_m: float = 1.0) -> OrientedBox:
+        """Its footprint, ``margin_m`` wider, from just under the table to ``height_m`` above it: what
+        lies there is the tray or in it (segmentation leaves it out, as it leaves out the robot)."""
+        hx, hy = self.half_extents
+        return OrientedBox(self.pose, np.array([-hx - margin_m, -hy - margin_m, -0.01]),
+                           np.array([hx + margin_m, hy + margin_m, height_m]))  # fmt: skip
+
+
+def _angle(fixed: float | None, rng_range: tuple[float, float] | None, rng: np.random.Generator) -> float:
+    if fixed is not None:
+        return float(np.radians(fixed))
+    if rng_range is not None:
+        return float(np.radians(rng.uniform(*rng_range)))
+    return 0.0
+
+
+def _size(obj: ObjectSpec, rng: np.random.Generator) -> tuple[float, ...]:
+    if obj.size is not None:
+        return tuple(obj.size)
+    return tuple(float(rng.uniform(lo, hi)) for lo, hi in obj.size_range)  # type: ignore[union-attr]
+
+
+def _draw(obj: ObjectSpec, rng: np.random.Generator) -> tuple[np.ndarray, float, float, float]:
+    if obj.position is not None:
+        xy = np.array(obj.position[:2], dtype=float)
+    else:
+        (x0, x1), (y0, y1) = obj.position_range  # type: ignore[misc]
+        xy = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
+    yaw = _angle(obj.yaw_deg, obj.yaw_range_deg, rng)
+    pitch = _angle(obj.pitch_deg, obj.pitch_range_deg, rng)
+    roll = _angle(obj.roll_deg, obj.roll_range_deg, rng)
+    return xy, yaw, pitch, roll
+
+
+def _mesh(obj: ObjectSpec, rng: np.random.Generator) -> Shape:
+    """A mesh object's file (one of its ``urdf_choice`` matches) and scale for this seed, drawn from
+    the seed's ``objects`` stream (so that the layout's own draws stay as they were)."""
+    files = obj.urdf_files
+    if not files:
+        raise LayoutError(f"objects.{obj.name}.urdf_choice: {obj.urdf_choice!r} matches no file")
+    urdf = files[int(rng.integers(len(files)))] if len(files) > 1 else files[0]
+    lo, hi = obj.scales
+    scale = float(rng.uniform(lo, hi)) if hi > lo else lo
+    try:
+        return obj.mesh_shape(urdf, scale)
+    except MeshFileError as exc:
+        raise LayoutError(f"objects.{obj.name}: {exc}") from None
+
+
+def sample_layout(
+    scenario: Scenario, rng: np.random.Generator, objects_rng: np.random.Generator | None = None
+) -> tuple[Placement, ...]:
+    """Start poses and sizes of all objects, resting on the table (or the belt) unless a centre height
+    is given. ``objects_rng``: the stream a mesh's file and scale are drawn from (a scenario with no
+    mesh never asks it)."""
+    placed: list[tuple[np.ndarray, float]] = []
+    out: list[Placement] = []
+    for obj in scenario.objects:
+        if obj.shape == "mesh":
+            if objects_rng is None:
+                raise ValueError("a mesh's file and scale are drawn from the seed's objects stream: pass objects_rng")
+            shape = _mesh(obj, objects_rng)
+        else:
+            shape = obj.shape_of_size(_size(obj, rng))
+        r = shape.footprint_radius_m
+        for _ in range(MAX_DRAWS):
+            xy, yaw, pitch, roll = _draw(obj, rng)
+            if obj.position is not None:  # a fixed spot: the scenario's author answers for the spacing
+                break
+            if all(np.linalg.norm(xy - q) >= r + rq + scenario.layout.clearance_m for q, rq in placed):
+                break
+        else:
+            raise LayoutError(f"objects.{obj.name}: no free spot found in {MAX_DRAWS} draws")
+        placed.append((xy, r))
+        pose = Pose.from_xyz_rpy(np.array([xy[0], xy[1], 0.0]), roll=roll, pitch=pitch, yaw=yaw)
+        z = obj.position[2] if obj.position is not None and len(obj.position) == 3 else None
+        if z is None:  # resting on the table, or on the belt where there is one
+            z = shape.resting_height_m(pose.rotation) + scenario.surface_z(float(xy[0]), float(xy[1]))
+        out.append(Placement(obj.name, Pose(np.array([xy[0], xy[1], z]), pose.rotation), shape))
+    return tuple(out)
+
+
+def sample_place(
+    scenario: Scenario, layout: tuple[Placement, ...] | list[Placement], rng: np.random.Generator
+) -> tuple[float, float]:
+    """Where the target is to be put down: the scenario's spot, or one drawn from its region clear of
+    where every object starts, the target included (by the layout's clearance and the target's own
+    footprint): somewhere else."""
+    place = scenario.place
+    if place.position is not None:
+        return (float(place.position[0]), float(place.position[1]))
+    (x0, x1), (y0, y1) = place.position_range  # type: ignore[misc]
+    targets = [p for p in layout if p.name in {t.name for t in scenario.targets}]
+    r = max((p.geometry.footprint_radius_m for p in targets), default=0.0)
+    for _ in range(MAX_DRAWS):
+        xy = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
+        clear = all(
+            np.linalg.norm(xy - p.pose.position[:2]) >= r + p.geometry.footprint_radius_m + scenario.layout.clearance_m
+            for p in layout
+        )
+        if clear:
+            return (float(xy[0]), float(xy[1]))
+    raise LayoutError(f"place.position_range: no spot clear of the other objects in {MAX_DRAWS} draws")
+
+
+def camera_position(spec: CameraSpec, rng: np.random.Generator) -> np.ndarray:
+    """Where the camera stands: the scenario's position, or one drawn around ``look_at``."""
+    if not spec.sampled:
+        return np.array(spec.position, dtype=float)
+    d = rng.uniform(*spec.distance_range_m)  # type: ignore[misc]
+    el = np.radians(rng.uniform(*spec.elevation_range_deg))  # type: ignore[misc]
+    az = np.radians(rng.uniform(*spec.azimuth_range_deg))  # type: ignore[misc]
+    offset = d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    return np.asarray(spec.look_at, dtype=float) + offset
+
+
+def sample_round(
+    scenario: Scenario, rng: np.random.Generator, placed: tuple[Placement, ...] | list[Placement] = ()
+) -> tuple[Placement, ...]:
+    """A clear round's drawn objects (``[clear]``), from the seed's ``clear`` stream: ``count`` files of
+    ``objects_from`` (without repeats while there are enough), each at a scale from ``scale_range`` and
+    a yaw drawn in full, standing as its file stands it.
+
+    ``packed``: side by side in the region, apart by the layout's clearance (and clear of the objects
+    ``placed`` already). ``pile``: anywhere in the region, each above what it would fall on (the
+    footprints drawn before it that it overlaps), ``drop_height_m`` higher: the scene lets them fall
+    into a heap before the robot's first look."""
+    from pickdemo.scenario.schema import DRAWN_NAME
+
+    spec = scenario.clear
+    assert spec is not None
+    files = spec.files
+    if not files:
+        raise LayoutError(f"clear.objects_from: {spec.objects_from!r} matches no file")
+    picks = rng.choice(len(files), size=spec.count, replace=spec.count > len(files))
+    lo, hi = spec.scale_range
+    (x0, x1), (y0, y1) = spec.region
+    taken: list[tuple[np.ndarray, float, float]] = [  # (xy, footprint radius, top z)
+        (p.pose.position[:2], p.geometry.footprint_radius_m, float(p.pose.position[2] + p.height_m / 2.0))
+        for p in placed
+    ]
+    out: list[Placement] = []
+    for i, k in enumerate(picks):
+        name = DRAWN_NAME.format(i + 1)
+        scale = float(rng.uniform(lo, hi)) if hi > lo else lo
+        try:
+            from pickdemo.core.meshes import read_urdf
+            from pickdemo.core.shapes import Mesh
+
+            shape = Mesh(files[int(k)], scale, read_urdf(files[int(k)]).vertices * scale)
+        except MeshFileError as exc:
+            raise LayoutError(f"clear.objects_from: {exc}") from None
+        r = shape.footprint_radius_m
+        yaw = float(rng.uniform(-np.pi, np.pi))
+        rotation = Pose.from_xyz_rpy(np.zeros(3), yaw=yaw).rotation
+        rest = shape.resting_height_m(rotation)
+        for _ in range(MAX_DRAWS):
+            xy = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
+            under = [top for q, rq, top in taken if np.linalg.norm(xy - q) < r + rq]
+            if spec.layout == "pile":
+                break
+            if not under and all(np.linalg.norm(xy - q) >= r + rq + scenario.layout.clearance_m for q, rq, _ in taken):
+                break
+        else:
+            raise LayoutError(
+                f"clear.region: no room for {spec.count} objects packed "
+                f"{scenario.layout.clearance_m * 1e3:.0f} mm apart "
+                f"({name} found no free spot in {MAX_DRAWS} draws): a larger region or fewer objects"
+            )
+        base = max(under, default=0.0) + (spec.drop_height_m if under else 0.0)
+        z = base + rest
+        taken.append((xy, r, z + shape.height_m - rest))
+        out.append(Placement(name, Pose(np.array([xy[0], xy[1], z]), rotation), shape))
+    return tuple(out)
