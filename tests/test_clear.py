@@ -133,7 +133,7 @@ def _sequencer() -> ClearSequencer:
     return ClearSequencer(
         kin=panda_kinematics(),
         tray=tray,
-        camera=CameraModel(K, T_CAM),
+        cameras=[CameraModel(K, T_CAM)],
         q0=rm.HOME_Q.copy(),
         dt_s=1 / 120,
         rng=np.random.default_rng(0),
@@ -147,29 +147,29 @@ def _seen(block: Block) -> SeenObject:
 
 def test_the_sequencer_ends_on_a_clear_table_and_when_no_grasp_is_found() -> None:
     seq = _sequencer()
-    assert seq.frame_request(0.0) is None  # not before its first tick
+    assert seq.views(0.0) == []  # not before its first tick
     obs = Observation(time_s=0.0, arm_q=rm.HOME_Q.copy(), arm_dq=np.zeros(7), fingers_m=np.array([0.04, 0.04]),
                       finger_contacts=(0, 0))  # fmt: skip
     seq.update(obs)
-    req = seq.frame_request(0.0)
+    (req,) = seq.views(0.0)
     assert req is not None and req.survey and req.roi is None
-    assert seq.frame_request(0.0) is None  # one survey at a time
+    assert seq.views(0.0) == []  # one survey at a time
     seq.on_estimate(Survey((), 0.0), 0.0)
     assert seq.finished and seq.failure is None and seq.state is State.DONE
     # an object wider than the open hand every way: no grasp found, the round ends by name
     seq = _sequencer()
     seq.update(obs)
-    seq.frame_request(0.0)
+    seq.views(0.0)
     seq.on_estimate(Survey((_seen(Block((0.5, 0.0), (0.12, 0.12, 0.04))),), 0.0), 0.0)
     assert seq.finished and seq.failure is not None and seq.failure.stage is Stage.GRASP_PLANNING
     # a box it can hold: a pick of it follows, its first look at a region around where it was seen
     seq = _sequencer()
     seq.update(obs)
-    seq.frame_request(0.0)
+    seq.views(0.0)
     seq.on_estimate(Survey((_seen(Block((0.5, 0.0), (0.05, 0.03, 0.04))),), 0.0), 0.0)
     assert not seq.finished and seq.state is State.LOOK
     seq.update(obs)
-    req = seq.frame_request(0.1)
+    (req,) = seq.views(0.1)
     assert req is not None and not req.survey and req.roi is not None
 
 

@@ -13,14 +13,15 @@ from pickdemo.motion.ik_goals import Goal, GoalParams, choose_goal, goal_candida
 from pickdemo.motion.online import JointMotion, MotionError, OnlineMotion, top_down_pose
 from pickdemo.robot import panda as rm
 from pickdemo.robot.kinematics import panda_kinematics
-from pickdemo.skills.pick import MachineParams, _half_turn
+from pickdemo.skills.pick import MachineParams
+from pickdemo.skills.pick.plans import half_turn
 
 
 def test_a_pose_whose_hand_angle_is_out_of_reach_is_reached_turned_half_a_turn() -> None:
     kin = panda_kinematics()
     rng = np.random.default_rng(0)
     pose = top_down(np.array([0.40, -0.30, 0.15]), np.radians(-150.0))  # joint 7 would pass its stop
-    goals = goal_candidates(kin, [pose, _half_turn(pose)], rm.HOME_Q, rng)
+    goals = goal_candidates(kin, [pose, half_turn(pose)], rm.HOME_Q, rng)
     best = choose_goal(goals)
     assert best is not None and kin.within_limits(best.q)
     assert np.allclose(kin.forward(best.q).position, best.pose.position, atol=1e-3)

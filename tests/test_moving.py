@@ -9,7 +9,7 @@ from test_tracker import _est
 
 from pickdemo.core.shapes import Box
 from pickdemo.perception import TargetModel
-from pickdemo.skills.pick import BELT_MOVING_SPEED_M_S, MachineParams
+from pickdemo.skills.pick.params import BELT_MOVING_SPEED_M_S, MachineParams
 from pickdemo.tracking.belief import Counters, GateParams, TargetBelief
 
 BELT = MachineParams().on_a_belt()

@@ -24,7 +24,7 @@ from pickdemo.robot.kinematics import panda_kinematics
 from pickdemo.scenario.layout import sample_layout
 from pickdemo.scenario.load import load_scenario
 from pickdemo.scenario.task import target_model
-from pickdemo.skills.pick import WRIST_CAMERA, CameraModel, PickMachine, State, WristCameraModel
+from pickdemo.skills.pick import CameraModel, PickMachine, State
 from pickdemo.tracking.belief import Verdict
 
 DT = 1.0 / 120.0
@@ -56,9 +56,10 @@ class Cell:
         K = Intrinsics.from_fov(640, 480, 57.0, 43.0)
         self.camera = CameraModel(K, look_at_pose(np.array([1.1, 0.0, 0.75]), np.array([0.5, 0.0, 0.0])))
 
-    def machine(self, **kw) -> PickMachine:
-        return PickMachine(kin=self.kin, model=self.model, symmetry_rad=np.pi / 2.0, place_xy=PLACE,
-                           camera=self.camera, q0=self.q, dt_s=DT, rng=np.random.default_rng(1), **kw)  # fmt: skip
+    def machine(self, wrist: CameraModel | None = None, **kw) -> PickMachine:
+        cameras = [self.camera, *([wrist] if wrist else [])]
+        return PickMachine(kin=self.kin, model=self.model, symmetry_rad=np.pi / 2.0, place_xy=PLACE, cameras=cameras,
+                           q0=self.q, dt_s=DT, rng=np.random.default_rng(1), **kw)  # fmt: skip
 
     def tcp(self) -> np.ndarray:
         return self.kin.forward(self.q).position
@@ -120,10 +121,8 @@ def run(cell: Cell, machine: PickMachine, seconds: float = 60.0, events: dict | 
         if machine.finished:
             break
         cell.apply(cmd, t)
-        if tick % FRAME_TICKS == 0 and machine.frame_request(t) is not None:
-            pending.append((t, cell.estimate()))
-        if tick % FRAME_TICKS == 0 and machine.wrist_request(t) is not None:
-            pending.append((t, cell.estimate(), WRIST_CAMERA))
+        for request in machine.views(t) if tick % FRAME_TICKS == 0 else ():
+            pending.append((t, cell.estimate(), request.camera))
     assert all(isinstance(v, Verdict) for v in verdicts)
     states = [e.state.value for e in machine.events if not e.note]
     return ["look", *states]
@@ -256,7 +255,7 @@ def test_a_pick_with_joint_space_transfers_keeps_the_franka_within_its_limits() 
 
     def record(cmd: Command, t: float) -> None:
         commands.append((t, cmd.arm_q.copy()))
-        if m._joint:
+        if m.arm.joint:
             in_joint_space.add(m.state.value)
         apply(cmd, t)
 
@@ -279,9 +278,9 @@ def test_the_hand_angle_is_chosen_by_ik_with_room_at_the_grasp_and_the_place(yaw
     cell = Cell(xy=(0.5, -0.1), yaw_deg=yaw_deg)
     m = cell.machine()
     pose = Pose.from_xyz_rpy(cell.obj, yaw=cell.yaw)
-    best = m._ranked_hand_yaws(pose, None, None)[0]
-    plan = m._grasp(pose, best)
-    feasible, carries, _ = m._hand_angle_score(plan, None)
+    best = m.chooser.ranked_hand_yaws(pose, None, None)[0]
+    plan = m.chooser.grasp(pose, best)
+    feasible, carries, _ = m.chooser.hand_angle_score(plan, None)
     assert feasible and carries  # the carry to the place can be followed, every joint clear of its limits
     assert run(cell, m) == FULL_PICK
 
@@ -339,11 +338,11 @@ def test_a_finger_touching_something_in_the_descent_backs_off_and_looks_again() 
     assert [a.outcome for a in m.attempts] == ["placed"]
 
 
-def wrist_camera(cell: Cell) -> WristCameraModel:
+def wrist_camera(cell: Cell) -> CameraModel:
     """The default camera on the hand (a D405-like one beside it, looking down past the fingertips)."""
     K = Intrinsics.from_fov(424, 240, 87.0, 58.0)
     T_tcp_cam = hand_camera_pose(cell.kin.tcp_to_frame("panda_hand"), (0.09, 0.0, 0.04), (0.0, 0.0, 0.16))
-    return WristCameraModel(K, T_tcp_cam, 0.05, 1.0)
+    return CameraModel(K, T_tcp_cam, "wrist_camera", on_hand=True, near_m=0.05, far_m=1.0)
 
 
 @pytest.mark.parametrize("with_wrist_camera", [True, False])

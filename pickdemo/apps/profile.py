@@ -113,17 +113,18 @@ def _wrap_episode(prof: Profiler, ep: Any) -> None:
     prof.wrap(world.scene, "step", "physics")
     prof.wrap(ep.robot, "observe", "robot I/O")
     prof.wrap(ep.robot, "apply", "robot I/O")
-    prof.wrap(world.camera, "capture", "render")
-    prof.wrap(world.wrist_camera, "capture_from", "render")
+    for rig in world.cameras.values():
+        prof.wrap(rig, "take", "render")
     prof.wrap(ep, "estimator", "perception")
+    belief, arm = getattr(m, "belief", None), getattr(m, "arm", None)  # (a pick's: a clear round's own are not)
     for name in ("offer", "predict", "lost", "moving_velocity"):
-        prof.wrap(m.belief, name, "tracker")
-    for name in ("update", "on_estimate", "frame_request", "wrist_request"):
+        prof.wrap(belief, name, "tracker")
+    for name in ("update", "on_estimate", "views"):
         prof.wrap(m, name, "skill")
     for name in ("step", "set_target", "time_to", "intercept", "reset_at"):
-        prof.wrap(m.motion, name, "motion")
+        prof.wrap(arm and arm.motion, name, "motion")
     for name in ("step", "start", "retarget", "brake"):
-        prof.wrap(m.joints, name, "motion")
+        prof.wrap(arm and arm.joints, name, "motion")
     for name in ("track", "solve", "forward", "manipulability", "limit_margin"):
         prof.wrap(m.kin, name, "kinematics")
 

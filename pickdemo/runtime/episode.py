@@ -53,17 +53,7 @@ from pickdemo.runtime.world import World
 from pickdemo.scenario.layout import LayoutError
 from pickdemo.scenario.load import Scenario
 from pickdemo.scenario.task import target_model
-from pickdemo.skills.pick import (
-    HAND_OVER_TARGET,
-    TRACKING_STATES,
-    WRIST_CAMERA,
-    CameraModel,
-    FrameRequest,
-    MachineParams,
-    PickMachine,
-    State,
-    WristCameraModel,
-)
+from pickdemo.skills.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
 
 if TYPE_CHECKING:
     from pickdemo.sim.controller import RobotInterface
@@ -375,16 +365,15 @@ class Episode:
                 params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales)
             )
         params = dataclasses.replace(params, joint_transfers=m.transfers == "joint")
-        camera = world.camera
-        wrist = world.wrist_camera
-        wrist_model = (
-            None
-            if wrist is None
-            else WristCameraModel(wrist.intrinsics, wrist.T_tcp_cam, wrist.spec.near_m, wrist.spec.far_m)
-        )
+        cameras = [  # what the robot is told of its cameras: intrinsics, poses (as calibrated), depth ranges
+            CameraModel(rig.intrinsics, rig.T_tcp_cam, name, on_hand=True, near_m=rig.spec.near_m, far_m=rig.spec.far_m)
+            if rig.on_hand
+            else CameraModel(rig.intrinsics, rig.T_world_cam, name)
+            for name, rig in world.cameras.items()
+        ]
         common = dict(  # what the controller is told of its cell and its arm, for either task
             kin=kin,
-            camera=CameraModel(camera.intrinsics, camera.T_world_cam),
+            cameras=cameras,
             q0=self.robot.observe().arm_q,
             dt_s=self.dt_ctl,
             rng=world.rngs["ik"],
@@ -409,7 +398,6 @@ class Episode:
             place_tolerance_m=sc.success.place_tolerance,
             open_loop=self.options.open_loop,
             surface_z=sc.surface_z,
-            wrist=wrist_model,
             **common,
         )
 
@@ -519,17 +507,10 @@ class Episode:
         tracking = machine.state in TRACKING_STATES
         counts.tracking_ticks += tracking
         due = self.tick - self._last_frame_tick >= self.frame_ticks  # asked only then: a region costs a prediction
-        request = machine.frame_request(now) if due else None
-        wrist = machine.wrist_request(now) if due and self.world.wrist_camera is not None else None
-        if wrist is not None and machine.state in HAND_OVER_TARGET:
-            request = None  # the hand's camera sees the target whole; the fixed one, the hand over it
-        if request is not None:
+        for request in machine.views(now) if due else ():  # each camera its frame, each frame its estimate
             self._last_frame_tick = self.tick
             self._look(request, now)
-            counts.tracking_frames += tracking
-        if wrist is not None:  # the hand's camera looks in the same tick (each frame its own estimate)
-            self._last_frame_tick = self.tick
-            self._look(wrist, now)
+            counts.tracking_frames += tracking and not self.world.cameras[request.camera].on_hand
         self._notify("tick", now)
         with self.timer("physics"):
             for _ in range(self.substeps):
@@ -557,14 +538,12 @@ class Episode:
 
         world = self.world
         obs = self.observation  # the joint states when the frame was taken: where the arm is in it
-        if request.wrist:  # told where it was by the arm's kinematics at those joint states
-            with self.timer("render wrist"):
-                T_world_tcp = self.machine.kin.forward(obs.arm_q)
-                frame = world.wrist_camera.capture_from(world.scene, T_world_tcp, request.roi)
-            frame = dataclasses.replace(frame, camera=WRIST_CAMERA)
-        else:
-            with self.timer("render"):
-                frame = world.camera.capture(world.scene, request.roi)
+        rig = world.cameras[request.camera]
+        with self.timer("render wrist" if rig.on_hand else "render"):
+            # on the hand: told where it was by the arm's kinematics at those joint states
+            T_world_tcp = self.machine.kin.forward(obs.arm_q) if rig.on_hand else None
+            frame = rig.take(world.scene, request.roi, T_world_tcp)
+        frame = dataclasses.replace(frame, camera=request.camera)
         if obs is not None:
             boxes = robot_body().boxes(obs.arm_q, obs.fingers_m)
             if world.tray is not None:  # the cell's tray, and what is in it, is no object on the table
@@ -579,7 +558,7 @@ class Episode:
             self._pending.append(_InFlight(now + self.scenario.control.perception_latency_s, now, survey, None))
             self._notify("frame", now, frame, survey)
             return
-        with self.timer("perceive wrist" if request.wrist else "perceive"):
+        with self.timer("perceive wrist" if rig.on_hand else "perceive"):
             try:
                 result: PoseEstimate | PerceptionError = self.estimator(frame, self.machine.model)
                 if not isinstance(result, PoseEstimate):

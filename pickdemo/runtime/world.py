@@ -26,6 +26,11 @@ if TYPE_CHECKING:
     from pickdemo.sim.scene import Scene
 
 
+#: The scenario's cameras by name: ``[camera]`` (fixed) and ``[wrist_camera]`` (on the hand)
+FIXED_CAMERA = "camera"
+WRIST_CAMERA = "wrist_camera"
+
+
 class World:
     """The seed's world: its random streams (``rngs``), its ``layout``, and once opened its ``scene``
     and ``camera``. Closing it closes the scene (also as a context manager)."""
@@ -44,6 +49,8 @@ class World:
         self.scene: Scene | None = None
         self.camera: Camera | None = None
         self.wrist_camera: WristCamera | None = None  # a camera on the hand, if the scenario has one
+        #: every camera by its name (what frames and estimates carry): the fixed one first
+        self.cameras: dict[str, Camera] = {}
 
     @classmethod
     def build(cls, scenario: Scenario, seed: int, *, gui: bool = False) -> World:
@@ -61,8 +68,10 @@ class World:
         where = camera_position(sc.camera, self.rngs["camera_pose"])
         error = calibration_error(*sc.camera.extrinsic_error, self.rngs["calibration"])
         self.camera = Camera(sc.camera, self.rngs["camera"], position=where, calibration_error=error)
+        self.cameras = {FIXED_CAMERA: self.camera}
         if sc.wrist_camera is not None:
             self.wrist_camera = wrist_camera(sc.wrist_camera, self.rngs["wrist_camera"], self.rngs["hand_eye"])
+            self.cameras[WRIST_CAMERA] = self.wrist_camera
         return self
 
     def placement(self, name: str) -> Placement:

@@ -91,6 +91,12 @@ class Camera:
         depth[depth >= self.spec.far_m * 0.999] = np.inf  # no return
         return rgb, depth, np.asarray(seg).reshape(h, w)
 
+    on_hand = False  # a camera fixed in the world
+
+    def take(self, scene: Scene, roi: tuple[int, int, int, int] | None, T_world_tcp: Pose | None) -> RGBDFrame:
+        """A frame of the region ``roi`` (None: the whole image); a fixed camera ignores the hand's pose."""
+        return self.capture(scene, roi)
+
     def capture(self, scene: Scene, roi: tuple[int, int, int, int] | None = None) -> RGBDFrame:
         """An RGB-D frame as a real sensor would give it (noisy depth if the scenario says so).
 
@@ -175,6 +181,13 @@ class WristCamera(Camera):
         self._rng = rng
         self.T_world_cam_true = self.T_world_cam = Pose.identity()
         self._view = opengl_view_matrix(self.T_world_cam_true)
+
+    on_hand = True
+
+    def take(self, scene: Scene, roi: tuple[int, int, int, int] | None, T_world_tcp: Pose | None) -> RGBDFrame:
+        """A frame of the region ``roi`` with the hand at ``T_world_tcp`` (where the arm's joints put it)."""
+        assert T_world_tcp is not None, "a camera on the hand needs the hand's pose"
+        return self.capture_from(scene, T_world_tcp, roi)
 
     def capture_from(self, scene: Scene, T_world_tcp: Pose, roi: tuple[int, int, int, int] | None = None) -> RGBDFrame:
         """A frame from where the hand truly is, told as seen from ``T_world_tcp`` (the robot's

@@ -235,3 +235,10 @@ class Scale:
 
     def grip_force_n(self, payload_kg: float) -> float:
         return self.p.grip_n_per_kg * payload_kg
+
+    def carry_share(self) -> float:
+        """The carry's speed share for what was weighed: a heavier hold is carried more gently (its
+        accelerations as the square of this), so that it does not swing in the pads."""
+        m = self.payload_kg
+        light = self.p.gentle_above_kg
+        return 1.0 if m is None or m <= light else float(np.sqrt(light / m))

@@ -10,7 +10,7 @@ when the table is clear, when no grasp is found, or after ``max_consecutive_fail
 attempts in a row (VGN's clutter-removal protocol).
 
 To the episode it is a controller like a pick's: the same calls (:meth:`update`, :meth:`on_estimate`,
-:meth:`frame_request`), the events and attempts of all its picks in one list, and what observers
+:meth:`views`), the events and attempts of all its picks in one list, and what observers
 read of the pick under way.
 """
 
@@ -29,7 +29,8 @@ from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.core.shapes import Unknown
 from pickdemo.grasping.cloud import CloudGrasps, sample_grasps
-from pickdemo.grasping.top_down import GraspParams, top_down
+from pickdemo.grasping.top_down import GraspParams, GraspPlan, top_down
+from pickdemo.motion.online import MotionSample
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.robot import panda as rm
@@ -38,6 +39,7 @@ from pickdemo.robot.self_geometry import robot_body
 from pickdemo.scenario.layout import Tray
 from pickdemo.skills.pick import CameraModel, Event, FrameRequest, MachineParams, PickMachine, State
 from pickdemo.tracking.belief import Counters, Verdict
+from pickdemo.tracking.tracker import TargetTracker
 
 #: Let go of an object this far above the tray's rim (its bottom): it drops in.
 TRAY_DROP_M = 0.02
@@ -102,7 +104,7 @@ class ClearSequencer:
         *,
         kin: PandaKinematics,
         tray: Tray,
-        camera: CameraModel,
+        cameras: list[CameraModel],
         q0: np.ndarray,
         dt_s: float,
         rng: np.random.Generator,
@@ -112,7 +114,9 @@ class ClearSequencer:
     ) -> None:
         self.kin = kin
         self.tray = tray
-        self.camera = camera
+        # A clear round looks through its fixed camera alone (not yet through one on the hand).
+        self.cameras = [c for c in cameras if not c.on_hand][:1]
+        self.camera = self.cameras[0]
         self.dt_s = dt_s
         self.rng = rng
         self.max_consecutive_failures = max_consecutive_failures
@@ -188,25 +192,48 @@ class ClearSequencer:
             out.extend(self.current.attempts)
         return out
 
-    def __getattr__(self, name: str) -> Any:
-        """What observers read of the pick under way (its tracker, plan, motion, ...)."""
-        if name == "current":
-            raise AttributeError(name)
-        return getattr(self.current, name)
+    # What observers read of the pick under way (its tracker, plan, motion, ...).
+    @property
+    def tracker(self) -> TargetTracker:
+        return self.current.tracker
 
-    def frame_request(self, now_s: float) -> FrameRequest | None:
+    @property
+    def plan(self) -> GraspPlan | None:
+        return self.current.plan
+
+    @property
+    def symmetry(self) -> float:
+        return self.current.symmetry
+
+    @property
+    def look_at(self) -> np.ndarray | None:
+        return self.current.look_at
+
+    @property
+    def last_sample(self) -> MotionSample | None:
+        return self.current.last_sample
+
+    @property
+    def grasp_width_m(self) -> float | None:
+        return self.current.grasp_width_m
+
+    @property
+    def released_at_s(self) -> float | None:
+        return self.current.released_at_s
+
+    def cartesian_limits(self) -> tuple[list[float], list[float], list[float]]:
+        return self.current.cartesian_limits()
+
+    def views(self, now_s: float) -> list[FrameRequest]:
+        """A survey of the whole table from the fixed camera, or the pick under way's frames."""
         if self._done:
-            return None
+            return []
         if self._surveying:
-            if self._survey_asked or not (self.current._entered and self.current._motion_finished):
-                return None
+            if self._survey_asked or not (self.current.entered and self.current.arm.finished):
+                return []
             self._survey_asked = True  # (asked only when a frame is due: the episode takes it now)
-            return FrameRequest(None, survey=True)
-        return self.current.frame_request(now_s)
-
-    def wrist_request(self, now_s: float) -> FrameRequest | None:
-        """A clear round does not look through a camera on the hand (yet)."""
-        return None
+            return [FrameRequest(None, survey=True, camera=self.camera.name)]
+        return self.current.views(now_s)
 
     def on_estimate(
         self, result: PoseEstimate | PerceptionError | Survey, frame_time_s: float, camera: str = "camera"
@@ -249,7 +276,7 @@ class ClearSequencer:
             model=model,
             symmetry_rad=model.geometry.yaw_symmetry_rad,
             place_xy=kw.pop("place_xy", self.tray.position),
-            camera=self.camera,
+            cameras=self.cameras,
             q0=q0,
             dt_s=self.dt_s,
             rng=self.rng,
@@ -406,7 +433,7 @@ class ClearSequencer:
         survey saw on the table (its links' boxes projected over those points): then it looks from home."""
         if self.last_survey is None or not self.last_survey.objects:
             return True
-        K, T_cam_world = self.camera.intrinsics, self.camera.T_world_cam.inverse()
+        K, T_cam_world = self.camera.intrinsics, self.camera.pose.inverse()
         pts = np.vstack([o.cloud.points[:: max(1, len(o.cloud.points) // 200)] for o in self.last_survey.objects])
         p_cam = T_cam_world.transform_points(pts)
         uv = project(p_cam[p_cam[:, 2] > 1e-3], K).astype(np.float32)

@@ -1,0 +1,220 @@
+"""Which grasp: the selector's grasps of the target as tracked, and which of a grasp's equivalent hand
+angles the arm takes, by IK (joint-limit margin, a carry the joints can follow, then joint travel; no
+rule of a particular joint). A part of the pick skill: it returns a plan or a failure, never writes
+the machine's state."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from pickdemo.core.geometry import Pose, wrap_angle
+from pickdemo.core.result import Failure, Stage
+from pickdemo.grasping.selection import GraspRequest, GraspSelector
+from pickdemo.grasping.top_down import GraspPlan, GraspPlanningError
+from pickdemo.motion.ik_goals import along_line, goal_candidates, line_speed_scale
+from pickdemo.motion.online import pose_to_x4
+from pickdemo.perception import TargetModel
+from pickdemo.robot import panda as rm
+from pickdemo.robot.kinematics import IKParams, PandaKinematics
+from pickdemo.skills.pick.arm import ArmDriver
+from pickdemo.skills.pick.intercept import Interceptor
+from pickdemo.skills.pick.params import MachineParams
+from pickdemo.skills.pick.plans import turned_plan
+from pickdemo.tracking.belief import TargetBelief
+
+
+class GraspChooser:
+    """Grasp plans for the target where the belief says it is, each checked against the arm by IK."""
+
+    def __init__(
+        self,
+        kin: PandaKinematics,
+        rng: np.random.Generator,
+        params: MachineParams,
+        model: TargetModel,
+        place_xy: tuple[float, float],
+        selector: GraspSelector,
+        belief: TargetBelief,
+        arm: ArmDriver,
+        intercept: Interceptor,
+    ) -> None:
+        self.kin, self.rng, self.p, self.model, self.place_xy = kin, rng, params, model, place_xy
+        self.selector, self.belief, self.arm, self.intercept = selector, belief, arm, intercept
+        self.plan_id = 0  # counts first plans (the grasp selector's plan_id)
+        self._room_checked: tuple[np.ndarray, bool] | None = None  # a re-plan's last check of joint room
+
+    def request(self, pose: Pose, hand_yaws: tuple[float | None, ...]) -> GraspRequest:
+        """What the selector is asked: the target at ``pose`` (and, seen as a cloud, its newest view)."""
+        surface = self.belief.surface_z(float(pose.position[0]), float(pose.position[1]))
+        return GraspRequest(
+            pose,
+            self.model,
+            self.place_xy,
+            hand_yaws,
+            cloud=self.belief.cloud,
+            surface_z=surface,
+            plan_id=self.plan_id,
+        )
+
+    def grasp(self, pose: Pose, near: float | None) -> GraspPlan:
+        """The selector's best grasp for the target at ``pose`` with the hand angle nearest ``near``."""
+        return next(iter(self.selector.candidates(self.request(pose, (near,)))))
+
+    def best_ik(self, pose: Pose, seeds: list[np.ndarray]) -> np.ndarray | None:
+        """Of the IK solutions of ``pose`` from each of ``seeds``, the one with the most joint-limit
+        margin; None if none converged."""
+        best = None
+        for seed in seeds:
+            res = self.kin.solve(pose, seed, self.rng, self.p.goals.ik)
+            if res.success and (best is None or self.kin.limit_margin(res.q) > self.kin.limit_margin(best)):
+                best = res.q
+        return best
+
+    def room_kept(self, plan: GraspPlan) -> bool:
+        """Whether the arm, on the branch it is on, still holds this plan's pregrasp with every joint
+        ``min_margin_rad`` from its limits (a re-plan's check; re-used while the pose moves less than
+        a millimetre and a half-degree: the tracker moves it that much a frame)."""
+        x4 = pose_to_x4(plan.pregrasp)
+        last = self._room_checked
+        if last is not None and np.all(np.abs(x4 - last[0]) < np.array([1e-3, 1e-3, 1e-3, np.radians(0.5)])):
+            return last[1]
+        q = self.best_ik(plan.pregrasp, [self.arm.q])  # on the branch the arm is on
+        kept = q is not None and self.kin.limit_margin(q) >= self.p.goals.min_margin_rad
+        self._room_checked = (x4, kept)
+        return kept
+
+    def hand_angle_score(self, plan: GraspPlan, held: np.ndarray | None) -> tuple[bool, bool, float]:
+        """How the arm would do this plan's pick and place with its hand angle, by IK: whether the
+        grasp (where it will be held, for a moving target) has a solution; whether the hand can then
+        go straight to the place with the joints following continuously (the carry: the angle's
+        joint 7 turns with the arm's bearing, and past its stop the carry cannot follow) and every
+        joint ``min_margin_rad`` clear of its limits at both ends; and the joint travel (s at the
+        speed limits) from here to the grasp and on to the place."""
+        q_now = self.arm.q
+        grasp = plan.grasp if held is None else Pose(np.array([*held, plan.grasp.position[2]]), plan.grasp.rotation)
+        best = self.best_ik(grasp, [q_now] if np.array_equal(q_now, rm.HOME_Q) else [q_now, rm.HOME_Q])
+        if best is None:
+            return False, False, 0.0
+        g = dataclasses.replace(self.p.goals, line_steps=self.p.goals.line_steps // 2)
+        q_end = best
+        for q_k in along_line(self.kin, best, grasp, plan.place, g.line_steps):
+            if q_k is None:
+                q_end = None
+                break
+            q_end = q_k
+        travel = float(np.max(np.abs(best - q_now) / rm.MAX_VELOCITY_RAD_S))
+        if q_end is None:
+            return True, False, travel
+        travel += float(np.max(np.abs(q_end - best) / rm.MAX_VELOCITY_RAD_S))
+        margin = min(self.kin.limit_margin(best), self.kin.limit_margin(q_end))
+        return True, margin >= g.min_margin_rad, travel
+
+    def ranked_hand_yaws(self, pose: Pose, held: np.ndarray | None, other_faces_than: float | None) -> list[float]:
+        """The target's equivalent hand angles (the selector's ``hand_yaws``), best
+        first by IK (:meth:`hand_angle_score`): those whose grasp has a solution; of them those from
+        which the carry to the place can be followed with room at both ends; then the least joint
+        travel, or for a moving target the least turn of the hand from where it is (turning the
+        wrist while chasing a target across the table drifts the arm's redundancy towards a
+        singularity, measured). ``other_faces_than``: a square box missed at this angle is taken by
+        its other pair of faces first."""
+        scored = []
+        try:
+            yaws = self.selector.hand_yaws(self.request(pose, (None,)))
+        except GraspPlanningError:
+            return []
+        for yaw in yaws:
+            try:
+                plan = self.grasp(pose, yaw)
+            except GraspPlanningError:
+                return []
+            feasible, carries, travel = self.hand_angle_score(plan, held)
+            missed = other_faces_than
+            same_faces = missed is not None and abs(float(wrap_angle(yaw - missed, np.pi))) < np.pi / 4
+            turn = abs(float(wrap_angle(yaw - float(self.arm.motion.setpoint[3]))))
+            scored.append(((not feasible, same_faces, not carries, turn if held is not None else travel), yaw))
+        return [yaw for _, yaw in sorted(scored, key=lambda kv: kv[0])]
+
+    def replan(
+        self, pose: Pose, v: np.ndarray | None, current: GraspPlan | None, *, hand_over_target: bool,
+        approaching: bool, now_s: float,
+    ) -> GraspPlan | Failure:  # fmt: skip
+        """A re-plan for the target at ``pose``: it keeps the hand's angle, unless IK says the arm would
+        then be left without room at the grasp (and the hand is not yet going down over the target);
+        ``approaching`` a moving target: still in reach where it will be met?"""
+        held = None if v is None else pose.position[:2] + v * self.p.grasp_time_s
+        near = None if current is None else current.hand_yaw_rad
+        try:
+            plan = self.grasp(pose, near)
+            if not self.room_kept(plan):  # this hand angle is running out of room: choose again
+                ranked = self.ranked_hand_yaws(pose, held, None)
+                # ... but not with the hand going down over the target (the room was judged before
+                # it went down; another angle there reads as the target turning, and backed the
+                # hand off again and again)
+                other = ranked and abs(float(wrap_angle(ranked[0] - plan.hand_yaw_rad))) > 1e-6
+                if other and not hand_over_target:
+                    plan = self.grasp(pose, ranked[0])
+        except GraspPlanningError as exc:
+            return Failure(Stage.GRASP_PLANNING, str(exc))
+        if approaching and v is not None:  # still in reach?
+            reason = self.intercept.out_of_reach(plan, now_s)
+            if reason:
+                return Failure(Stage.IK, reason)
+        return plan
+
+    def first_plan(self, pose: Pose, v: np.ndarray | None, missed: float | None, now_s: float) -> GraspPlan | Failure:
+        """An attempt's first plan: the best of the equivalent hand angles by IK
+        (:meth:`ranked_hand_yaws`) that the whole pick and place can reach; after a miss (``missed``,
+        the angle it missed at), a square box's other pair of faces first."""
+        held = None if v is None else pose.position[:2] + v * self.p.grasp_time_s
+        self.plan_id += 1  # a first plan: the selector plans afresh
+        try:
+            hand_yaws = self.ranked_hand_yaws(pose, held, missed) or [None]
+            candidates = iter(self.selector.candidates(self.request(pose, tuple(hand_yaws))))
+        except GraspPlanningError as exc:
+            return Failure(Stage.GRASP_PLANNING, str(exc))
+        first_reason = ""  # the best-ranked hand angle's reason, if no angle will do
+        for _ in hand_yaws:
+            try:
+                plan = next(candidates)
+            except GraspPlanningError as exc:
+                return Failure(Stage.GRASP_PLANNING, str(exc))
+            reason = self.unreachable(plan, now_s)
+            if isinstance(reason, Failure):
+                return reason
+            if not reason:
+                return plan
+            first_reason = first_reason or reason
+        return Failure(Stage.IK, first_reason)
+
+    def unreachable(self, plan: GraspPlan, now_s: float) -> str | Failure:
+        """Why the arm cannot do this plan's pick and place ("" if it can; a failure to end the episode
+        at once: a moving target that cannot be met at all)."""
+        reach = self.intercept.reach_targets(plan, now_s)
+        if isinstance(reach, str):
+            return Failure(Stage.IK, reach)
+        q = self.arm.motion.q
+        for name, target in (*reach, ("place", plan.place)):
+            res = self.kin.solve(target, q, self.rng, IKParams())
+            if not res.success:
+                if name not in ("grasp", "place"):  # a moving target's
+                    return f"the target leaves the arm's reach before the arm can meet it: {name} is out of reach"
+                return f"{name} pose out of reach: {res.reason}"
+        # Above the place, some IK solution from which the lowering can be followed: with joint
+        # transfers the carry may go in joint space to any of them, the hand turned half a turn or not.
+        lines = [(plan.place_above, plan.place)]
+        if self.p.joint_transfers:
+            turned = turned_plan(plan, pick=False, place=True)
+            lines.append((turned.place_above, turned.place))
+            found = goal_candidates(self.kin, [a for a, _ in lines], q, self.rng, self.p.goals)
+            above = [(g.q, *lines[g.index]) for g in found]
+        else:
+            res = self.kin.solve(plan.place_above, q, self.rng, IKParams())
+            above = [(res.q, *lines[0])] if res.success else []
+        if not above:
+            return "the pose above the place is out of reach"
+        floor = self.p.goals.min_line_speed_scale
+        if all(line_speed_scale(self.kin, q, start, end, self.p.goals) < floor for q, start, end in above):
+            return "the straight lowering onto the place passes too near a singular posture"
+        return ""

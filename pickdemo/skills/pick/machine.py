@@ -1,0 +1,343 @@
+"""The pick skill's machine: its state, its transitions, its failures and what it records.
+
+Pure: no simulator. Each tick :meth:`PickMachine.update` gets the robot's observation (joints,
+finger opening, finger contacts, the wrist's force) and returns a :class:`~pickdemo.core.interfaces.Command`;
+perception's estimates reach it through :meth:`PickMachine.on_estimate` when they arrive (late, by
+the modelled latency), and it says through :meth:`PickMachine.views` which of its cameras should
+take a frame now, and of which region. Modelled on Drake's ``PickAndPlaceStateMachine::Update``:
+every state has an entry action and an exit test, dispatched from the table
+:data:`~pickdemo.skills.pick.states.STATES`; a failure is a transition to ``FAILED`` with a typed
+stage and a reason.
+
+The machine only decides. What it does, it does through its parts, each of which returns values
+(a plan or a failure, a reason, a note) and never writes the machine's state: where to look
+(:class:`~pickdemo.skills.pick.views.ViewPlanner`), what moved
+(:class:`~pickdemo.skills.pick.watch.MoveWatch`), which grasp
+(:class:`~pickdemo.skills.pick.chooser.GraspChooser`), meeting a moving target
+(:class:`~pickdemo.skills.pick.intercept.Interceptor`), how the arm gets there
+(:class:`~pickdemo.skills.pick.arm.ArmDriver`), and the actions' fingers and scale
+(:class:`~pickdemo.skills.actions.Grip`, :class:`~pickdemo.skills.actions.Scale`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pickdemo.core.geometry import Pose
+from pickdemo.core.interfaces import Command, Observation
+from pickdemo.core.result import AttemptRecord, Failure, Stage
+from pickdemo.grasping.selection import GraspSelector, selector_for
+from pickdemo.grasping.top_down import GraspPlan
+from pickdemo.motion.online import MotionSample
+from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
+from pickdemo.robot.kinematics import PandaKinematics
+from pickdemo.skills.actions import Grip, Scale
+from pickdemo.skills.pick.arm import ArmDriver
+from pickdemo.skills.pick.chooser import GraspChooser
+from pickdemo.skills.pick.intercept import Interceptor
+from pickdemo.skills.pick.params import (
+    HAND_OVER_TARGET,
+    MAX_TRANSITIONS_PER_TICK,
+    RETRIES,
+    SLIPPED,
+    TRACKING_STATES,
+    CameraModel,
+    Event,
+    FrameRequest,
+    MachineParams,
+    State,
+    Transition,
+)
+from pickdemo.skills.pick.plans import PlacedHigher
+from pickdemo.skills.pick.states import STATES
+from pickdemo.skills.pick.views import ViewPlanner
+from pickdemo.skills.pick.watch import MoveWatch
+from pickdemo.tracking.belief import Counters, TargetBelief, Verdict
+from pickdemo.tracking.tracker import TargetTracker
+
+
+class PickMachine:
+    """Pick and place as a state machine; see the module docstring and :mod:`pickdemo.skills.pick`."""
+
+    def __init__(
+        self,
+        *,
+        kin: PandaKinematics,
+        model: TargetModel,
+        symmetry_rad: float,
+        place_xy: tuple[float, float],
+        cameras: list[CameraModel],
+        q0: np.ndarray,
+        dt_s: float,
+        rng: np.random.Generator,
+        max_attempts: int = 3,
+        place_tolerance_m: float | None = None,
+        open_loop: bool = False,
+        params: MachineParams | None = None,
+        surface_z=None,  # noqa: ANN001 - Callable[[float, float], float] | None
+        selector: GraspSelector | None = None,
+        place_z_m: float = 0.0,
+        look_at: np.ndarray | None = None,
+        look_from_here: bool = False,
+    ) -> None:
+        """``cameras``: the robot's cameras (a fixed one at least; one on the hand looks too whenever
+        the target is wholly in its view). ``surface_z(x, y)``: the height of what a target at (x, y)
+        rests on, as the cell's layout says (a belt's top, or the table at 0). ``selector``: where
+        grasps come from (default: a top-down grasp across the target's narrower side).
+        ``place_tolerance_m``: the task's; a target the camera sees put down farther than this from
+        the place position is picked up again (within ``max_attempts``). ``place_z_m``: the height
+        above the table the target's bottom is let go at (a tray's rim: it drops in). ``look_at``:
+        where the target was seen last (a survey of the table chose it among others): the first look
+        is at a region around it; ``look_from_here``: from where the arm is (it hides nothing of the
+        table from the camera), not from home."""
+        self.p = p = params or MachineParams()
+        self.kin, self.model, self.symmetry, self.place_xy, self.rng = kin, model, symmetry_rad, place_xy, rng
+        self.max_attempts, self.place_tolerance_m, self.open_loop = max_attempts, place_tolerance_m, open_loop
+        self.look_at = None if look_at is None else np.asarray(look_at, dtype=float)
+        self.look_here = look_from_here
+        self.hand_cameras = frozenset(c.name for c in cameras if c.on_hand)
+        self.arm_q = np.asarray(q0, dtype=float)  # the joint states last observed (where a hand camera is)
+        selector = selector or selector_for(model, p.grasp)
+        if place_z_m != 0.0 or p.drop_place:
+            selector = PlacedHigher(selector, place_z_m, from_carry=p.drop_place)
+        self.selector = selector
+        # The parts.
+        self.arm = ArmDriver(kin, q0, dt_s, p, rng)
+        self.grip = Grip(p.grip, dt_s)
+        self.scale = Scale(p.payload)
+        self.counters = Counters()
+        self.belief = TargetBelief(
+            model, symmetry_rad, p.tracker, p.gate, surface_z=surface_z or (lambda x, y: 0.0), counters=self.counters
+        )
+        self.intercept = Interceptor(kin, rng, p, self.belief, self.arm, open_loop=open_loop)
+        self.chooser = GraspChooser(kin, rng, p, model, place_xy, selector, self.belief, self.arm, self.intercept)
+        self.watch = MoveWatch(kin, p, model, self.belief, self.hand_cameras, open_loop=open_loop)
+        self.cameras = ViewPlanner(
+            kin, p, model, self.belief, self.watch, cameras, place_xy, look_at=self.look_at, open_loop=open_loop
+        )
+        # What happened.
+        self.state = State.LOOK
+        self.failure: Failure | None = None
+        self.events: list[Event] = []
+        self.attempts: list[AttemptRecord] = []
+        self.plan: GraspPlan | None = None
+        self.grasp_width_m: float | None = None  # finger opening on the object at the last grasp
+        self.verify_estimate: PoseEstimate | None = None
+        self.released_at_s: float | None = None  # when it last began to let go of the target
+        # Per attempt: what a retry may change.
+        self.attempt = 1
+        self.grip_force_n = p.grip_force_n
+        self.lift_scale = 1.0
+        self.turn_hand = False  # after a miss: try a square box by its other pair of faces
+        self.weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
+        self.forced_open = False  # releasing: the fingers were told to open with full force
+        self.lifted_off = False  # lifting: past the pause just off the table where it is weighed
+        self.attempt_start_s = 0.0
+        # Per state.
+        self.entered = False
+        self.since_s = 0.0
+        self.now_s = 0.0
+        self.fresh_estimate = False
+        self.look_frames = 0
+        self.after_back_off = State.LOOK
+        self.descent_plan: GraspPlan | None = None
+        self.planned_at_s = 0.0  # the plan is for the target where it was then
+        self.descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
+        self.hover_since: float | None = None  # above the target, waiting to be sure enough of it
+        self.verify_asked = False
+        self.relooks = 0
+        self.failing: Failure | None = None  # the last attempt failed: backing off before failing so
+
+    # ================================================================================ interface
+    @property
+    def finished(self) -> bool:
+        return self.state in (State.DONE, State.FAILED)
+
+    @property
+    def at_rest(self) -> bool:
+        """Finished, and the arm at rest (with ``end_at_rest`` a failure brakes it first)."""
+        return self.state is State.DONE or (self.state is State.FAILED and (self.arm.braked or not self.p.end_at_rest))
+
+    @property
+    def tracker(self) -> TargetTracker:
+        """The belief's tracker (read by observers: the video, the trace, the scoring)."""
+        return self.belief.tracker
+
+    @property
+    def last_sample(self) -> MotionSample | None:
+        return self.arm.sample
+
+    @property
+    def commanded_q(self) -> np.ndarray:
+        """The joint command last sent (where the next controller takes over)."""
+        return self.arm.limiter.q.copy()
+
+    def cartesian_limits(self) -> tuple[list[float], list[float], list[float]]:
+        return self.arm.cartesian_limits()
+
+    def views(self, now_s: float) -> list[FrameRequest]:
+        """The frames its cameras should take now (the loop applies the frame rate)."""
+        ready = self.entered and self.arm.finished
+        return self.cameras.requests(
+            now_s, self.state, ready=ready, since_s=self.since_s, verify_asked=self.verify_asked, plan=self.plan,
+            arm_q=self.arm_q,
+        )  # fmt: skip
+
+    def on_estimate(
+        self, result: PoseEstimate | PerceptionError, frame_time_s: float, camera: str = "camera"
+    ) -> Verdict:
+        """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``
+        by ``camera``; what became of it (:class:`~pickdemo.tracking.belief.Verdict`)."""
+        if self.state is State.VERIFY:
+            self.verify_asked = True
+            if isinstance(result, PoseEstimate):
+                self.verify_estimate = result
+            return Verdict.UNUSED
+        looking = self.state is State.LOOK or (self.state in TRACKING_STATES and not self.open_loop)
+        if not looking:
+            return Verdict.UNUSED
+        if self.state is State.LOOK:
+            self.look_frames += 1
+        over = self.state in HAND_OVER_TARGET
+        offered = self.belief.offer(result, frame_time_s, hand_over_target=over, camera=camera)
+        if offered.jumped:
+            tp = self.belief.predict(frame_time_s)
+            moved = ""
+            if self.plan is not None:
+                d = float(np.linalg.norm(tp.position[:2] - self.plan.grasp.position[:2]))
+                moved = f" {d * 1e3:.0f} mm from the plan"
+            self.note(f"the target moved{moved} (seen in the frame of t = {frame_time_s:.2f} s): tracking it again")
+        if offered.verdict is Verdict.ACCEPTED:
+            self.fresh_estimate = True
+        seen = result.pose.position if isinstance(result, PoseEstimate) else None
+        whole = offered.verdict is Verdict.ACCEPTED or (offered.off_m is not None and not offered.partial)
+        if self.state is State.CLOSE and camera in self.hand_cameras and seen is not None and whole:
+            self.watch.hold_view(frame_time_s, seen)  # (a plausible whole view, accepted or not)
+        self.watch.offered(offered, camera, frame_time_s, seen, hand_over_target=over)
+        return offered.verdict
+
+    def update(self, obs: Observation) -> Command:
+        """One control tick: the state's entry action (once), its exit test, then the motion's tick."""
+        self.now_s = obs.time_s
+        self.arm_q = obs.arm_q
+        for _ in range(MAX_TRANSITIONS_PER_TICK):
+            if not self.entered:
+                self.entered = True
+                self.since_s = obs.time_s
+                STATES[self.state].enter(self, obs)
+            if self.finished:
+                break
+            nxt = STATES[self.state].tick(self, obs)
+            if nxt is None:
+                break
+            self.go(*nxt)
+        if not self.finished and self.arm.legs and self.arm.leg_finished:  # the next leg (over the top)
+            self.arm.legs.popleft()()
+        if self.finished:
+            return self._stopped()
+        out = self.arm.step(self.grip)
+        if isinstance(out, Failure):
+            self.fail(out.stage, out.reason)
+            return self._stopped()
+        self.counters.retargets = self.arm.retargets
+        return out
+
+    def _stopped(self) -> Command:
+        """The command once finished: held where it is (with ``end_at_rest``, after a failure, braked first)."""
+        if self.state is State.FAILED and self.p.end_at_rest and not self.arm.braked:
+            return self.arm.brake(self.grip)
+        return self.arm.hold(self.grip)
+
+    def abort(self, stage: Stage, reason: str) -> None:
+        """End the episode from outside (the step budget is spent)."""
+        self.fail(stage, reason)
+
+    # ============================================================================== transitions
+    def go(self, state: State, message: str) -> None:
+        self.state = state
+        self.entered = False
+        self.arm.legs.clear()  # each state starts its own motion
+        self.events.append(Event(state, self.now_s, message))
+
+    def fail(self, stage: Stage, reason: str) -> None:
+        if self.plan is not None and (not self.attempts or self.attempts[-1].number != self.attempt):
+            self.end_attempt("failed", f"{stage.value}: {reason}")
+        self.failure = Failure(stage, reason)
+        self.state = State.FAILED
+        self.entered = True
+        self.events.append(Event(State.FAILED, self.now_s, f"{stage.value}: {reason}"))
+
+    def note(self, message: str | None) -> None:
+        """Something seen within the state, not a transition (nothing if None)."""
+        if message is not None:
+            self.events.append(Event(self.state, self.now_s, message, note=True))
+
+    def end_attempt(self, outcome: str, reason: str) -> None:
+        self.attempts.append(
+            AttemptRecord(
+                number=self.attempt,
+                outcome=outcome,
+                reason=reason,
+                start_s=self.attempt_start_s,
+                end_s=self.now_s,
+                grip_force_n=max(self.grip_force_n, self.weighed_force_n),
+                hand_yaw_deg=None if self.plan is None else float(np.degrees(self.plan.hand_yaw_rad)),
+                lift_speed_scale=self.lift_scale,
+                payload_kg=self.scale.payload_kg,
+            )
+        )
+
+    def retry(self, stage: Stage, outcome: str, reason: str) -> Transition:
+        """End this attempt; start the next (changed by what failed, :data:`RETRIES`) or fail the episode."""
+        self.end_attempt(outcome, reason)
+        if self.attempt >= self.max_attempts:
+            if self.p.end_at_rest:  # up and open first: the machine ends with the hand clear of the table
+                self.failing = Failure(stage, f"{reason} (attempt {self.attempt} of {self.max_attempts})")
+                self.after_back_off = State.FAILED
+                return State.BACK_OFF, f"{outcome}: {reason}; no attempt left: backing off"
+            self.fail(stage, f"{reason} (attempt {self.attempt} of {self.max_attempts})")
+            return None
+        self.attempt += 1
+        change = RETRIES.get(outcome, SLIPPED)
+        if change.other_faces:  # a square box may be taken by its other pair of faces
+            self.turn_hand = 0.0 < self.symmetry < np.pi - 1e-9  # a square top (a cube)
+        if change.force_factor != 1.0:
+            self.grip_force_n = min(self.grip_force_n * change.force_factor, self.p.max_grip_force_n)
+        self.lift_scale *= change.lift_factor
+        self.after_back_off = State.LOOK
+        return State.BACK_OFF, f"{outcome}: {reason}; attempt {self.attempt} of {self.max_attempts} follows"
+
+    # ================================================================================ planning
+    def replan(self, *, first: bool) -> GraspPlan | None:
+        """A grasp plan from the tracker's belief now (:class:`~pickdemo.skills.pick.chooser.GraspChooser`);
+        None after failing the episode."""
+        tp = self.belief.predict(self.now_s)
+        pose = Pose.from_xyz_rpy(tp.position, yaw=tp.yaw_rad)
+        self.planned_at_s = self.now_s
+        v = self.intercept.velocity(self.now_s)
+        if first:
+            missed = self.plan.hand_yaw_rad if (self.turn_hand and self.plan is not None) else None
+            self.turn_hand = False
+            out = self.chooser.first_plan(pose, v, missed, self.now_s)
+        else:
+            over, approaching = self.state in HAND_OVER_TARGET, self.state is State.APPROACH
+            out = self.chooser.replan(
+                pose, v, self.plan, hand_over_target=over, approaching=approaching, now_s=self.now_s
+            )
+        if isinstance(out, Failure):
+            self.fail(out.stage, out.reason)
+            return None
+        return out
+
+    def track_plan(self) -> GraspPlan | None:
+        """A fresh plan when a new estimate has come in (closed loop), else None."""
+        if self.open_loop or not self.fresh_estimate:
+            return None
+        self.fresh_estimate = False
+        return self.replan(first=False)
+
+    def go_to(self, pose, limits=None) -> None:  # noqa: ANN001 - Pose | x4, CartesianLimits | None
+        """Send the hand to a pose of the plan; a moving target that cannot be met fails the episode in ``ik``."""
+        reason = self.intercept.go_to(pose, self.now_s, limits)
+        if reason:
+            self.fail(Stage.IK, reason)

@@ -1,0 +1,68 @@
+"""Grasp plans turned and raised: the same plan with the hand turned half a turn (a parallel
+gripper's equivalent), and a selector whose plans let go higher (over a tray's rim)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo.core.geometry import Pose
+from pickdemo.grasping.selection import GraspRequest, GraspSelector
+from pickdemo.grasping.top_down import GraspPlan, top_down
+
+
+def half_turn(pose: Pose, shift: np.ndarray | None = None) -> Pose:
+    """A top-down TCP pose turned half a turn about the vertical: a parallel gripper's equivalent (moved
+    by ``shift``, m)."""
+    return top_down(pose.position if shift is None else pose.position + shift, float(pose.rpy[2]) + np.pi)
+
+
+def turned_plan(plan: GraspPlan, *, pick: bool, place: bool) -> GraspPlan:
+    """The plan with the hand turned half a turn for the pick's poses, the place's, or both. The place
+    turned and not the pick turns the held object with the hand: its centre, not the TCP, stays over
+    the place (the TCP moves to the other side of it)."""
+    turn: dict[str, object] = {}
+    if pick:
+        turn.update(pregrasp=half_turn(plan.pregrasp), grasp=half_turn(plan.grasp), lift=half_turn(plan.lift))
+    if place:
+        ox, oy = plan.place_offset_xy
+        shift = np.array([-2.0 * ox, -2.0 * oy, 0.0]) if not pick else np.zeros(3)
+        turn.update(
+            place_above=half_turn(plan.place_above, shift),
+            place=half_turn(plan.place, shift),
+            retreat=half_turn(plan.retreat, shift),
+        )
+        if not pick:
+            turn["place_offset_xy"] = (-ox, -oy)
+    hand = plan.hand_yaw_rad + np.pi if pick else plan.hand_yaw_rad
+    return dataclasses.replace(plan, hand_yaw_rad=float(hand), **turn)
+
+
+@dataclass
+class PlacedHigher:
+    """A :class:`~pickdemo.grasping.selection.GraspSelector` whose plans let go of the target ``dz_m``
+    higher (its bottom that far above the table: over a tray's rim, to drop in); ``from_carry``: at
+    least as high as it is carried (no lowering)."""
+
+    inner: GraspSelector
+    dz_m: float
+    from_carry: bool = False
+
+    def hand_yaws(self, request: GraspRequest) -> list[float]:
+        return self.inner.hand_yaws(request)
+
+    def candidates(self, request: GraspRequest):  # noqa: ANN201 - an iterator of GraspPlan
+        up = np.array([0.0, 0.0, self.dz_m])
+        for plan in self.inner.candidates(request):
+            place = Pose(plan.place.position + up, plan.place.rotation)
+            if self.from_carry:
+                z = max(float(plan.lift.position[2]), float(place.position[2]))
+                place = Pose(np.array([*place.position[:2], z]), place.rotation)
+                z_above = z
+            else:
+                z_above = max(float(plan.place_above.position[2]), float(place.position[2]) + 0.05)
+            above = Pose(np.array([*place.position[:2], z_above]), plan.place_above.rotation)
+            retreat = Pose(plan.retreat.position + up, plan.retreat.rotation)
+            yield dataclasses.replace(plan, place=place, place_above=above, retreat=retreat)

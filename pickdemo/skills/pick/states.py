@@ -1,0 +1,501 @@
+"""The pick skill's states: each state's entry action (run once, when it is entered: plan, send a
+target) and exit test (run every tick: the next state and what it says, or stay), as functions of
+the machine, and the table :data:`STATES` the machine dispatches from.
+
+States, in the order of a pick::
+
+    LOOK -> APPROACH -> DESCEND -> CLOSE -> LIFT -> TRANSPORT -> LOWER -> RELEASE -> RETREAT -> HOME
+         -> VERIFY -> DONE
+    DESCEND --(the target moved)--> BACK_OFF -> APPROACH
+    CLOSE --(nothing held)--> BACK_OFF -> LOOK          (a retry, up to ``max_attempts``)
+    LIFT / TRANSPORT --(dropped)--> BACK_OFF -> LOOK    (a retry with more grip force, a slower lift)
+    VERIFY --(seen put down off the place)--> LOOK      (picked up again, within ``max_attempts``)
+
+While it approaches, descends and closes it keeps looking (closed loop): the tracker fuses every
+estimate, and the motion is re-targeted to where the tracker says the target is. With
+``open_loop`` it looks only in ``LOOK`` and plays the plan from that one look, for comparison. A
+target the tracker sees moving (a belt) is met where it will be
+(:class:`~pickdemo.skills.pick.intercept.Interceptor`); one that will have left the arm's reach by
+the time it is held, or that runs faster than the hand, fails the episode in ``ik`` by name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pickdemo.core.interfaces import Observation
+from pickdemo.core.result import Stage
+from pickdemo.skills.pick.params import HAND_OVER_TARGET, Event, State, Transition
+from pickdemo.skills.pick.plans import turned_plan
+from pickdemo.skills.pick.views import unsure
+
+if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
+    from pickdemo.skills.pick.machine import PickMachine
+
+
+def _wrap(yaw_rad: float, period_rad: float) -> float:
+    """The yaw in [-period/2, period/2): how a symmetric shape's yaw is said (a cube's modulo 90 deg)."""
+    return float((yaw_rad + period_rad / 2.0) % period_rad - period_rad / 2.0)
+
+
+def _wrist_load(m: PickMachine, obs: Observation) -> float:
+    """The wrist's load along world z (N)."""
+    return m.scale.vertical(obs, m.kin.forward(obs.arm_q).rotation)
+
+
+def _weigh(m: PickMachine, obs: Observation) -> bool:
+    """Lifted, at rest: weigh what hangs in the fingers (a few ticks), and grip as hard as it
+    needs; True once weighed. (Readings on the move are no use: the simulated sensor, like the
+    Franka's estimate, misses the motors' share then.)"""
+    if m.scale.payload_kg is not None:
+        return True
+    payload = m.scale.read(_wrist_load(m, obs), 0.0)
+    if payload is None:
+        return False
+    force = min(max(m.grip_force_n, m.scale.grip_force_n(payload)), m.p.max_grip_force_n)
+    m.weighed_force_n = force
+    note = f"weighed {payload:.2f} kg at the wrist"
+    if force > m.grip.force_n:
+        m.grip.close(force)
+        note += f": gripping with {force:.0f} N"
+    m.note(note)
+    return True
+
+
+def _dropped(m: PickMachine, obs: Observation, stage: Stage, outcome: str) -> Transition:
+    """The fingers lost their hold (a retry), or None."""
+    assert m.plan is not None
+    if not m.grip.dropped(obs, m.plan.object_width_m):
+        return None
+    return m.retry(stage, outcome, f"fingers at {obs.opening_m * 1e3:.1f} mm")
+
+
+# ---- LOOK: from the home pose, full frames until the tracker holds the target.
+def enter_look(m: PickMachine, obs: Observation) -> None:
+    if not m.events:
+        m.events.append(Event(State.LOOK, obs.time_s, "looking for the target", note=True))
+    m.grip.open()
+    m.attempt_start_s = obs.time_s
+    m.belief.restart()
+    m.scale.start()
+    m.weighed_force_n = 0.0
+    m.look_frames = 0
+    m.fresh_estimate = False
+    if m.look_here:  # the first look, from where the arm is (at rest)
+        m.look_here = False
+        return
+    m.note(m.arm.home())
+
+
+def tick_look(m: PickMachine, obs: Observation) -> Transition:
+    if m.arm.finished:  # at rest with the hand empty: what the wrist reads is the hand
+        m.scale.tare(_wrist_load(m, obs))
+    needed = 1 if m.open_loop else m.p.look_min_estimates
+    if m.belief.accepted >= needed:
+        plan = m.replan(first=True)
+        if plan is None:
+            return None
+        m.plan = plan
+        unsafe = unsure(m.belief, plan, obs.time_s, m.p, calibration_only=True)  # (more frames cannot mend that)
+        if unsafe and (not m.hand_cameras or m.open_loop):
+            m.fail(Stage.PERCEPTION, f"{unsafe}, and no camera can see it closer: not tried")
+            return None
+        tp = m.belief.predict(obs.time_s)
+        yaw = ""
+        if m.symmetry > 0:
+            said = np.degrees(_wrap(tp.yaw_rad, m.symmetry))
+            yaw = f", yaw {said:+.2f} deg (modulo {np.degrees(m.symmetry):.0f})"
+        return State.APPROACH, (
+            f"target at ({tp.position[0]:.4f}, {tp.position[1]:.4f}, {tp.position[2]:.4f}) m{yaw} "
+            f"from {m.belief.accepted} estimate(s); grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg"
+            + (f" (attempt {m.attempt})" if m.attempt > 1 else "")
+        )
+    if m.look_frames >= m.p.look_max_frames:
+        m.fail(
+            Stage.PERCEPTION,
+            f"no estimate of the target in {m.look_frames} frames: {m.counters.last_error or 'rejected'}",
+        )
+    return None
+
+
+# ---- APPROACH: to above the target, re-targeted as estimates arrive.
+def enter_approach(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.hover_since = None
+    if not m.p.joint_transfers or m.intercept.velocity(m.now_s) is not None:
+        # Cartesian (a moving target is met so, moving with it)
+        m.arm.cartesian()
+        m.go_to(m.plan.pregrasp, limits=m.p.free)
+        return
+    q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp)
+    if q is None:
+        m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
+        return
+    if turned:
+        m.plan = turned_plan(m.plan, pick=True, place=True)
+    down = lambda: (m.arm.cartesian(), m.go_to(m.plan.pregrasp, limits=m.p.free))  # noqa: E731
+    note = m.arm.over_the_top(q, m.p.transfer_scale, m.p.free, rise=False, above=m.plan.pregrasp, down=down)
+    m.note(note)
+    if note is None:
+        m.arm.transfer_to(q, m.p.transfer_scale)
+
+
+def tick_approach(m: PickMachine, obs: Observation) -> Transition:
+    if not m.open_loop and m.belief.lost(obs.time_s):
+        # Nothing it sees agrees with its belief any more: look again from home, a few times.
+        m.relooks += 1
+        if m.relooks > m.p.max_relooks:
+            m.fail(Stage.PERCEPTION, f"target lost: no estimate accepted for {m.p.tracker.lost_after_s} s")
+            return None
+        m.after_back_off = State.LOOK
+        return State.BACK_OFF, "target lost while approaching: looking again"
+    plan = m.track_plan()
+    if plan is not None:
+        m.plan = plan
+        if m.arm.legs:  # going over the top: its last leg goes down to where the plan is by then
+            pass
+        elif m.arm.joint:  # the transfer goes on to the new plan's goal, on the same branch
+            q, turned = m.arm.goal(plan.pregrasp, plan.grasp, seeded=m.arm.joints.target)
+            if q is None:
+                m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
+                return None
+            if turned:
+                m.plan = turned_plan(plan, pick=True, place=True)
+            m.arm.joints.retarget(q)
+        else:
+            m.go_to(plan.pregrasp)
+    arrived = m.arm.finished or m.intercept.with_target(m.plan.pregrasp, m.now_s, m.planned_at_s)
+    if arrived and not m.finished:
+        unsafe = "" if m.open_loop else unsure(m.belief, m.plan, obs.time_s, m.p)  # (open loop: one look's plan)
+        if unsafe:  # wait above it for more frames, or the hand's camera, to make it surer (a bounded wait)
+            m.hover_since = obs.time_s if m.hover_since is None else m.hover_since
+            if obs.time_s - m.hover_since >= m.p.hover_max_s:
+                m.fail(Stage.PERCEPTION, f"{unsafe} after {obs.time_s - m.hover_since:.1f} s above it")
+            return None
+        moving = m.intercept.velocity(m.now_s) is not None
+        return State.DESCEND, "above the target" + (", moving with it" if moving else "")
+    return None
+
+
+# ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
+def _moved_under_hand(m: PickMachine) -> Transition:
+    """Back off (and approach again) when views refused by the tracker say the target moved under the hand."""
+    moved = m.watch.moved()
+    if moved is None:
+        return None
+    off, camera, t = moved
+    m.grip.open()
+    m.after_back_off = State.APPROACH
+    by = "the hand's camera" if camera in m.hand_cameras else "the camera"
+    return State.BACK_OFF, (
+        f"{by} sees the target {off * 1e3:.0f} mm from where it was tracked (frame of t = {t:.2f} s) "
+        f"during the {m.state.value}: backing off to approach again"
+    )
+
+
+def _touched_early(m: PickMachine, obs: Observation) -> Transition:
+    """Back off and look again when a finger touches something on the way down (:meth:`~pickdemo.skills.pick.watch.MoveWatch.touched`)."""  # noqa: E501
+    assert m.plan is not None
+    touched = m.watch.touched(obs, m.plan)
+    if touched is None:
+        return None
+    m.grip.open()
+    m.after_back_off = State.LOOK
+    return State.BACK_OFF, f"{touched}: backing off to look again"
+
+
+def enter_descend(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.watch.forget_move()
+    m.descent_plan = m.plan
+    v = m.intercept.velocity(m.now_s)
+    m.descent_ref = (m.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, m.planned_at_s)
+    m.arm.cartesian()
+    m.go_to(m.plan.grasp, limits=m.intercept.near_limits(m.now_s))
+
+
+def tick_descend(m: PickMachine, obs: Observation) -> Transition:
+    moved = _moved_under_hand(m)
+    if moved is None:
+        moved = _touched_early(m, obs)
+    if moved is not None:
+        return moved
+    plan = m.track_plan()
+    if plan is not None:
+        assert m.descent_plan is not None and m.descent_ref is not None
+        xy, v, t = m.descent_ref  # where the descent expected the target now
+        off = float(np.linalg.norm(plan.grasp.position[:2] - (xy + v * (obs.time_s - t))))
+        turned = abs(plan.hand_yaw_rad - m.descent_plan.hand_yaw_rad)
+        m.plan = plan
+        if off > m.p.moved_tolerance_m or turned > m.p.moved_tolerance_rad:
+            m.after_back_off = State.APPROACH
+            return State.BACK_OFF, (
+                f"the target moved {off * 1e3:.0f} mm, {np.degrees(turned):.0f} deg during the descent: "
+                "backing off to approach again"
+            )
+        m.go_to(plan.grasp)
+    arrived = m.arm.finished or m.intercept.with_target(m.plan.grasp, m.now_s, m.planned_at_s)
+    if arrived and not m.finished:
+        return State.CLOSE, "at the grasp pose"
+    return None
+
+
+# ---- CLOSE: fingers close with this attempt's force; held or missed.
+def enter_close(m: PickMachine, obs: Observation) -> None:
+    m.grip.close(m.grip_force_n)
+    m.grip.watch()
+    m.watch.start_hold()
+
+
+def tick_close(m: PickMachine, obs: Observation) -> Transition:
+    assert m.plan is not None
+    stalled = m.grip.stopped(obs)
+    width = m.plan.object_width_m
+    if not stalled and not m.grip.holding(obs, width):
+        moved = _moved_under_hand(m)
+        if moved is not None:
+            return moved
+    if not stalled and obs.time_s - m.since_s < m.p.close_timeout_s:
+        return None
+    if m.grip.holding(obs, width):
+        if m.plan.width_known and m.grip.too_wide(obs, width):
+            reason = (
+                f"fingers stopped at {obs.opening_m * 1e3:.1f} mm "
+                f"(expected {width * 1e3:.0f} mm): held askew, or not it alone"
+            )
+            return m.retry(Stage.GRASP, "missed", reason)
+        off_centre = m.watch.held_off_centre(obs, m.plan)
+        if off_centre is False:
+            return None  # (waiting for the hand's camera to see the hold)
+        if off_centre is not None:
+            return m.retry(Stage.GRASP, "held off centre", off_centre)
+        m.grasp_width_m = obs.opening_m
+        return State.LIFT, f"holding: fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {m.grip_force_n:.0f} N"
+    reason = f"fingers closed to {obs.opening_m * 1e3:.1f} mm (expected {width * 1e3:.0f} mm): nothing held"
+    return m.retry(Stage.GRASP, "missed", reason)
+
+
+# ---- LIFT, TRANSPORT, LOWER: carry it, watching the hold.
+def enter_lift(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.grip.watch_hold()
+    motion = m.arm.motion
+    lift = m.arm.move.x4(m.plan.lift)
+    v = motion.velocity[:2]
+    m.lifted_off = np.any(v != 0.0)  # (a target held on the move is weighed at the top)
+    if m.lifted_off:  # held on the move: carry on along its way a little while rising
+        lift[:2] = motion.setpoint[:2] + v * m.p.lift_lead_s
+    else:  # first just off the table, to weigh it before it hangs long at the first grip force
+        lift[2] = m.plan.grasp.position[2] + m.p.payload.lift_off_m
+    motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
+    m.scale.start()
+
+
+def tick_lift(m: PickMachine, obs: Observation) -> Transition:
+    dropped = _dropped(m, obs, Stage.LIFT, "dropped while lifting")
+    if dropped is not None or m.finished:
+        return dropped
+    if not (m.arm.finished and _weigh(m, obs)):
+        return None
+    if not m.lifted_off:  # weighed just off the table: on up to the carry height
+        m.lifted_off = True
+        lift = m.arm.move.x4(m.plan.lift)
+        m.arm.motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
+        return None
+    return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
+
+
+def enter_transport(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    p = m.p
+    straight = not (p.joint_transfers and p.carry_in_joint_space)
+    if straight and (not p.joint_transfers or m.arm.straight_carry_ok(m.plan, m.lift_scale)):
+        m.arm.move.to(m.plan.place_above, limits=p.free.scaled(m.lift_scale * m.scale.carry_share()))
+        return
+    # in joint space, to a goal from which the lowering can be tracked
+    if straight:
+        m.note("carried in joint space: the straight line would pass too near a singular posture")
+    other = turned_plan(m.plan, pick=False, place=True)
+    q, turned = m.arm.goal(m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place))
+    if q is None:
+        m.fail(Stage.IK, "place pose out of reach: no IK solution for either hand angle")
+        return
+    if turned:  # put down with the hand turned half a turn: the same for the place, not the grasp
+        m.plan = other
+    scale = p.carry_scale * m.lift_scale * m.scale.carry_share()
+    limits = p.free.scaled(m.lift_scale * m.scale.carry_share())
+    note = m.arm.over_the_top(q, scale, limits, rise=True, above=m.plan.place_above)
+    m.note(note)
+    if note is None:
+        m.arm.transfer_to(q, scale)
+
+
+def tick_transport(m: PickMachine, obs: Observation) -> Transition:
+    dropped = _dropped(m, obs, Stage.TRANSPORT, "dropped in transit")
+    if dropped is not None or m.finished:
+        return dropped
+    return (State.LOWER, "above the place position") if m.arm.finished else None
+
+
+def enter_lower(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.arm.cartesian()
+    m.arm.move.to(m.plan.place, limits=m.arm.line_limits(m.plan.place))
+
+
+def tick_lower(m: PickMachine, obs: Observation) -> Transition:
+    dropped = _dropped(m, obs, Stage.TRANSPORT, "dropped in transit")
+    if dropped is not None or m.finished:
+        return dropped
+    return (State.RELEASE, "lowered onto the table") if m.arm.finished else None
+
+
+# ---- RELEASE, RETREAT, HOME, VERIFY.
+def enter_release(m: PickMachine, obs: Observation) -> None:
+    m.released_at_s = obs.time_s
+    m.grip.open()
+    m.grip.watch()
+    m.forced_open = False
+
+
+def tick_release(m: PickMachine, obs: Observation) -> Transition:
+    assert m.plan is not None
+    opened = m.grip.opened(obs)
+    stopped = not opened and m.grip.stopped(obs)
+    if stopped and not m.forced_open and m.grip.holding(obs, m.plan.object_width_m):
+        # The fingers stopped on the object instead of opening (a simulated Panda's fingers jammed
+        # so after a held cube had turned half a turn in the carry, measured: the retreat then
+        # lifted it away). Open with the hand's full force before letting go of it for good.
+        m.forced_open = True
+        m.grip.open(m.p.max_grip_force_n)
+        m.grip.watch()
+        force = m.p.max_grip_force_n
+        m.note(f"the fingers stopped at {obs.opening_m * 1e3:.1f} mm, still on the target: opening with {force:.0f} N")
+        return None
+    if opened or stopped or obs.time_s - m.since_s > m.p.close_timeout_s:
+        m.end_attempt("placed", "")
+        p = m.plan.place.position
+        if m.p.drop_place:  # (let go from above: nothing to back away from)
+            nxt = State.HOME if m.p.home_after_place else State.DONE
+            return nxt, f"dropped at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})"
+        return State.RETREAT, f"released at ({p[0]:.3f}, {p[1]:.3f})"
+    return None
+
+
+def enter_retreat(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.arm.move.to(m.plan.retreat, limits=m.arm.line_limits(m.plan.retreat))
+
+
+def tick_retreat(m: PickMachine, obs: Observation) -> Transition:
+    return (State.HOME, "clear of the object") if m.arm.finished else None
+
+
+def enter_home(m: PickMachine, obs: Observation) -> None:
+    m.note(m.arm.home())
+
+
+def tick_home(m: PickMachine, obs: Observation) -> Transition:
+    if not m.arm.finished:
+        return None
+    return (State.VERIFY, "arm home") if m.p.verify_place else (State.DONE, "arm home")
+
+
+def enter_verify(m: PickMachine, obs: Observation) -> None:
+    m.verify_asked = False
+    m.verify_estimate = None
+
+
+def tick_verify(m: PickMachine, obs: Observation) -> Transition:
+    if not m.verify_asked:
+        return None
+    if m.verify_estimate is None:
+        return State.DONE, "the camera does not find the target at the end"
+    seen = m.verify_estimate.pose.position
+    err = float(np.hypot(seen[0] - m.place_xy[0], seen[1] - m.place_xy[1]))
+    said = f"the camera sees the target {err * 1e3:.1f} mm from the place position"
+    if m.place_tolerance_m is None or err <= m.place_tolerance_m:
+        return State.DONE, said
+    said += f" (tolerance {m.place_tolerance_m * 1e3:.0f} mm)"
+    if m.attempt >= m.max_attempts:
+        return State.DONE, f"{said}; no attempt left to place it again"
+    # Placed off: this attempt's record says so, and the next picks it up from where it lies.
+    m.attempts[-1] = dataclasses.replace(m.attempts[-1], outcome="placed off", reason=said)
+    m.attempt += 1
+    return State.LOOK, f"{said}: picking it up again; attempt {m.attempt} of {m.max_attempts} follows"
+
+
+def enter_done(m: PickMachine, obs: Observation) -> None:
+    pass
+
+
+def tick_done(m: PickMachine, obs: Observation) -> Transition:
+    return None
+
+
+# ---- BACK_OFF: open, straight up to a safe height, then look or approach again.
+def enter_back_off(m: PickMachine, obs: Observation) -> None:
+    if m.after_back_off in (State.LOOK, State.FAILED):
+        m.grip.open()
+    arm = m.arm
+    if arm.joint:  # in free space, mid-transfer: on to home from where it is
+        arm.joints.retarget(arm.home_q)
+        return
+    grasp_z = m.plan.grasp.position[2] if m.plan is not None else m.p.back_off_grasp_z_m
+    safe_z = m.p.grasp.pregrasp_height_m + grasp_z
+    x4 = arm.motion.setpoint.copy()
+    x4[2] = max(x4[2], safe_z)
+    # Limits change only at rest: lowered mid-motion, Ruckig may overshoot while braking.
+    limits = m.intercept.near_limits(m.now_s) if arm.motion.finished else None
+    if m.after_back_off is State.APPROACH and m.intercept.velocity(m.now_s) is not None:
+        m.go_to(x4, limits=limits)  # up, and along with it
+        return
+    arm.motion.set_target(x4, limits=limits)
+
+
+def tick_back_off(m: PickMachine, obs: Observation) -> Transition:
+    if m.after_back_off is State.APPROACH:
+        plan = m.track_plan()  # keep following the target while rising
+        if plan is not None:
+            m.plan = plan
+    if m.arm.finished:
+        nxt = m.after_back_off
+        if nxt is State.FAILED and m.failing is not None:
+            m.arm.braked = True  # (at rest already)
+            m.fail(m.failing.stage, m.failing.reason)
+            return None
+        return nxt, "clear above the table: " + ("look again" if nxt is State.LOOK else "approach again")
+    return None
+
+
+@dataclass(frozen=True)
+class StateHandlers:
+    """A state's entry action (run once, when it is entered) and exit test (run every tick)."""
+
+    enter: Callable[[PickMachine, Observation], None]
+    tick: Callable[[PickMachine, Observation], Transition]
+
+
+#: The dispatch table: every state the machine runs (``FAILED`` is final and runs nothing).
+STATES: dict[State, StateHandlers] = {
+    State.LOOK: StateHandlers(enter_look, tick_look),
+    State.APPROACH: StateHandlers(enter_approach, tick_approach),
+    State.DESCEND: StateHandlers(enter_descend, tick_descend),
+    State.CLOSE: StateHandlers(enter_close, tick_close),
+    State.LIFT: StateHandlers(enter_lift, tick_lift),
+    State.TRANSPORT: StateHandlers(enter_transport, tick_transport),
+    State.LOWER: StateHandlers(enter_lower, tick_lower),
+    State.RELEASE: StateHandlers(enter_release, tick_release),
+    State.RETREAT: StateHandlers(enter_retreat, tick_retreat),
+    State.HOME: StateHandlers(enter_home, tick_home),
+    State.VERIFY: StateHandlers(enter_verify, tick_verify),
+    State.BACK_OFF: StateHandlers(enter_back_off, tick_back_off),
+    State.DONE: StateHandlers(enter_done, tick_done),
+}
+
+__all__ = ["HAND_OVER_TARGET", "STATES", "StateHandlers"]
