@@ -14,16 +14,18 @@ import numpy as np
 import pinocchio as pin
 
 from pickdemo.grasping.top_down import top_down
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
+
+ROBOT = robot_named()
 
 TICKS = 1200
 
 
 def main() -> None:
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     start = top_down(np.array([0.5, 0.1, 0.25]), 0.4)
-    q0 = kin.solve(start, rm.HOME_Q, np.random.default_rng(0)).q
+    q0 = kin.solve(start, ROBOT.home_q, np.random.default_rng(0)).q
     targets = [top_down(start.position - np.array([0.0, 0.0, 0.2 * k / TICKS]), 0.4) for k in range(TICKS)]
 
     q, times, lag = q0.copy(), [], 0.0
@@ -42,7 +44,7 @@ def main() -> None:
         print("pin-pink is not installed: pip install pin-pink qpsolvers daqp scipy, for the comparison")
         return
     cfg = pink.Configuration(kin.model, kin.model.createData(), q0.copy())
-    frame, posture = FrameTask(rm.TCP_FRAME, position_cost=1.0, orientation_cost=1.0), PostureTask(cost=1e-3)
+    frame, posture = FrameTask(ROBOT.tcp_frame, position_cost=1.0, orientation_cost=1.0), PostureTask(cost=1e-3)
     posture.set_target(q0)
     dt, times, lag = 1.0 / 120.0, [], 0.0
     for tg in targets:

@@ -31,11 +31,13 @@ from pickdemo.core.shapes import caliper_widths
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.grasping.top_down import GraspParams, top_down
 from pickdemo.motion.online import CartesianLimits, OnlineMotion
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import RateLimiter
 from pickdemo.scenario.layout import sample_layout
 from pickdemo.scenario.schema import parse_scenario
+
+ROBOT = robot_named()
 
 GRIP_N = 20.0
 LIFT_M = 0.10
@@ -67,17 +69,17 @@ def one(urdf: str, scale: float, seed: int) -> str:
         v = truth.transform_points(shape.vertices)  # the oracle: its true surface
         narrow, angle, _ = caliper_widths(v[:, :2])
         params = GraspParams()
-        if narrow > 2.0 * rm.FINGER_MAX_M - params.width_margin_m:
+        if narrow > 2.0 * ROBOT.gripper.finger_max_m - params.width_margin_m:
             return "too wide"
         centre = v.mean(axis=0)
         top_z = float(v[:, 2].max())
-        depth = min((top_z - float(v[:, 2].min())) / 2.0, rm.PALM_ABOVE_TCP_M - params.palm_clearance_m)
+        depth = min((top_z - float(v[:, 2].min())) / 2.0, ROBOT.gripper.palm_above_tcp_m - params.palm_clearance_m)
         grasp_z = max(top_z - depth, params.min_tcp_height_m)
         yaw = math.atan2(math.sin(angle + np.pi / 2), math.cos(angle + np.pi / 2))  # fingers close along angle
         yaw = (yaw + np.pi / 2) % np.pi - np.pi / 2  # either way round: the one nearer the home hand
-        kin = panda_kinematics()
+        kin = kinematics_of(ROBOT)
         pre = top_down(np.array([centre[0], centre[1], grasp_z + params.pregrasp_height_m]), yaw)
-        res = kin.solve(pre, rm.HOME_Q, np.random.default_rng(seed))
+        res = kin.solve(pre, ROBOT.home_q, np.random.default_rng(seed))
         if not res.success:
             return "unreachable"
         robot = scene.bodies["robot"]
@@ -85,8 +87,8 @@ def one(urdf: str, scale: float, seed: int) -> str:
             scene.client.resetJointState(robot, j, float(qj))  # the oracle starts above it
         iface = RobotInterface(scene, dt)
         motion = OnlineMotion(kin, res.q, dt, CartesianLimits())
-        limiter = RateLimiter(res.q, dt)
-        opening, force = rm.FINGER_MAX_M, GRIP_N
+        limiter = RateLimiter(res.q, dt, ROBOT.limits)
+        opening, force = ROBOT.gripper.finger_max_m, GRIP_N
 
         def tick() -> None:
             s = motion.step()

@@ -16,12 +16,14 @@ from pickdemo.core.result import Stage
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.perception import PerceptionParams
 from pickdemo.perception.unknown import SeenObject, Survey, segment_objects, split_heap, survey_objects
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.scenario.layout import Tray, sample_round
 from pickdemo.scenario.load import Scenario, load_scenario, parse_scenario
 from pickdemo.skills.clear import ClearSequencer
 from pickdemo.skills.pick import CameraModel, State
+
+ROBOT = robot_named()
 
 PARAMS = PerceptionParams()
 
@@ -131,10 +133,10 @@ def test_a_heap_is_told_apart_where_the_depth_steps_and_one_box_stays_one_part()
 def _sequencer() -> ClearSequencer:
     tray = Tray.of(load_scenario("clear_pile", check=False))
     return ClearSequencer(
-        kin=panda_kinematics(),
+        kin=kinematics_of(ROBOT),
         tray=tray,
         cameras=[CameraModel(K, T_CAM)],
-        q0=rm.HOME_Q.copy(),
+        q0=ROBOT.home_q.copy(),
         dt_s=1 / 120,
         rng=np.random.default_rng(0),
     )
@@ -148,7 +150,7 @@ def _seen(block: Block) -> SeenObject:
 def test_the_sequencer_ends_on_a_clear_table_and_when_no_grasp_is_found() -> None:
     seq = _sequencer()
     assert seq.views(0.0) == []  # not before its first tick
-    obs = Observation(time_s=0.0, arm_q=rm.HOME_Q.copy(), arm_dq=np.zeros(7), fingers_m=np.array([0.04, 0.04]),
+    obs = Observation(time_s=0.0, arm_q=ROBOT.home_q.copy(), arm_dq=np.zeros(7), fingers_m=np.array([0.04, 0.04]),
                       finger_contacts=(0, 0))  # fmt: skip
     seq.update(obs)
     (req,) = seq.views(0.0)

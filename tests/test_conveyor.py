@@ -17,10 +17,12 @@ from episodes import at_least, episodes
 from pickdemo import Stage, run_episode
 from pickdemo.core.result import WALL_CLOCK_KEYS
 from pickdemo.motion.online import OnlineMotion
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.scenario.load import ScenarioError, load_scenario, parse_scenario
 from pickdemo.skills.pick import MachineParams
+
+ROBOT = robot_named()
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -164,7 +166,7 @@ def test_objects_on_the_belt_rest_on_its_top(tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------- intercept (Ruckig)
 @pytest.fixture(scope="module")
 def motion() -> OnlineMotion:
-    return OnlineMotion(panda_kinematics(), rm.HOME_Q, 1.0 / 120.0, MachineParams().free)
+    return OnlineMotion(kinematics_of(ROBOT), ROBOT.home_q, 1.0 / 120.0, MachineParams().free)
 
 
 @pytest.mark.parametrize("speed", [0.05, 0.1, 0.2])
@@ -185,7 +187,7 @@ def test_intercept_gives_up_on_a_target_faster_than_the_hand(motion: OnlineMotio
 
 
 def test_hand_arrives_with_the_target_and_moves_with_it() -> None:
-    m = OnlineMotion(panda_kinematics(), rm.HOME_Q, 1.0 / 120.0, MachineParams().free)
+    m = OnlineMotion(kinematics_of(ROBOT), ROBOT.home_q, 1.0 / 120.0, MachineParams().free)
     x4 = np.array([0.52, -0.33, 0.135, 0.35])
     vel4 = np.array([0.0, 0.1, 0.0, 0.0])
     t = m.intercept(lambda s: x4 + vel4 * s, vel4)

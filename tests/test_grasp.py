@@ -9,6 +9,9 @@ from pickdemo.core.geometry import Pose
 from pickdemo.core.shapes import Box
 from pickdemo.grasping.top_down import GraspPlanningError, hand_yaw_for, plan_grasp
 from pickdemo.perception import TargetModel
+from pickdemo.robot import robot_named
+
+ROBOT = robot_named()
 
 
 def _estimate(yaw_deg: float, z: float = 0.025) -> Pose:
@@ -50,7 +53,7 @@ def test_a_box_has_two_hand_angles_a_square_top_four_a_cylinder_any() -> None:
 
 def test_plan_heights() -> None:
     model = TargetModel(Box((0.05, 0.05, 0.05)), (1.0, 0.0, 0.0))
-    plan = plan_grasp(_estimate(10.0), model, (0.45, 0.3))
+    plan = plan_grasp(_estimate(10.0), model, (0.45, 0.3), gripper=ROBOT.gripper)
     assert plan.grasp.position[2] == pytest.approx(0.025)  # 25 mm below the top of a 50 mm cube
     assert plan.pregrasp.position[2] == pytest.approx(0.125)
     assert plan.place.position[:2] == pytest.approx([0.45, 0.3])
@@ -61,14 +64,14 @@ def test_plan_heights() -> None:
 def test_too_wide_for_the_gripper() -> None:
     model = TargetModel(Box((0.09, 0.09, 0.05)), (1.0, 0.0, 0.0))
     with pytest.raises(GraspPlanningError, match="clearance"):
-        plan_grasp(_estimate(0.0), model, (0.45, 0.3))
+        plan_grasp(_estimate(0.0), model, (0.45, 0.3), gripper=ROBOT.gripper)
 
 
 def test_hand_yaw_near_keeps_the_hand_angle() -> None:
     model = TargetModel(Box((0.05, 0.05, 0.05)), (1.0, 0.0, 0.0))
-    first = plan_grasp(_estimate(44.0), model, (0.45, 0.3))
+    first = plan_grasp(_estimate(44.0), model, (0.45, 0.3), gripper=ROBOT.gripper)
     # The estimate crosses the quarter-turn boundary; the re-plan keeps the hand where it was.
-    again = plan_grasp(_estimate(46.0), model, (0.45, 0.3), hand_yaw_near_rad=first.hand_yaw_rad)
+    again = plan_grasp(_estimate(46.0), model, (0.45, 0.3), gripper=ROBOT.gripper, hand_yaw_near_rad=first.hand_yaw_rad)
     assert abs(again.hand_yaw_rad - first.hand_yaw_rad) == pytest.approx(np.radians(2.0))
 
 
@@ -77,9 +80,9 @@ def test_a_grip_wider_than_a_known_object_is_no_hold_of_it_alone() -> None:
     from pickdemo.skills.actions import Grip, GripParams
 
     box = TargetModel(Box((0.05, 0.05, 0.05)), color=(1.0, 0.0, 0.0))
-    plan = plan_grasp(_estimate(0.0), box, (0.3, 0.3))
+    plan = plan_grasp(_estimate(0.0), box, (0.3, 0.3), gripper=ROBOT.gripper)
     assert plan.width_known and plan.object_width_m == pytest.approx(0.05)
-    grip = Grip(GripParams(), 1.0 / 120.0)
+    grip = Grip(GripParams(), 1.0 / 120.0, ROBOT.gripper)
 
     def at(opening_m: float) -> Observation:
         return Observation(0.0, np.zeros(7), np.zeros(7), np.full(2, opening_m / 2.0), (3, 3))

@@ -11,17 +11,19 @@ from pickdemo.core.result import peak_limit_ratios
 from pickdemo.grasping.top_down import top_down
 from pickdemo.motion.ik_goals import Goal, GoalParams, choose_goal, goal_candidates, line_trackable, straight_carry_ok
 from pickdemo.motion.online import JointMotion, MotionError, OnlineMotion, top_down_pose
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.skills.pick import MachineParams
 from pickdemo.skills.pick.plans import half_turn
 
+ROBOT = robot_named()
+
 
 def test_a_pose_whose_hand_angle_is_out_of_reach_is_reached_turned_half_a_turn() -> None:
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     rng = np.random.default_rng(0)
     pose = top_down(np.array([0.40, -0.30, 0.15]), np.radians(-150.0))  # joint 7 would pass its stop
-    goals = goal_candidates(kin, [pose, half_turn(pose)], rm.HOME_Q, rng)
+    goals = goal_candidates(kin, [pose, half_turn(pose)], ROBOT.home_q, rng)
     best = choose_goal(goals)
     assert best is not None and kin.within_limits(best.q)
     assert np.allclose(kin.forward(best.q).position, best.pose.position, atol=1e-3)
@@ -29,7 +31,7 @@ def test_a_pose_whose_hand_angle_is_out_of_reach_is_reached_turned_half_a_turn()
 
 
 def test_choose_goal_prefers_the_nearest_of_the_safe_ones() -> None:
-    q = rm.HOME_Q
+    q = ROBOT.home_q
     pose = top_down(np.zeros(3), 0.0)
     near = Goal(q, pose, 0, margin_rad=0.3, manipulability=0.1, travel_s=0.5)
     far = Goal(q, pose, 1, margin_rad=0.6, manipulability=0.1, travel_s=1.5)
@@ -41,25 +43,25 @@ def test_choose_goal_prefers_the_nearest_of_the_safe_ones() -> None:
 
 
 def test_a_descent_straight_down_is_trackable_from_a_good_goal() -> None:
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     start = top_down(np.array([0.5, 0.0, 0.15]), 0.0)
-    res = kin.solve(start, rm.HOME_Q, np.random.default_rng(1))
+    res = kin.solve(start, ROBOT.home_q, np.random.default_rng(1))
     assert line_trackable(kin, res.q, start, top_down(np.array([0.5, 0.0, 0.05]), 0.0))
 
 
 def test_a_joint_space_transfer_ends_at_its_goal_within_the_datasheet() -> None:
-    kin = panda_kinematics()
-    goal = kin.solve(top_down(np.array([0.35, 0.35, 0.2]), 1.0), rm.HOME_Q, np.random.default_rng(2)).q
-    motion = JointMotion(kin, rm.HOME_Q, 1.0 / 120.0)
-    motion.start(rm.HOME_Q, goal, scale=1.0)
-    qs = [rm.HOME_Q]
+    kin = kinematics_of(ROBOT)
+    goal = kin.solve(top_down(np.array([0.35, 0.35, 0.2]), 1.0), ROBOT.home_q, np.random.default_rng(2)).q
+    motion = JointMotion(kin, ROBOT.home_q, 1.0 / 120.0)
+    motion.start(ROBOT.home_q, goal, scale=1.0)
+    qs = [ROBOT.home_q]
     for _ in range(2000):
         qs.append(motion.step().q)
         if motion.finished:
             break
     assert motion.finished and np.allclose(qs[-1], goal, atol=1e-6)
     t = np.arange(len(qs)) / 120.0
-    ratio = peak_limit_ratios(t, np.array(qs))
+    ratio = peak_limit_ratios(t, np.array(qs), ROBOT.limits.rates())
     assert max(ratio.values()) <= 1.0, ratio
 
 
@@ -69,15 +71,15 @@ def test_a_joint_path_that_swings_the_hand_down_is_measured() -> None:
     nearby takes it straight there."""
     from pickdemo.motion.ik_goals import path_dip
 
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     far_branch = np.array([2.119, 0.923, -1.547, -2.669, 1.258, 2.148, -1.203])  # above (0.35, 0.15), 12 cm up
-    assert path_dip(kin, rm.HOME_Q, far_branch) > 0.03
-    near = kin.solve(top_down(np.array([0.40, 0.0, 0.30]), 0.785), rm.HOME_Q, np.random.default_rng(4)).q
-    assert path_dip(kin, rm.HOME_Q, near) < 0.005
+    assert path_dip(kin, ROBOT.home_q, far_branch) > 0.03
+    near = kin.solve(top_down(np.array([0.40, 0.0, 0.30]), 0.785), ROBOT.home_q, np.random.default_rng(4)).q
+    assert path_dip(kin, ROBOT.home_q, near) < 0.005
 
 
 def test_choose_goal_takes_a_path_that_does_not_dip_first() -> None:
-    q = rm.HOME_Q
+    q = ROBOT.home_q
     pose = top_down(np.zeros(3), 0.0)
     quick_but_dips = Goal(q, pose, 0, margin_rad=0.5, manipulability=0.1, travel_s=0.5, dip_m=0.08)
     slower = Goal(q, pose, 1, margin_rad=0.5, manipulability=0.1, travel_s=1.0)
@@ -104,7 +106,7 @@ def test_a_straight_carry_that_would_pin_a_joint_at_its_limit_is_refused() -> No
     carried it left along a straight line; the check (24 points) passed it 0.03 rad inside joint 1's
     limit, the per-tick IK (finer steps) drifted onto the limit and lost the setpoint. The line must
     keep clear of the limits, and a carry the check passes must be one the per-tick IK follows."""
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     p = MachineParams()
     limits = p.free
     start, end = np.array([0.547, -0.287, 0.155, 0.679]), np.array([0.25, 0.3, 0.155, 0.679])
@@ -119,6 +121,6 @@ def test_a_straight_carry_that_would_pin_a_joint_at_its_limit_is_refused() -> No
     assert straight_carry_ok(kin, q, start, end, place, **kw, params=dataclasses.replace(p.goals, line_margin_rad=0.0))
     # The same carry from the arm's usual branch (elbow up, joint 1 near the hand's bearing) is passed
     # and followed.
-    q_ok = kin.solve(top_down_pose(start), rm.HOME_Q, np.random.default_rng(0)).q
+    q_ok = kin.solve(top_down_pose(start), ROBOT.home_q, np.random.default_rng(0)).q
     assert straight_carry_ok(kin, q_ok, start, end, place, speed_m_s=limits.velocity, posture=q_ok, params=p.goals)
     assert _carry(kin, start, end, q_ok, limits) == "arrived"

@@ -6,23 +6,25 @@ import numpy as np
 
 from pickdemo.core.geometry import Pose
 from pickdemo.grasping.top_down import top_down
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
+
+ROBOT = robot_named()
 
 
 def test_home_tcp_matches_field_notes() -> None:
-    tcp = panda_kinematics().forward(rm.HOME_Q)
+    tcp = kinematics_of(ROBOT).forward(ROBOT.home_q)
     np.testing.assert_allclose(tcp.position, [0.30689, 0.0, 0.48688], atol=1e-4)
     np.testing.assert_allclose(tcp.rotation[:, 2], [0.0, 0.0, -1.0], atol=1e-6)  # pointing down
 
 
 def test_ik_round_trip_on_random_reachable_targets() -> None:
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     rng = np.random.default_rng(0)
     for _ in range(25):
         q_true = rng.uniform(kin.lower + 0.2, kin.upper - 0.2)
         target = kin.forward(q_true)
-        res = kin.solve(target, rm.HOME_Q, rng)
+        res = kin.solve(target, ROBOT.home_q, rng)
         assert res.success, res.reason
         assert kin.within_limits(res.q)
         reached = kin.forward(res.q)
@@ -31,17 +33,18 @@ def test_ik_round_trip_on_random_reachable_targets() -> None:
 
 
 def test_top_down_grasps_over_the_workspace() -> None:
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     rng = np.random.default_rng(1)
     for x in (0.35, 0.5, 0.65):
         for y in (-0.2, 0.0, 0.3):
             for yaw in (-np.pi / 2, 0.0, np.pi / 4):
-                res = kin.solve(top_down(np.array([x, y, 0.025]), yaw), rm.HOME_Q, rng)
+                res = kin.solve(top_down(np.array([x, y, 0.025]), yaw), ROBOT.home_q, rng)
                 assert res.success, (x, y, yaw, res.reason)
 
 
 def test_unreachable_target_fails_with_reason() -> None:
-    res = panda_kinematics().solve(Pose.from_xyz_rpy([2.0, 0.0, 0.5], roll=np.pi), rm.HOME_Q, np.random.default_rng(0))
+    far = Pose.from_xyz_rpy([2.0, 0.0, 0.5], roll=np.pi)
+    res = kinematics_of(ROBOT).solve(far, ROBOT.home_q, np.random.default_rng(0))
     assert not res.success
     assert "no solution" in res.reason
     assert res.position_error_m > 0.5
@@ -51,13 +54,13 @@ def test_tracking_a_setpoint_as_se3_is_the_same_solve_as_from_a_pose() -> None:
     """The control tick's fast path (an SE3 built straight from (x, y, z, yaw)) changes no number."""
     from pickdemo.motion.online import top_down_pose, top_down_se3
 
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     rng = np.random.default_rng(2)
     for _ in range(50):
         x4 = np.array([rng.uniform(0.3, 0.6), rng.uniform(-0.3, 0.3), rng.uniform(0.05, 0.4), rng.uniform(-3, 3)])
         slow, fast = top_down_pose(x4).to_se3(), top_down_se3(x4)
         assert np.array_equal(slow.rotation, fast.rotation) and np.array_equal(slow.translation, fast.translation)
-        q0 = rm.HOME_Q + rng.normal(0.0, 0.05, 7)
+        q0 = ROBOT.home_q + rng.normal(0.0, 0.05, 7)
         a, b = kin.track(top_down_pose(x4), q0), kin.track(fast, q0)
         assert np.array_equal(a.q, b.q) and (a.position_error_m, a.rotation_error_rad) == (
             b.position_error_m,
@@ -69,10 +72,10 @@ def test_the_posture_task_swings_the_elbow_without_moving_the_hand() -> None:
     """The per-tick IK's posture term moves only in the hand's null space: tracking one pose tick
     after tick from a posture off the reference, the hand stays on it (to the solver's tolerance)
     and the arm's free swing comes back towards the reference."""
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     rng = np.random.default_rng(3)
     target = top_down(np.array([0.45, 0.10, 0.20]), 0.3)
-    ref = kin.solve(target, rm.HOME_Q, rng).q
+    ref = kin.solve(target, ROBOT.home_q, rng).q
     # the same hand pose with the elbow swung: a solution from a start far from the reference
     other = next(
         r.q for r in (kin.solve(target, rng.uniform(kin.lower, kin.upper), rng) for _ in range(40))
@@ -98,8 +101,8 @@ def test_the_posture_task_keeps_off_the_joint_limits() -> None:
     """A joint inside the avoidance zone is pushed away from its limit, in the null space."""
     from pickdemo.robot.kinematics import POSTURE
 
-    kin = panda_kinematics()
-    q = np.array(rm.HOME_Q, dtype=float)
+    kin = kinematics_of(ROBOT)
+    q = np.array(ROBOT.home_q, dtype=float)
     q[2] = kin.upper[2] - 0.05  # joint 3 near its upper limit
     step = kin._posture_step(q, q, POSTURE)
     assert step[2] < 0.0 and np.count_nonzero(step) == 1  # only that joint, away from its limit

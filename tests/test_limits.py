@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from pickdemo.core.result import limit_exceedances, peak_limit_ratios
-from pickdemo.robot import panda as rm
+from pickdemo.robot import robot_named
+
+ROBOT = robot_named()
 
 
 def _sine(amplitude_rad: float, omega: float) -> tuple[np.ndarray, np.ndarray]:
@@ -20,15 +22,15 @@ def _sine(amplitude_rad: float, omega: float) -> tuple[np.ndarray, np.ndarray]:
 @pytest.mark.parametrize("scale", [0.5, 0.99, 1.2])
 def test_peak_ratio_is_the_largest_share_of_the_limit(scale: float) -> None:
     omega = 2.0
-    a = scale * rm.MAX_ACCELERATION_RAD_S2[1] / omega**2  # joint 2's acceleration peaks at scale x its limit
+    a = scale * ROBOT.limits.max_acceleration_rad_s2[1] / omega**2  # joint 2's acceleration peaks at scale x its limit
     t, q = _sine(a, omega)
-    ratio = peak_limit_ratios(t, q)
+    ratio = peak_limit_ratios(t, q, ROBOT.limits.rates())
     assert ratio["acceleration"] == pytest.approx(scale, rel=2e-3)
-    assert ratio["velocity"] == pytest.approx(a * omega / rm.MAX_VELOCITY_RAD_S[1], rel=2e-3)
-    over = {e.quantity for e in limit_exceedances(t, q)}
+    assert ratio["velocity"] == pytest.approx(a * omega / ROBOT.limits.max_velocity_rad_s[1], rel=2e-3)
+    over = {e.quantity for e in limit_exceedances(t, q, ROBOT.limits.rates())}
     assert ("acceleration" in over) == (ratio["acceleration"] > 1.0)
     assert ("velocity" in over) == (ratio["velocity"] > 1.0)
 
 
 def test_too_short_a_command_has_no_ratio() -> None:
-    assert peak_limit_ratios(np.zeros(3), np.zeros((3, 7))) is None
+    assert peak_limit_ratios(np.zeros(3), np.zeros((3, 7)), ROBOT.limits.rates()) is None

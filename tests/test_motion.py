@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from pickdemo.motion.online import CartesianLimits, OnlineMotion, pose_to_x4, top_down_pose
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
+
+ROBOT = robot_named()
 
 DT = 1.0 / 120.0
 
@@ -30,9 +32,9 @@ def test_pose_x4_round_trip() -> None:
 
 
 def test_reaches_the_target_and_the_joints_follow() -> None:
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     lim = CartesianLimits(velocity=0.3, acceleration=1.5, jerk=15.0)
-    m = OnlineMotion(kin, rm.HOME_Q, DT, lim)
+    m = OnlineMotion(kin, ROBOT.home_q, DT, lim)
     goal = np.array([0.5, 0.1, 0.15, 0.4])
     m.set_target(goal)
     samples = _run(m, 2000)
@@ -44,9 +46,9 @@ def test_reaches_the_target_and_the_joints_follow() -> None:
 
 def test_retargets_mid_motion_stay_within_limits() -> None:
     """Re-targeted every 0.1 s to a drifting goal: velocity, acceleration and jerk stay within the limits."""
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     lim = CartesianLimits(velocity=0.2, acceleration=1.0, jerk=10.0)
-    m = OnlineMotion(kin, rm.HOME_Q, DT, lim)
+    m = OnlineMotion(kin, ROBOT.home_q, DT, lim)
     rng = np.random.default_rng(1)
     goals = {k: np.array([0.5, 0.0, 0.2, 0.3]) + rng.uniform(-0.05, 0.05, 4) for k in range(0, 240, 12)}
     s = _run(m, 2000, goals)
@@ -60,8 +62,8 @@ def test_retargets_mid_motion_stay_within_limits() -> None:
 
 
 def test_a_vertical_move_is_a_straight_line() -> None:
-    kin = panda_kinematics()
-    m = OnlineMotion(kin, rm.HOME_Q, DT, CartesianLimits())
+    kin = kinematics_of(ROBOT)
+    m = OnlineMotion(kin, ROBOT.home_q, DT, CartesianLimits())
     start = m.setpoint.copy()
     m.set_target(start - np.array([0.0, 0.0, 0.2, 0.0]))
     s = _run(m, 2000)
@@ -83,12 +85,12 @@ def test_a_turn_of_the_hand_goes_the_way_round_the_joints_can_follow() -> None:
     from pickdemo.motion.ik_goals import turn_path
     from pickdemo.skills.actions import Move
 
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     lim = CartesianLimits(velocity=0.3, acceleration=1.5, jerk=15.0)
     followed = 0
     for xy in ((0.45, 0.25), (0.5, -0.3), (0.35, 0.0), (0.6, 0.1)):
         for yaw_deg in (-175.0, -120.0, -60.0, 0.0, 60.0, 120.0, 175.0, 90.0, -90.0):
-            m = OnlineMotion(kin, rm.HOME_Q, DT, lim)
+            m = OnlineMotion(kin, ROBOT.home_q, DT, lim)
             move = Move(m, chase_fraction=0.5, meet_horizon_s=5.0)
             goal = np.array([*xy, 0.2, m.setpoint[3] + np.radians(yaw_deg)])
             x4 = move.x4(goal)
@@ -107,11 +109,11 @@ def test_a_turn_of_the_hand_goes_the_way_round_the_joints_can_follow() -> None:
 def test_a_half_turn_the_nearer_way_would_stop_joint_7_goes_the_other_way() -> None:
     from pickdemo.motion.ik_goals import way_round
 
-    kin = panda_kinematics()
-    sp = pose_to_x4(kin.forward(rm.HOME_Q))
-    near_ok = way_round(kin, rm.HOME_Q, sp, sp + np.array([0.0, 0.0, 0.0, np.radians(170.0)]))
+    kin = kinematics_of(ROBOT)
+    sp = pose_to_x4(kin.forward(ROBOT.home_q))
+    near_ok = way_round(kin, ROBOT.home_q, sp, sp + np.array([0.0, 0.0, 0.0, np.radians(170.0)]))
     assert np.isclose(near_ok[3] - sp[3], np.radians(170.0))  # the nearer way is within range: taken
-    blocked = way_round(kin, rm.HOME_Q, sp, sp + np.array([0.0, 0.0, 0.0, np.radians(-170.0)]))
+    blocked = way_round(kin, ROBOT.home_q, sp, sp + np.array([0.0, 0.0, 0.0, np.radians(-170.0)]))
     assert np.isclose(blocked[3] - sp[3], np.radians(190.0))  # the nearer way would pass joint 7's stop
 
 
@@ -121,8 +123,8 @@ def test_a_move_with_no_turn_never_goes_a_whole_revolution_round() -> None:
     after an over-the-top carry turned the hand 2 pi and lost the setpoint)."""
     from pickdemo.motion.ik_goals import way_round
 
-    kin = panda_kinematics()
-    q = np.array(rm.HOME_Q, dtype=float)
+    kin = kinematics_of(ROBOT)
+    q = np.array(ROBOT.home_q, dtype=float)
     q[6] = kin.upper[6] - 0.1  # joint 7 within 0.15 rad of its stop
     sp = pose_to_x4(kin.forward(q))
     for eps in (0.0, 1e-15, -1e-15, 1e-3):

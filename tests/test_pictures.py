@@ -14,6 +14,9 @@ import pytest
 
 from pickdemo.apps.cli import main
 from pickdemo.core.result import WALL_CLOCK_KEYS
+from pickdemo.robot import robot_named
+
+ROBOT = robot_named()
 
 pytestmark = pytest.mark.sim
 av = pytest.importorskip("av")
@@ -188,8 +191,8 @@ def test_limit_exceedances_flag_exactly_the_samples_over_the_limit() -> None:
     (slow,) = limit_exceedances(t, -q, {"velocity": (np.full(7, 1.5), "rad/s")})[:1]
     assert slow.samples == 20 and slow.first_time_s == t[20]
     # The datasheet's limits: this slow motion is well inside them; too short a command: nothing.
-    assert limit_exceedances(t, q * 0.1) == []
-    assert limit_exceedances(t[:3], q[:3]) == []
+    assert limit_exceedances(t, q * 0.1, ROBOT.limits.rates()) == []
+    assert limit_exceedances(t[:3], q[:3], ROBOT.limits.rates()) == []
 
 
 def _trace(t: np.ndarray, q: np.ndarray):
@@ -210,11 +213,10 @@ def test_motion_plot_marks_the_ticks_over_a_limit(tmp_path: Path) -> None:
     """Red rings and a red note where the command goes beyond the datasheet; none where it stays inside."""
     pytest.importorskip("matplotlib")
     from pickdemo.apps.report import phase_changes, write_motion_plot
-    from pickdemo.robot import panda as rm
 
     t = np.arange(400) / 120.0
     acc = np.where((t >= 1.0) & (t < 1.1), 1.2, 0.0) - np.where((t >= 1.1) & (t < 1.2), 1.2, 0.0)
-    vel = np.concatenate([[0.0], np.cumsum(acc[:-1])]) / 120.0 * rm.MAX_ACCELERATION_RAD_S2[1]
+    vel = np.concatenate([[0.0], np.cumsum(acc[:-1])]) / 120.0 * ROBOT.limits.max_acceleration_rad_s2[1]
     q = np.zeros((400, 7))
     q[:, 1] = np.concatenate([[0.0], np.cumsum(vel[:-1])]) / 120.0  # joint 2 speeds up and slows at 120 % of its limit
     over = write_motion_plot(_trace(t, q), tmp_path / "over.png", "over")
@@ -235,8 +237,9 @@ def test_result_json_carries_the_limit_check_with_or_without_a_trace(run_dir: Pa
     saved = json.loads((run_dir / "result.json").read_text())
     assert isinstance(plain["limit_exceedances"], list)
     assert _strip(plain) == _strip(saved) == _strip(with_trace.to_dict())
-    assert plain["limit_exceedances"] == [e.to_dict() for e in limit_exceedances(with_trace.trace.time_s,
-                                                                                  with_trace.trace.q)]  # fmt: skip
+    trace = with_trace.trace
+    over = limit_exceedances(trace.time_s, trace.q, ROBOT.limits.rates())
+    assert plain["limit_exceedances"] == [e.to_dict() for e in over]
     for e in plain["limit_exceedances"]:
         assert e["peak"] > e["limit"] > 0 and e["samples"] >= 1 and 0 <= e["first_time_s"] <= e["peak_time_s"]
         assert e["quantity"] in ("velocity", "acceleration", "jerk") and 1 <= e["joint"] <= 7
@@ -300,17 +303,16 @@ def test_third_person_view_holds_the_whole_arm() -> None:
 
     from pickdemo.core.camera import project
     from pickdemo.motion.online import top_down_pose
-    from pickdemo.robot import panda as rm
-    from pickdemo.robot.kinematics import panda_kinematics
+    from pickdemo.robot.kinematics import kinematics_of
     from pickdemo.runtime.episode import THIRD_PERSON_K, THIRD_PERSON_POSE
 
     pin = pytest.importorskip("pinocchio")
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     data = kin.model.createData()
-    qs = [rm.HOME_Q]
+    qs = [ROBOT.home_q]
     rng = np.random.default_rng(0)
     for x, y, z in [(0.4, -0.15, 0.02), (0.6, 0.15, 0.02), (0.6, -0.15, 0.3), (0.45, 0.3, 0.02), (0.45, 0.3, 0.3)]:
-        res = kin.solve(top_down_pose(np.array([x, y, z, 0.0])), rm.HOME_Q, rng=rng)
+        res = kin.solve(top_down_pose(np.array([x, y, z, 0.0])), ROBOT.home_q, rng=rng)
         assert res.success
         qs.append(res.q)
     cube = np.array(list(itertools.product((-0.08, 0.08), repeat=3)))

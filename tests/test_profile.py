@@ -10,8 +10,11 @@ import numpy as np
 import pytest
 
 from pickdemo.apps.profile import STAGES, Profiler, profile
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.scenario.load import load_scenario
+
+ROBOT = robot_named()
 
 
 def test_a_stage_counts_its_calls_without_the_wrapped_calls_they_make() -> None:
@@ -36,7 +39,7 @@ def test_a_stage_counts_its_calls_without_the_wrapped_calls_they_make() -> None:
 
 @pytest.mark.sim
 def test_profile_of_an_episode_accounts_for_its_loop_and_leaves_nothing_wrapped() -> None:
-    kin = panda_kinematics()  # shared by every episode in a process: wrapped for one, then restored
+    kin = kinematics_of(ROBOT)  # shared by every episode in a process: wrapped for one, then restored
     report = profile(load_scenario("pick_cube"), [0])
     (e,) = report.episodes
     assert e.success and e.sim_time_s > 5.0
@@ -51,7 +54,7 @@ def test_profile_of_an_episode_accounts_for_its_loop_and_leaves_nothing_wrapped(
     assert report.reference.steps > 0 and report.reference.real_time_factor > 0.0
     assert 0.0 < report.ratio < 1.0  # the loop costs more than the bare physics
     assert not any(name in kin.__dict__ for name in ("track", "solve", "forward"))
-    assert np.allclose(kin.forward(np.zeros(7)).position, panda_kinematics().forward(np.zeros(7)).position)
+    assert np.allclose(kin.forward(np.zeros(7)).position, kinematics_of(ROBOT).forward(np.zeros(7)).position)
 
 
 @pytest.mark.sim

@@ -7,16 +7,18 @@ import numpy as np
 import pytest
 
 from pickdemo.core.result import peak_limit_ratios
-from pickdemo.robot import panda as rm
+from pickdemo.robot import robot_named
 from pickdemo.robot.rate_limit import LIMITER_SHARE, JointRates, RateLimiter, Reflex, ReflexError
 from tests.episodes import episodes
+
+ROBOT = robot_named()
 
 DT = 1.0 / 120.0
 
 
 def _run(commands: np.ndarray) -> np.ndarray:
-    lim = RateLimiter(rm.HOME_Q, DT)
-    reflex = Reflex(rm.HOME_Q, DT)
+    lim = RateLimiter(ROBOT.home_q, DT, ROBOT.limits)
+    reflex = Reflex(ROBOT.home_q, DT, ROBOT.limits)
     out = []
     for k, q in enumerate(commands):
         sent, _ = lim(q)
@@ -26,31 +28,31 @@ def _run(commands: np.ndarray) -> np.ndarray:
 
 
 def test_a_step_command_is_followed_within_the_limits() -> None:
-    target = rm.HOME_Q + np.array([1.0, -0.5, 0.8, 0.6, -1.0, 0.7, 1.5])
+    target = ROBOT.home_q + np.array([1.0, -0.5, 0.8, 0.6, -1.0, 0.7, 1.5])
     sent = _run(np.repeat(target[None], 600, axis=0))
     t = np.arange(len(sent)) * DT
-    ratios = peak_limit_ratios(np.r_[-DT, t], np.vstack([rm.HOME_Q, sent]))
+    ratios = peak_limit_ratios(np.r_[-DT, t], np.vstack([ROBOT.home_q, sent]), ROBOT.limits.rates())
     assert ratios is not None and max(ratios.values()) <= LIMITER_SHARE + 1e-9, ratios
     np.testing.assert_allclose(sent[-1], target, atol=1e-3)  # and it gets there
 
 
 def test_a_command_within_the_limits_passes_bit_for_bit() -> None:
     t = np.arange(240) * DT
-    wave = rm.HOME_Q[None] + 0.2 * (1.0 - np.cos(2.0 * t))[:, None]  # from rest: 0.4 rad/s, 0.8 rad/s^2
+    wave = ROBOT.home_q[None] + 0.2 * (1.0 - np.cos(2.0 * t))[:, None]  # from rest: 0.4 rad/s, 0.8 rad/s^2
     sent = _run(wave)
     assert np.array_equal(sent, wave)
 
 
 def test_the_reflex_stops_a_command_beyond_the_datasheet() -> None:
-    reflex = Reflex(rm.HOME_Q, DT, JointRates.datasheet())
-    q = rm.HOME_Q.copy()
+    reflex = Reflex(ROBOT.home_q, DT, ROBOT.limits, JointRates.datasheet(ROBOT.limits))
+    q = ROBOT.home_q.copy()
     q[1] += 8.0 * DT * DT  # joint 2 accelerated at 8 rad/s^2 in one tick: its limit is 7.5
     with pytest.raises(ReflexError, match=r"joint 2 commanded at 8 rad/s\^2, beyond its limit 7.5"):
         reflex.check(q, 0.5)
-    far = rm.HOME_Q.copy()
+    far = ROBOT.home_q.copy()
     far[3] = 0.0  # joint 4 stops at -0.0698
     with pytest.raises(ReflexError, match="joint 4 commanded to 0.0000 rad, outside"):
-        Reflex(far, DT).check(far, 0.0)
+        Reflex(far, DT, ROBOT.limits).check(far, 0.0)
 
 
 PEAK_SEEDS = tuple(range(20))

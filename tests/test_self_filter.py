@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from pickdemo.core.geometry import OrientedBox, Pose
-from pickdemo.robot import panda as rm
+from pickdemo.robot import robot_named
 from pickdemo.robot.self_geometry import link_bounds, robot_body, stl_vertices
+
+ROBOT = robot_named()
 
 
 def test_a_binary_stl_is_read() -> None:
@@ -23,24 +25,24 @@ def test_a_binary_stl_is_read() -> None:
 
 
 def test_every_link_of_the_arm_and_hand_is_bounded() -> None:
-    names = set(link_bounds())
+    names = set(link_bounds(ROBOT))
     assert {f"panda_link{i}" for i in range(8)} <= names
-    assert {"panda_hand", *rm.FINGER_LINKS} <= names
-    for lo, hi in link_bounds().values():
+    assert {"panda_hand", *ROBOT.gripper.finger_links} <= names
+    for lo, hi in link_bounds(ROBOT).values():
         assert np.all(hi - lo > 0.01) and np.all(hi - lo < 0.4)
 
 
 def test_the_boxes_follow_the_joints() -> None:
     """The TCP lies between the fingers' boxes and below the hand's, wherever the arm is; a point a
     few centimetres beside the hand is in none."""
-    from pickdemo.robot.kinematics import panda_kinematics
+    from pickdemo.robot.kinematics import kinematics_of
 
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     rng = np.random.default_rng(0)
     for _ in range(5):
-        q = rm.HOME_Q + rng.uniform(-0.4, 0.4, 7)
+        q = ROBOT.home_q + rng.uniform(-0.4, 0.4, 7)
         tcp = kin.forward(q)
-        boxes = dict(zip(link_bounds(), robot_body().boxes(q, [0.02, 0.02], pad_m=0.0), strict=True))
+        boxes = dict(zip(link_bounds(ROBOT), robot_body(ROBOT).boxes(q, [0.02, 0.02], pad_m=0.0), strict=True))
         pads = tcp.transform_points(np.array([[0.0, 0.02, 0.0], [0.0, -0.02, 0.0]]))  # where the finger pads are
         assert boxes["panda_leftfinger"].contains(pads).any() and boxes["panda_rightfinger"].contains(pads).any()
         assert not any(b.contains(tcp.position[None])[0] for b in boxes.values())  # between the open fingers
@@ -66,14 +68,14 @@ def test_the_arm_in_view_is_filtered_out_and_the_rest_is_not() -> None:
     from pickdemo.scenario.load import load_scenario
 
     sc = load_scenario("pick_cube")
-    q = rm.HOME_Q + np.array([0.3, 0.5, 0.0, 0.4, 0.0, -0.2, 0.0])  # the hand down into the view
+    q = ROBOT.home_q + np.array([0.3, 0.5, 0.0, 0.4, 0.0, -0.2, 0.0])  # the hand down into the view
     with World.build(sc, 0) as world:
         scene = world.scene
         for j, qj in zip(scene.arm_joints, q, strict=True):
             scene.client.resetJointState(scene.bodies["robot"], j, float(qj))
         frame, seg = world.camera.capture_labels(scene)
         robot_id = scene.bodies["robot"]
-    frame = dataclasses.replace(frame, robot_boxes=robot_body().boxes(q, [rm.FINGER_MAX_M] * 2))
+    frame = dataclasses.replace(frame, robot_boxes=robot_body(ROBOT).boxes(q, [ROBOT.gripper.finger_max_m] * 2))
     above = np.nan_to_num(world_heights(frame), nan=-1.0) > 0.005
     marked = robot_pixels(frame, above)
     is_robot = (seg & ((1 << 24) - 1)) == robot_id

@@ -19,13 +19,15 @@ from pickdemo.core.geometry import Pose
 from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import Stage
 from pickdemo.perception import PerceptionError, PoseEstimate
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.scenario.layout import sample_layout
 from pickdemo.scenario.load import load_scenario
 from pickdemo.scenario.task import target_model
 from pickdemo.skills.pick import CameraModel, PickMachine, State
 from pickdemo.tracking.belief import Verdict
+
+ROBOT = robot_named()
 
 DT = 1.0 / 120.0
 FRAME_TICKS = 12  # 10 Hz
@@ -43,10 +45,10 @@ class Cell:
         self.model = target_model(sc, sample_layout(sc, np.random.default_rng(0))[0])
         self.half_h = self.model.height_m / 2.0
         self.width = min(self.model.size[:2])
-        self.kin = panda_kinematics()
-        self.q = rm.HOME_Q.copy()
-        self.fingers = rm.FINGER_MAX_M
-        self.finger_target = rm.FINGER_MAX_M
+        self.kin = kinematics_of(ROBOT)
+        self.q = ROBOT.home_q.copy()
+        self.fingers = ROBOT.gripper.finger_max_m
+        self.finger_target = ROBOT.gripper.finger_max_m
         self.obj = np.array([xy[0], xy[1], self.half_h])
         self.yaw = np.radians(yaw_deg)
         self.held_offset: np.ndarray | None = None  # object minus TCP while held
@@ -266,7 +268,7 @@ def test_a_pick_with_joint_space_transfers_keeps_the_franka_within_its_limits() 
     # straight lines near the object, and the carry (a straight top-down line unless carry_in_joint_space)
     assert not in_joint_space & {"descend", "close", "lift", "transport", "lower", "release"}
     t, q = map(np.array, zip(*commands, strict=True))
-    ratio = peak_limit_ratios(t, q.reshape(-1, 7))
+    ratio = peak_limit_ratios(t, q.reshape(-1, 7), ROBOT.limits.rates())
     assert max(ratio.values()) <= 1.0, ratio
 
 

@@ -16,6 +16,9 @@ from pickdemo.grasping.selection import GraspRequest
 from pickdemo.grasping.top_down import GraspParams, GraspPlanningError
 from pickdemo.perception import ObjectCloud, PerceptionError, PerceptionParams, TargetModel
 from pickdemo.perception.unknown import estimate_unknown, hidden_in_part, principal_yaw, segment_objects
+from pickdemo.robot import robot_named
+
+ROBOT = robot_named()
 
 K = Intrinsics.from_fov(320, 240, 57.0, 43.0)
 T_CAM = look_at_pose(np.array([1.0, 0.0, 0.7]), np.array([0.5, 0.0, 0.0]))
@@ -150,7 +153,7 @@ def _cloud(block: Block, *, obstacles: list[Block] = (), frame: RGBDFrame | None
 def test_a_grasp_closes_across_the_narrow_side_through_the_middle() -> None:
     for yaw in (0.0, 30.0, -70.0):
         block = Block((0.5, 0.05), (0.09, 0.04, 0.05), yaw)
-        best = sample_grasps(_cloud(block), 0.0)[0]
+        best = sample_grasps(_cloud(block), 0.0, ROBOT.gripper)[0]
         np.testing.assert_allclose(best.position[:2], block.centre_xy, atol=0.004)
         closing = np.array([np.sin(best.hand_yaw_rad), -np.cos(best.hand_yaw_rad)])
         narrow = np.array([-np.sin(np.radians(yaw)), np.cos(np.radians(yaw))])  # the block's y axis
@@ -160,18 +163,18 @@ def test_a_grasp_closes_across_the_narrow_side_through_the_middle() -> None:
 
 
 def test_no_grasp_of_an_object_wider_than_the_hand_every_way() -> None:
-    assert sample_grasps(_cloud(Block((0.5, 0.0), (0.09, 0.09, 0.05))), 0.0) == []
+    assert sample_grasps(_cloud(Block((0.5, 0.0), (0.09, 0.09, 0.05))), 0.0, ROBOT.gripper) == []
     selector = CloudGrasps(GraspParams())
     request = GraspRequest(Pose.from_xyz_rpy(np.array([0.5, 0.0, 0.025])), MODEL, (0.45, 0.3),
-                           cloud=_cloud(Block((0.5, 0.0), (0.09, 0.09, 0.05))))  # fmt: skip
+                           cloud=_cloud(Block((0.5, 0.0), (0.09, 0.09, 0.05))), gripper=ROBOT.gripper)  # fmt: skip
     with pytest.raises(GraspPlanningError, match="wider than the open hand"):
         selector.hand_yaws(request)
 
 
 def test_a_grasp_keeps_its_fingers_off_a_neighbour() -> None:
     block = Block((0.5, 0.0), (0.04, 0.04, 0.05))
-    alone = sample_grasps(_cloud(block), 0.0)
-    beside = sample_grasps(_cloud(block, obstacles=[Block((0.5, 0.055), (0.06, 0.03, 0.05))]), 0.0)
+    alone = sample_grasps(_cloud(block), 0.0, ROBOT.gripper)
+    beside = sample_grasps(_cloud(block, obstacles=[Block((0.5, 0.055), (0.06, 0.03, 0.05))]), 0.0, ROBOT.gripper)
     assert len(beside) < len(alone)
     closing = np.array([[np.sin(g.hand_yaw_rad), -np.cos(g.hand_yaw_rad)] for g in beside])
     assert abs(closing[0, 1]) < 0.2  # the best closes along x, its fingers clear of the neighbour
@@ -183,7 +186,7 @@ def test_fingers_go_down_where_the_camera_saw_free_space_first() -> None:
     finger behind it (closing across the line of sight) is preferred to one as good that does."""
     block = Block((0.5, 0.0), (0.045, 0.045, 0.05))
     frame = render([block])
-    best = sample_grasps(_cloud(block, frame=frame), 0.0)[0]
+    best = sample_grasps(_cloud(block, frame=frame), 0.0, ROBOT.gripper)[0]
     closing = np.array([np.sin(best.hand_yaw_rad), -np.cos(best.hand_yaw_rad)])
     assert abs(closing[1]) > 0.9  # across the camera's line of sight (which runs along x)
 
@@ -192,10 +195,12 @@ def test_the_grasp_is_planned_once_and_carried_with_the_tracked_pose() -> None:
     block = Block((0.5, 0.0), (0.08, 0.04, 0.05))
     selector = CloudGrasps(GraspParams())
     pose = Pose.from_xyz_rpy(np.array([0.5, 0.0, 0.025]))
-    first = next(selector.candidates(GraspRequest(pose, MODEL, (0.45, 0.3), cloud=_cloud(block), plan_id=1)))
+    request = GraspRequest(pose, MODEL, (0.45, 0.3), cloud=_cloud(block), plan_id=1, gripper=ROBOT.gripper)
+    first = next(selector.candidates(request))
     moved = Pose.from_xyz_rpy(np.array([0.52, 0.01, 0.025]), yaw=np.radians(90.0))
     # The same plan, carried: a newer cloud (here: none) does not re-plan it.
-    carried = next(selector.candidates(GraspRequest(moved, MODEL, (0.45, 0.3), cloud=None, plan_id=1)))
+    request = GraspRequest(moved, MODEL, (0.45, 0.3), cloud=None, plan_id=1, gripper=ROBOT.gripper)
+    carried = next(selector.candidates(request))
     dx, dy = first.grasp.position[:2] - pose.position[:2]
     np.testing.assert_allclose(carried.grasp.position[:2] - moved.position[:2], [-dy, dx], atol=1e-9)  # turned 90 deg
     turn = (np.degrees(carried.hand_yaw_rad - first.hand_yaw_rad) + 90.0) % 180.0 - 90.0  # modulo the hand's half turn

@@ -11,20 +11,22 @@ import pytest
 from pickdemo.core.geometry import Pose
 from pickdemo.core.result import Stage
 from pickdemo.perception import PerceptionParams, estimate_pose
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.runtime.episode import run_episode
 from pickdemo.runtime.world import World
 from pickdemo.scenario.load import load_scenario
 from pickdemo.scenario.task import target_model
 
+ROBOT = robot_named()
+
 
 def _hand_over(world: World, position: np.ndarray, height_m: float) -> np.ndarray:
     """Put the arm (in the simulator) with its TCP this high over a point, pointing down; its joints."""
-    kin = panda_kinematics()
+    kin = kinematics_of(ROBOT)
     r = kin.solve(
-        Pose(position + [0.0, 0.0, height_m], np.diag([1.0, -1.0, -1.0])), rm.HOME_Q, np.random.default_rng(0)
+        Pose(position + [0.0, 0.0, height_m], np.diag([1.0, -1.0, -1.0])), ROBOT.home_q, np.random.default_rng(0)
     )
     assert r.success
     robot = world.scene.bodies["robot"]
@@ -40,11 +42,12 @@ def test_the_hands_camera_sees_the_target_from_above_it_down_to_the_grasp(height
         world.scene.settle(240)
         truth = world.true_pose("cube")
         q = _hand_over(world, truth.position, height_m)
-        kin = panda_kinematics()
+        kin = kinematics_of(ROBOT)
         frame = world.wrist_camera.capture_from(world.scene, kin.forward(q))
         # told where it is by the arm's kinematics: where the simulator renders it from (no hand-eye error)
         assert np.allclose(frame.T_world_cam.position, world.wrist_camera.T_world_cam_true.position, atol=1e-6)
-        frame = dataclasses.replace(frame, robot_boxes=robot_body().boxes(q, np.array([rm.FINGER_MAX_M] * 2)))
+        fingers = np.array([ROBOT.gripper.finger_max_m] * 2)
+        frame = dataclasses.replace(frame, robot_boxes=robot_body(ROBOT).boxes(q, fingers))
         est = estimate_pose(frame, target_model(sc, world.placement("cube")), PerceptionParams())
         assert np.linalg.norm(est.pose.position - truth.position) < 0.001
 

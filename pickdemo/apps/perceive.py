@@ -22,7 +22,6 @@ from pickdemo.core.shapes import Mesh, Unknown
 from pickdemo.core.stats import describe
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.perception.estimators import BUILTIN, resolve_estimator
-from pickdemo.robot import panda as rm
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.runtime.evaluation import pose_errors
 from pickdemo.runtime.metrics import position_nees
@@ -73,7 +72,9 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
         camera = world.camera
         frame = camera.capture(world.scene)
         # the robot stands at home: the self-filter is told so (what its joint states would say)
-        frame = dataclasses.replace(frame, robot_boxes=robot_body().boxes(rm.HOME_Q, [rm.FINGER_MAX_M] * 2))
+        robot = world.robot
+        fingers = [robot.gripper.finger_max_m] * len(robot.gripper.finger_joints)
+        frame = dataclasses.replace(frame, robot_boxes=robot_body(robot).boxes(robot.home_q, fingers))
         truths = {t.name: _seen_truth(world, t.name) for t in scenario.targets}  # truth: scoring only
     distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))
     samples = []

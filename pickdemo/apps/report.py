@@ -16,7 +16,6 @@ import numpy as np
 
 from pickdemo.apps.bench import ScenarioSummary
 from pickdemo.core.result import (
-    JOINT_LIMITS,
     EpisodeRecord,
     EpisodeResult,
     EpisodeTrace,
@@ -25,6 +24,8 @@ from pickdemo.core.result import (
     limit_exceedances,
     summary_name,
 )
+from pickdemo.robot import robot_named
+from pickdemo.robot.description import RobotDescription
 
 
 class PlotsUnavailable(RuntimeError):
@@ -60,27 +61,29 @@ def _pretty(unit: str) -> str:
     return unit.replace("^2", "²").replace("^3", "³")
 
 
-def write_motion_plot(trace: EpisodeTrace, path: Path, title: str = "") -> Path:
+def write_motion_plot(trace: EpisodeTrace, path: Path, title: str = "", robot: RobotDescription | None = None) -> Path:
     """Per arm joint: position, velocity, acceleration and jerk over time, with the datasheet limits
     (dashed, each joint's colour), every tick over a limit (red rings, named in the panel; the same
     :func:`pickdemo.core.result.limit_exceedances` as ``result.json``'s), the states of the pick (dark
-    dashed lines, named along the top) and the moments Ruckig was re-targeted (grey lines)."""
+    dashed lines, named along the top) and the moments Ruckig was re-targeted (grey lines). ``robot``:
+    whose limits (default: the default robot's)."""
     plt = _pyplot()
     m = joint_motion(trace)
-    over = limit_exceedances(trace.time_s, trace.q)
-    units = {"position": "rad", **{k: _pretty(u) for k, (_, u) in JOINT_LIMITS.items()}}
+    limits = (robot or robot_named()).limits.rates()
+    over = limit_exceedances(trace.time_s, trace.q, limits)
+    units = {"position": "rad", **{k: _pretty(u) for k, (_, u) in limits.items()}}
     fig, axes = plt.subplots(4, 1, figsize=(11, 10.5), sharex=True)
     colours = plt.get_cmap("tab10").colors
     retargets = m["time_s"][trace.retarget]
     phases = phase_changes(trace)
     for ax, key in zip(axes, ("position", "velocity", "acceleration", "jerk"), strict=True):
-        for j in range(7):
+        for j in range(m[key].shape[1]):
             ax.plot(m["time_s"], m[key][:, j], color=colours[j], lw=1.0, label=f"joint {j + 1}")
-        if key in JOINT_LIMITS:
-            lims = JOINT_LIMITS[key][0]
+        if key in limits:
+            lims = limits[key][0]
             peak = float(np.max(np.abs(m[key])))
             mine = [e for e in over if e.quantity == key]
-            for j in range(7):
+            for j in range(m[key].shape[1]):
                 lim = lims[j]
                 if lim < 4.0 * peak:  # a limit far off the scale would flatten the curves
                     ax.axhline(lim, color=colours[j], ls="--", lw=0.7)

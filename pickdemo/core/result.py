@@ -10,8 +10,6 @@ from typing import Any, TypeAlias
 
 import numpy as np
 
-from pickdemo.robot import panda as rm
-
 
 class Stage(str, enum.Enum):
     """Where an episode can end in failure (ordered as the pipeline runs)."""
@@ -279,12 +277,9 @@ class EpisodeResult:
         return json.dumps(self.to_dict(), indent=2, allow_nan=False)
 
 
-#: The Franka datasheet limits the commanded joint motion is checked against, with their units.
-JOINT_LIMITS: dict[str, tuple[np.ndarray, str]] = {
-    "velocity": (rm.MAX_VELOCITY_RAD_S, "rad/s"),
-    "acceleration": (rm.MAX_ACCELERATION_RAD_S2, "rad/s^2"),
-    "jerk": (rm.MAX_JERK_RAD_S3, "rad/s^3"),
-}
+#: Datasheet limits the commanded joint motion is checked against: {quantity: (per joint, unit)}
+#: (a robot's: :meth:`pickdemo.robot.description.JointLimits.rates`)
+RateLimits = dict[str, tuple[np.ndarray, str]]
 
 
 def joint_derivatives(time_s: np.ndarray, q: np.ndarray) -> dict[str, np.ndarray]:
@@ -336,9 +331,7 @@ class LimitExceedance:
         return f"joint {self.joint}: {value} at {self.peak_time_s:.2f} s ({ticks})"
 
 
-def peak_limit_ratios(
-    time_s: np.ndarray, q: np.ndarray, limits: dict[str, tuple[np.ndarray, str]] | None = None
-) -> dict[str, float] | None:
+def peak_limit_ratios(time_s: np.ndarray, q: np.ndarray, limits: RateLimits) -> dict[str, float] | None:
     """Per quantity (velocity, acceleration, jerk), the largest ratio of the commanded joint motion
     (the finite differences of :func:`joint_derivatives`) to its datasheet limit, over all joints and
     ticks: at most 1.0 means within the limits. None when the command is too short to differentiate."""
@@ -347,13 +340,11 @@ def peak_limit_ratios(
     motion = joint_derivatives(time_s, q)
     return {
         key: float(np.max(np.abs(motion[key]) / np.asarray(lim, dtype=float)[None, :]))
-        for key, (lim, _unit) in (limits or JOINT_LIMITS).items()
+        for key, (lim, _unit) in limits.items()
     }
 
 
-def limit_exceedances(
-    time_s: np.ndarray, q: np.ndarray, limits: dict[str, tuple[np.ndarray, str]] | None = None
-) -> list[LimitExceedance]:
+def limit_exceedances(time_s: np.ndarray, q: np.ndarray, limits: RateLimits) -> list[LimitExceedance]:
     """Every joint and quantity whose commanded motion went beyond its datasheet limit (strictly),
     from the joint command per tick (the finite differences of :func:`joint_derivatives`); ordered by
     quantity, then joint. Empty when nothing exceeded, or the command is too short to differentiate.
@@ -363,7 +354,7 @@ def limit_exceedances(
     motion = joint_derivatives(time_s, q)
     t = motion["time_s"]
     out: list[LimitExceedance] = []
-    for key, (lim, unit) in (limits or JOINT_LIMITS).items():
+    for key, (lim, unit) in limits.items():
         values = motion[key]
         over = np.abs(values) > np.asarray(lim, dtype=float)[None, :]
         for j in np.flatnonzero(over.any(axis=0)):

@@ -43,7 +43,7 @@ from pickdemo.grasping.top_down import (
     poses_of_pick,
 )
 from pickdemo.perception import ObjectCloud
-from pickdemo.robot import panda as rm
+from pickdemo.robot.description import Gripper
 
 #: The Franka hand's finger pads: half their width along the hand's x axis (m).
 PAD_HALF_WIDTH_M = 0.011
@@ -97,9 +97,14 @@ class CloudGrasp:
 
 
 def sample_grasps(
-    cloud: ObjectCloud, surface_z: float, grasp: GraspParams | None = None, params: CloudGraspParams | None = None
+    cloud: ObjectCloud,
+    surface_z: float,
+    gripper: Gripper,
+    grasp: GraspParams | None = None,
+    params: CloudGraspParams | None = None,
 ) -> list[CloudGrasp]:
-    """Every feasible top-down grasp of the cloud, best (lowest cost) first; see the module docstring."""
+    """Every feasible top-down grasp of the cloud by this ``gripper``, best (lowest cost) first; see the
+    module docstring."""
     grasp = grasp or GraspParams()
     p = params or CloudGraspParams()
     pts = cloud.points[cloud.points[:, 2] - surface_z > 0.002]
@@ -109,8 +114,8 @@ def sample_grasps(
     h = pts[:, 2] - surface_z
     oh = obs[:, 2] - surface_z
     top = float(h.max())
-    widest = 2.0 * rm.FINGER_MAX_M - grasp.width_margin_m
-    palm = rm.PALM_ABOVE_TCP_M - grasp.palm_clearance_m
+    widest = gripper.max_opening_m - grasp.width_margin_m
+    palm = gripper.palm_above_tcp_m - grasp.palm_clearance_m
     # The pads close through the middle of the object, or as deep as the palm allows.
     z_pref = max(top - min(top / 2.0, palm), grasp.min_tcp_height_m)
     levels = np.arange(grasp.min_tcp_height_m, top - 0.002 + 1e-9, p.height_step_m)
@@ -119,13 +124,13 @@ def sample_grasps(
     found: list[np.ndarray] = []  # rows of psi, mid, cb, z, w, cost
     for psi in np.arange(p.yaw_steps) * (np.pi / p.yaw_steps):
         with np.errstate(invalid="ignore"):  # (a height with nothing above its pads: inf - inf, never kept)
-            found.extend(_at_angle(float(psi), pts, h, obs, oh, levels, z_pref, widest, palm, p))
+            found.extend(_at_angle(float(psi), pts, h, obs, oh, levels, z_pref, widest, palm, p, gripper.finger_max_m))
     if not found:
         return []
     c = np.vstack(found)
     # Where the open fingers go down, what the camera did not see free (behind the object's far side,
     # or behind something else) may be the object: a finger there may land on it.
-    c[:, 5] += _unseen_fraction(cloud, c, surface_z, top) / p.unseen_scale
+    c[:, 5] += _unseen_fraction(cloud, c, surface_z, top, gripper.finger_max_m) / p.unseen_scale
     out = [
         CloudGrasp(np.array([*(mid * _axis_a(psi) + cb * _axis_b(psi)), surface_z + z]), psi, w, z, cost)
         for psi, mid, cb, z, w, cost in c
@@ -145,6 +150,7 @@ def _at_angle(
     widest: float,
     palm: float,
     p: CloudGraspParams,
+    finger_max_m: float,
 ) -> Iterator[np.ndarray]:
     """The feasible grasps at one hand angle: for each place along the finger's width, rows of (psi, mid,
     cb, z, w, cost), one a height (every height at once)."""
@@ -177,7 +183,7 @@ def _at_angle(
         under_palm = np.abs(ha[None, :] - mid[:, None]) < PALM_HALF_LENGTH_M
         ok &= ~np.any(under_palm & (hh[None, :] > palm_tops[:, None]), axis=1)
         if len(obs):
-            ok &= ~_hits_obstacles(oa, ob, oh, mid, cb, palm_tops, pad_lows, p.clearance_m)
+            ok &= ~_hits_obstacles(oa, ob, oh, mid, cb, palm_tops, pad_lows, p.clearance_m, finger_max_m)
         if not ok.any():
             continue
         above, sa_l = above[ok], sa
@@ -212,7 +218,9 @@ def _axis_b(psi: float) -> np.ndarray:
     return np.array([np.cos(psi), np.sin(psi)])
 
 
-def _unseen_fraction(cloud: ObjectCloud, c: np.ndarray, surface_z: float, top: float) -> np.ndarray:
+def _unseen_fraction(
+    cloud: ObjectCloud, c: np.ndarray, surface_z: float, top: float, finger_max_m: float
+) -> np.ndarray:
     """For each candidate (rows of psi, mid, cb, z, ...), the fraction of points in the volume its open
     fingers sweep on the way down (from the pads' lower edge to the object's top) that the camera did
     not see to be free."""
@@ -220,7 +228,7 @@ def _unseen_fraction(cloud: ObjectCloud, c: np.ndarray, surface_z: float, top: f
     a = np.stack([np.sin(psi), -np.cos(psi)], axis=1)  # (C, 2)
     b = np.stack([np.cos(psi), np.sin(psi)], axis=1)
     side = np.array([-1.0, 1.0])[:, None, None, None]  # (2, 1, 1, 1): each finger
-    out_a = rm.FINGER_MAX_M + np.array([0.002, 0.008])[None, :, None, None]  # into each finger's body
+    out_a = finger_max_m + np.array([0.002, 0.008])[None, :, None, None]  # into each finger's body
     across_b = np.array([-0.8, 0.0, 0.8])[None, None, :, None] * PAD_HALF_WIDTH_M
     t = np.linspace(0.0, 1.0, 5)[None, None, None, :]
     n = len(c)
@@ -248,10 +256,11 @@ def _hits_obstacles(
     palm_tops: np.ndarray,
     pad_lows: np.ndarray,
     gap: float,
+    finger_max_m: float,
 ) -> np.ndarray:
     """For each height (rows of ``mid``, the palm's underside ``palm_tops`` and the pads' lower edge
     ``pad_lows``), whether another object's points lie where the open fingers go down or under the palm."""
-    finger_reach = rm.FINGER_MAX_M + FINGER_THICKNESS_M + gap
+    finger_reach = finger_max_m + FINGER_THICKNESS_M + gap
     across = np.abs(ob - cb)
     da = np.abs(oa[None, :] - mid[:, None])  # (L, O)
     f = across < PAD_HALF_WIDTH_M + gap
@@ -283,11 +292,12 @@ class CloudGrasps:
         cloud = request.cloud
         if cloud is None:
             raise GraspPlanningError("no view of the object to plan a grasp from")
-        grasps = sample_grasps(cloud, request.surface_z, self.params, self.cloud_params)
+        grasps = sample_grasps(cloud, request.surface_z, request.gripper, self.params, self.cloud_params)
         if not grasps:
+            widest = request.gripper.max_opening_m - self.params.width_margin_m
             raise GraspPlanningError(
                 "no top-down grasp fits what was seen: wherever the fingers could close, the object is wider "
-                f"than the open hand ({(2.0 * rm.FINGER_MAX_M - self.params.width_margin_m) * 1e3:.0f} mm)"
+                f"than the open hand ({widest * 1e3:.0f} mm)"
             )
         if self.avoid:
             grasps.sort(key=lambda g: (self._tried(g), g.cost))

@@ -11,14 +11,16 @@ described) the other; :func:`selector_for` gives each target its own.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 from pickdemo.core.camera import RGBDFrame
 from pickdemo.core.geometry import Pose
 from pickdemo.core.shapes import Unknown
+from pickdemo.grasping.cloud import CloudGrasps
 from pickdemo.grasping.top_down import GraspParams, GraspPlan, equivalent_hand_yaws, plan_grasp
 from pickdemo.perception import ObjectCloud, TargetModel
+from pickdemo.robot.description import Gripper
 
 
 @dataclass(frozen=True)
@@ -35,6 +37,7 @@ class GraspRequest:
     cloud: ObjectCloud | None = None
     surface_z: float = 0.0  # the height of what the target rests on
     plan_id: int = 0  # the skill's plan this request belongs to (a new one: plan afresh)
+    gripper: Gripper = field(kw_only=True)  # the robot's hand the grasps are for
 
 
 class GraspSelector(Protocol):
@@ -61,13 +64,18 @@ class TopDownFaceGrasps:
 
     def candidates(self, request: GraspRequest) -> Iterator[GraspPlan]:
         for near in request.hand_yaws:
-            yield plan_grasp(request.pose, request.model, request.place_xy, self.params, hand_yaw_near_rad=near)
+            yield plan_grasp(
+                request.pose,
+                request.model,
+                request.place_xy,
+                self.params,
+                gripper=request.gripper,
+                hand_yaw_near_rad=near,
+            )
 
 
 def selector_for(model: TargetModel, params: GraspParams) -> GraspSelector:
     """A target's grasps: from its cloud when nobody described it, else across its known faces."""
     if isinstance(model.geometry, Unknown):
-        from pickdemo.grasping.cloud import CloudGrasps
-
         return CloudGrasps(params)
     return TopDownFaceGrasps(params)

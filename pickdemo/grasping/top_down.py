@@ -17,7 +17,7 @@ import numpy as np
 
 from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.perception import TargetModel
-from pickdemo.robot import panda as rm
+from pickdemo.robot.description import Gripper
 
 FINGER_PAD_HALF_HEIGHT_M = 0.00925  # the rubber tip is 18.5 mm tall, centred on the TCP
 
@@ -102,9 +102,10 @@ def plan_grasp(
     place_xy: tuple[float, float],
     params: GraspParams | None = None,
     *,
+    gripper: Gripper,
     hand_yaw_near_rad: float | None = None,
 ) -> GraspPlan:
-    """All TCP poses of the pick and place from the estimated pose of the target.
+    """All TCP poses of the pick and place from the estimated pose of the target, for this ``gripper``.
 
     ``hand_yaw_near_rad``: of the equivalent hand angles, take the one nearest this (the skill chooses
     it; a re-plan keeps the hand's angle); by default the one nearest 0.
@@ -112,17 +113,18 @@ def plan_grasp(
     params = params or GraspParams()
     centre = 0.0 if hand_yaw_near_rad is None else hand_yaw_near_rad
     psi, width = hand_yaw_for(pose, model, centre)
-    if width > 2.0 * rm.FINGER_MAX_M - params.width_margin_m:
+    opening = gripper.max_opening_m
+    if width > opening - params.width_margin_m:
         raise GraspPlanningError(
             f"object is {width * 1e3:.0f} mm across its narrower side; the gripper opens to "
-            f"{2e3 * rm.FINGER_MAX_M:.0f} mm and needs {params.width_margin_m * 1e3:.0f} mm of clearance, "
-            f"so at most {(2.0 * rm.FINGER_MAX_M - params.width_margin_m) * 1e3:.0f} mm"
+            f"{opening * 1e3:.0f} mm and needs {params.width_margin_m * 1e3:.0f} mm of clearance, "
+            f"so at most {(opening - params.width_margin_m) * 1e3:.0f} mm"
         )
     center = pose.position
     top_z = center[2] + model.height_m / 2.0
     # The pads close through the centre of mass (a held payload has no lever to turn on about the
     # finger axis), or as deep as the palm allows on a taller object.
-    depth = min(model.height_m / 2.0, rm.PALM_ABOVE_TCP_M - params.palm_clearance_m)
+    depth = min(model.height_m / 2.0, gripper.palm_above_tcp_m - params.palm_clearance_m)
     grasp_z = max(top_z - depth, params.min_tcp_height_m)
     bottom_z = center[2] - model.height_m / 2.0
     grasp_above_bottom = grasp_z - bottom_z

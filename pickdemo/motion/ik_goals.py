@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo.core.geometry import Pose, wrap_angle
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import IKParams, PandaKinematics
+from pickdemo.motion.online import top_down_se3
+from pickdemo.robot.kinematics import IKParams, Kinematics
 
 
 @dataclass(frozen=True)
@@ -54,7 +54,7 @@ class Goal:
     dip_m: float = 0.0  # how far the transfer to it would take the hand below the lower of its two ends
 
 
-def along_line(kin: PandaKinematics, q: np.ndarray, start: Pose, end: Pose, n: int) -> Iterator[np.ndarray | None]:
+def along_line(kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, n: int) -> Iterator[np.ndarray | None]:
     """The per-tick IK's joints at ``n`` points of the straight line from ``start`` (the arm at ``q``)
     to ``end`` (its orientation), each warm-started from the last and held to the posture at ``q``;
     ``None`` where it does not converge (and nothing after)."""
@@ -69,9 +69,7 @@ def along_line(kin: PandaKinematics, q: np.ndarray, start: Pose, end: Pose, n: i
         q_prev = res.q
 
 
-def line_trackable(
-    kin: PandaKinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()
-) -> bool:
+def line_trackable(kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()) -> bool:
     """Whether the per-tick IK can follow the straight line from ``start`` (where the arm is at ``q``)
     to ``end`` (same orientation): converging at every point with joint speeds within a share of
     their limits at the line's speed. (That is the test of a singular posture that matters: a floor on
@@ -83,14 +81,15 @@ def line_trackable(
     for q_k in along_line(kin, q, start, end, n):
         if q_k is None:
             return False
-        if dt > 0 and np.any(np.abs(q_k - q_prev) / dt > params.line_velocity_share * rm.MAX_VELOCITY_RAD_S):
+        v_max = params.line_velocity_share * kin.robot.limits.max_velocity_rad_s
+        if dt > 0 and np.any(np.abs(q_k - q_prev) / dt > v_max):
             return False
         q_prev = q_k
     return kin.limit_margin(q_prev) > 0.0
 
 
 def line_speed_scale(
-    kin: PandaKinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()
+    kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()
 ) -> float:
     """The share of the near-object speed (``params.line_speed_m_s``) at which the per-tick IK can
     follow the straight line from ``start`` (the arm at ``q``) to ``end`` with every joint within
@@ -105,7 +104,8 @@ def line_speed_scale(
         if q_k is None:
             return 0.0
         if length > 0:
-            rate = np.abs(q_k - q_prev) / (length / n) / (params.line_velocity_share * rm.MAX_VELOCITY_RAD_S)
+            v_max = params.line_velocity_share * kin.robot.limits.max_velocity_rad_s
+            rate = np.abs(q_k - q_prev) / (length / n) / v_max
             worst = max(worst, float(np.max(rate)))
         q_prev = q_k
     if kin.limit_margin(q_prev) <= 0.0:
@@ -114,7 +114,7 @@ def line_speed_scale(
 
 
 def straight_carry_ok(
-    kin: PandaKinematics,
+    kin: Kinematics,
     q: np.ndarray,
     start: np.ndarray,
     end: np.ndarray,
@@ -129,12 +129,11 @@ def straight_carry_ok(
     converging at ``line_steps`` points with its joints within ``line_velocity_share`` of their speed
     limits and ``line_margin_rad`` inside their position limits, and arriving where it can follow the
     lowering onto ``place``."""
-    from pickdemo.motion.online import top_down_se3  # (motion does not import this module)
 
     start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
     n = params.line_steps
     step_s = float(np.linalg.norm(end[:3] - start[:3])) / n / speed_m_s
-    max_step = params.line_velocity_share * rm.MAX_VELOCITY_RAD_S * step_s
+    max_step = params.line_velocity_share * kin.robot.limits.max_velocity_rad_s * step_s
     q = np.asarray(q, dtype=float)
     for k in range(1, n + 1):
         res = kin.track(top_down_se3(start + (end - start) * (k / n)), q, max_iterations=8, posture=posture)
@@ -146,7 +145,7 @@ def straight_carry_ok(
     return line_speed_scale(kin, q, kin.forward(q), place, params) >= params.min_line_speed_scale
 
 
-def path_dip(kin: PandaKinematics, q_from: np.ndarray, q_to: np.ndarray, params: GoalParams = GoalParams()) -> float:
+def path_dip(kin: Kinematics, q_from: np.ndarray, q_to: np.ndarray, params: GoalParams = GoalParams()) -> float:
     """How far (m) the hand (its TCP) passes below the lower of its two ends on a transfer from
     ``q_from`` to ``q_to`` (0 if never). A transfer from rest to rest with Ruckig's phase
     synchronisation follows the straight line in joint space, and that line can swing the hand down
@@ -156,7 +155,7 @@ def path_dip(kin: PandaKinematics, q_from: np.ndarray, q_to: np.ndarray, params:
     return max(0.0, float(min(z_from, z_to) - path_low_z(kin, q_from, q_to, params)))
 
 
-def path_low_z(kin: PandaKinematics, q_from: np.ndarray, q_to: np.ndarray, params: GoalParams = GoalParams()) -> float:
+def path_low_z(kin: Kinematics, q_from: np.ndarray, q_to: np.ndarray, params: GoalParams = GoalParams()) -> float:
     """The lowest height (m) of the hand's TCP inside the straight joint-space path from ``q_from``
     to ``q_to`` (at ``params.path_steps`` points)."""
     q_from, q_to = np.asarray(q_from, dtype=float), np.asarray(q_to, dtype=float)
@@ -165,7 +164,7 @@ def path_low_z(kin: PandaKinematics, q_from: np.ndarray, q_to: np.ndarray, param
 
 
 def goal_candidates(
-    kin: PandaKinematics,
+    kin: Kinematics,
     poses: Sequence[Pose],
     q_from: np.ndarray,
     rng: np.random.Generator,
@@ -179,14 +178,14 @@ def goal_candidates(
     marked so."""
 
     def goal(q: np.ndarray, i: int) -> Goal:
-        travel = float(np.max(np.abs(q - q_from) / rm.MAX_VELOCITY_RAD_S))
+        travel = float(np.max(np.abs(q - q_from) / kin.robot.limits.max_velocity_rad_s))
         line_ok = lines_to is None or line_trackable(kin, q, poses[i], lines_to[i], params)
         dip = path_dip(kin, q_from, q, params)
         return Goal(q, poses[i], i, kin.limit_margin(q), kin.manipulability(q), travel, line_ok, dip)
 
     out: list[Goal] = []
     for i, pose in enumerate(poses):
-        seeds = [np.asarray(q_from, dtype=float), rm.HOME_Q]
+        seeds = [np.asarray(q_from, dtype=float), kin.robot.home_q]
         seeds += [rng.uniform(kin.lower, kin.upper) for _ in range(max(params.starts - 2, 0))]
         found: list[np.ndarray] = []
         for seed in seeds:
@@ -216,7 +215,7 @@ def choose_goal(goals: Sequence[Goal], params: GoalParams = GoalParams()) -> Goa
 
 
 def turn_path(
-    kin: PandaKinematics, q: np.ndarray, start_x4: np.ndarray, end_x4: np.ndarray, params: GoalParams = GoalParams()
+    kin: Kinematics, q: np.ndarray, start_x4: np.ndarray, end_x4: np.ndarray, params: GoalParams = GoalParams()
 ) -> tuple[np.ndarray, float]:
     """The per-tick IK walked along a Cartesian motion from ``start_x4`` (the arm at ``q``) to
     ``end_x4`` (x, y, z and the hand's yaw, unwrapped: 3 rad is not -3.28 rad), as the motion will
@@ -224,7 +223,6 @@ def turn_path(
     the joints it ends in, and the least joint-limit margin (rad) on the way; ``-inf`` if the IK
     loses the path (a joint held at its stop). Which of a pose's IK solutions the arm ends in
     depends on the way round; every joint counts, not one joint's rule."""
-    from pickdemo.motion.online import top_down_se3  # (motion imports this module)
 
     start, end = np.asarray(start_x4, dtype=float), np.asarray(end_x4, dtype=float)
     d = end - start
@@ -243,7 +241,7 @@ def turn_path(
 
 
 def way_round(
-    kin: PandaKinematics, q: np.ndarray, setpoint: np.ndarray, x4: np.ndarray, params: GoalParams = GoalParams()
+    kin: Kinematics, q: np.ndarray, setpoint: np.ndarray, x4: np.ndarray, params: GoalParams = GoalParams()
 ) -> np.ndarray:
     """``x4`` (x, y, z, yaw) with its yaw unwrapped to the way round a Cartesian turn of the hand
     should go from ``setpoint`` (the arm at ``q``): the nearer way, unless on its path

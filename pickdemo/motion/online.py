@@ -11,7 +11,7 @@ Phase synchronisation makes rest-to-rest moves straight lines in Cartesian space
 straight near the object, where joint-space moves stray from the vertical; evidence:
 docs/decisions.md#motion-and-ik).
 Each tick's setpoint becomes joint angles by a few damped least-squares steps warm-started from the
-last command (:meth:`pickdemo.robot.kinematics.PandaKinematics.track`), with a posture task in the hand's
+last command (:meth:`pickdemo.robot.kinematics.Kinematics.track`), with a posture task in the hand's
 null space: the arm's free swing is held to the posture the motion was seated in (home, or the IK goal
 a joint transfer went to) and kept off its joint limits.
 """
@@ -36,8 +36,7 @@ from ruckig import (
 )
 
 from pickdemo.core.geometry import Pose
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import PandaKinematics
+from pickdemo.robot.kinematics import Kinematics
 
 #: A target closer than this to the current one is not written (Ruckig would recompute for nothing).
 RETARGET_EPS = np.array([2e-4, 2e-4, 2e-4, np.radians(0.1)])
@@ -145,7 +144,7 @@ def pose_to_x4(pose: Pose | pin.SE3) -> np.ndarray:
     return np.array([*t, float(np.arctan2(r[0, 1], r[0, 0]))])
 
 
-def _tcp_x4(kin: PandaKinematics, q: np.ndarray) -> np.ndarray:
+def _tcp_x4(kin: Kinematics, q: np.ndarray) -> np.ndarray:
     """:func:`pose_to_x4` of the TCP at ``q`` (without a :class:`Pose`: this runs every tick)."""
     return pose_to_x4(kin.forward_se3(q))
 
@@ -168,7 +167,7 @@ def _advance(otg: Ruckig, inp: InputParameter, out: OutputParameter, what: Calla
 class OnlineMotion:
     """The arm's motion, re-targetable every tick. Call :meth:`step` once per control tick."""
 
-    def __init__(self, kin: PandaKinematics, q0: np.ndarray, dt_s: float, limits: CartesianLimits) -> None:
+    def __init__(self, kin: Kinematics, q0: np.ndarray, dt_s: float, limits: CartesianLimits) -> None:
         self.kin = kin
         self.dt_s = dt_s
         self.q = np.asarray(q0, dtype=float).copy()
@@ -357,8 +356,9 @@ class OnlineMotion:
         if not res.success and (res.position_error_m > 1e-3 or res.rotation_error_rad > np.radians(0.5)):
             raise MotionError(f"IK lost the Cartesian setpoint {np.round(x4, 4).tolist()}: {res.reason}")
         dq = (res.q - self.q) / self.dt_s
-        if np.any(np.abs(dq) > rm.MAX_VELOCITY_RAD_S):
-            j = int(np.argmax(np.abs(dq) / rm.MAX_VELOCITY_RAD_S))
+        v_max = self.kin.robot.limits.max_velocity_rad_s
+        if np.any(np.abs(dq) > v_max):
+            j = int(np.argmax(np.abs(dq) / v_max))
             raise MotionError(f"joint {j + 1} would move at {abs(dq[j]):.2f} rad/s, beyond its limit (a singularity?)")
         self.q = res.q
         return res.q.copy(), dq
@@ -371,17 +371,19 @@ JOINT_LIMIT_SHARE = 0.9
 
 
 class JointMotion:
-    """A transfer in joint space: Ruckig with 7 DoF and the Franka's datasheet limits (a share of
+    """A transfer in joint space: Ruckig over the arm's joints and the robot's datasheet limits (a share of
     them, scaled down further for a held payload), time-optimal and jerk-limited, re-targetable every
     tick. It starts from rest where the Cartesian motion left the arm and ends at rest."""
 
-    def __init__(self, kin: PandaKinematics, q0: np.ndarray, dt_s: float) -> None:
+    def __init__(self, kin: Kinematics, q0: np.ndarray, dt_s: float) -> None:
         self.kin = kin
         self.dt_s = dt_s
         self.q = np.asarray(q0, dtype=float).copy()
-        self._otg = Ruckig(7, dt_s)
-        self._inp = InputParameter(7)
-        self._out = OutputParameter(7)
+        self.limits = kin.robot.limits
+        n = kin.robot.dof
+        self._otg = Ruckig(n, dt_s)
+        self._inp = InputParameter(n)
+        self._out = OutputParameter(n)
         self._inp.synchronization = Synchronization.Phase
         self._finished = True
         self.scale = 1.0
@@ -394,8 +396,8 @@ class JointMotion:
             raise MotionError(f"joint goal out of the arm's range: {np.round(q_goal, 3).tolist()}")
         self.q = np.asarray(q_now, dtype=float).copy()
         self._inp.current_position = self.q.tolist()
-        self._inp.current_velocity = [0.0] * 7
-        self._inp.current_acceleration = [0.0] * 7
+        self._inp.current_velocity = [0.0] * len(self.q)
+        self._inp.current_acceleration = [0.0] * len(self.q)
         self._write(q_goal, scale)
         self._finished = False
 
@@ -408,7 +410,7 @@ class JointMotion:
         self._inp.current_acceleration = np.asarray(ddq, dtype=float).tolist()
         self._write(self.q, 1.0)
         self._inp.control_interface = ControlInterface.Velocity
-        self._inp.target_acceleration = [0.0] * 7
+        self._inp.target_acceleration = [0.0] * len(self.q)
         self._finished = False
 
     def retarget(self, q_goal: np.ndarray) -> None:
@@ -424,10 +426,10 @@ class JointMotion:
         self.scale = scale
         share = JOINT_LIMIT_SHARE * scale
         self._inp.target_position = np.asarray(q_goal, dtype=float).tolist()
-        self._inp.target_velocity = [0.0] * 7
-        self._inp.max_velocity = (rm.MAX_VELOCITY_RAD_S * share).tolist()
-        self._inp.max_acceleration = (rm.MAX_ACCELERATION_RAD_S2 * share).tolist()
-        self._inp.max_jerk = (rm.MAX_JERK_RAD_S3 * share).tolist()
+        self._inp.target_velocity = [0.0] * len(self.q)
+        self._inp.max_velocity = (self.limits.max_velocity_rad_s * share).tolist()
+        self._inp.max_acceleration = (self.limits.max_acceleration_rad_s2 * share).tolist()
+        self._inp.max_jerk = (self.limits.max_jerk_rad_s3 * share).tolist()
 
     @property
     def finished(self) -> bool:
@@ -441,7 +443,7 @@ class JointMotion:
         """Advance one tick: the joint command, and the TCP it puts there (as the setpoint)."""
         if self._finished:
             zero = np.zeros(4)
-            return MotionSample(self.q.copy(), np.zeros(7), _tcp_x4(self.kin, self.q), zero, zero, zero,
+            return MotionSample(self.q.copy(), np.zeros(len(self.q)), _tcp_x4(self.kin, self.q), zero, zero, zero,
                                 True, False)  # fmt: skip
         self._finished, new_calc = _advance(
             self._otg, self._inp, self._out, lambda: f"joint goal {np.round(self.target, 3).tolist()}"

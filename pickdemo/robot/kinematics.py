@@ -1,10 +1,10 @@
-"""Inverse kinematics of the Panda's seven arm joints with Pinocchio (damped least squares).
+"""Forward and inverse kinematics of a robot's arm joints with Pinocchio (damped least squares).
 
 Pure: no simulator. The model is the same URDF that the simulator loads, with the two finger joints
 locked (``buildReducedModel``). Joint limits are respected by projecting every iterate; when a solve
 from the seed does not converge, it restarts from random configurations drawn with the caller's RNG.
 
-The per-tick solve (:meth:`PandaKinematics.track`) may be given a posture: a pose of the hand leaves
+The per-tick solve (:meth:`Kinematics.track`) may be given a posture: a pose of the hand leaves
 the arm one degree of freedom (the elbow's swing), and damped least squares alone lets it drift along
 a long line. Each tick then also steps in the task's null space (the motion that leaves the hand where
 it is) towards the posture and away from any joint within :attr:`PostureParams.limit_zone_rad` of its
@@ -23,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickdemo.core.geometry import Pose
-from pickdemo.robot import panda as rm
+from pickdemo.robot.description import RobotDescription
 
 
 @dataclass(frozen=True)
@@ -73,19 +73,23 @@ class PostureParams:
 POSTURE = PostureParams()
 
 
-class PandaKinematics:
-    """Forward and inverse kinematics of the arm's TCP (``panda_hand_tcp``)."""
+class Kinematics:
+    """Forward and inverse kinematics of a robot's TCP, on its own model reduced to its arm (its
+    ``robot``: a :class:`~pickdemo.robot.description.RobotDescription`)."""
 
-    def __init__(self) -> None:
-        full = pin.buildModelFromUrdf(str(rm.panda_files().urdf))
-        lock = [full.getJointId(n) for n in rm.FINGER_JOINTS]
+    def __init__(self, robot: RobotDescription) -> None:
+        self.robot = robot
+        full = pin.buildModelFromUrdf(str(robot.files().urdf))
+        lock = [full.getJointId(n) for n in robot.gripper.finger_joints]
         q_ref = pin.neutral(full)
         self.model = pin.buildReducedModel(full, lock, q_ref)
         self.data = self.model.createData()
-        self.tcp_id = self.model.getFrameId(rm.TCP_FRAME)
+        self.tcp_id = self.model.getFrameId(robot.tcp_frame)
         revolute = ("JointModelRZ", "JointModelRevoluteUnaligned")
-        if self.model.nq != 7 or any(j.shortname() not in revolute for j in self.model.joints[1:]):
-            raise RuntimeError("expected 7 revolute arm joints after locking the fingers (the solver steps q + v)")
+        if self.model.nq != robot.dof or any(j.shortname() not in revolute for j in self.model.joints[1:]):
+            raise RuntimeError(
+                f"expected {robot.dof} revolute arm joints after locking the fingers (the solver steps q + v)"
+            )
         self.lower = self.model.lowerPositionLimit.copy()
         self.upper = self.model.upperPositionLimit.copy()
         self._solver_constants: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -237,6 +241,6 @@ _TRACK_PARAMS = IKParams(restarts=0, max_iterations=4)
 
 
 @functools.cache
-def panda_kinematics() -> PandaKinematics:
-    """One shared, lazily built kinematics model per process (loading the URDF costs a few ms)."""
-    return PandaKinematics()
+def kinematics_of(robot: RobotDescription) -> Kinematics:
+    """One shared, lazily built kinematics model per robot and process (loading the URDF costs a few ms)."""
+    return Kinematics(robot)

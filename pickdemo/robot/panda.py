@@ -1,9 +1,12 @@
 """The Franka Panda as shipped by ``example-robot-data``: where its files are, its names and limits.
 
-Owns the facts about the robot that both the simulator and the kinematics need: the URDF found in
-the installed package (never copied into this repository), a lean variant of it for fast rendering
-(visual meshes swapped for the collision STLs, derived at load time), joint and frame names, and the
-datasheet motion limits. Imports neither pybullet nor pinocchio.
+Owns the facts about the robot, as one :class:`~pickdemo.robot.description.RobotDescription`
+(:data:`PANDA`): the URDF found in the installed package (never copied into this repository), a
+lean variant of it for fast rendering (visual meshes swapped for the collision STLs, derived at load
+time), joint and frame names, home, and the datasheet motion limits (Franka Emika's "Robot and
+interface specifications" for the Panda's joints; the Franka Hand's stroke). Imports neither
+pybullet nor pinocchio. Nothing outside :mod:`pickdemo.robot` reads these constants: everything
+else takes the description as a value.
 """
 
 from __future__ import annotations
@@ -14,11 +17,12 @@ import re
 import shutil
 import sys
 import tempfile
-from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
 import numpy as np
+
+from pickdemo.robot.description import Gripper, JointLimits, RobotDescription, RobotFiles
 
 ARM_JOINTS: tuple[str, ...] = tuple(f"panda_joint{i}" for i in range(1, 8))
 FINGER_JOINTS: tuple[str, str] = ("panda_finger_joint1", "panda_finger_joint2")
@@ -41,16 +45,19 @@ MAX_ACCELERATION_RAD_S2 = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
 MAX_JERK_RAD_S3 = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0])
 
 
+#: The hand's links a camera may be mounted on: they move rigidly with it (the fingers do not).
+CAMERA_MOUNTS = ("panda_hand", "panda_link8", "panda_hand_tcp")
+PAYLOAD_KG = 3.0  # the datasheet's payload
+EFFORT_NM = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])  # the datasheet's joint torque limits
+FINGER_SPEED_M_S = 0.1  # each finger's top speed in simulation
+OPEN_FORCE_N = 20.0  # the fingers' force when opening
+
+
 class RobotModelError(RuntimeError):
     """The robot description could not be found in the installed packages."""
 
 
-@dataclass(frozen=True)
-class PandaFiles:
-    """Paths of the Panda description inside the installed ``example-robot-data``."""
-
-    urdf: Path
-    package_root: Path  # the directory that ``package://example-robot-data/`` points to
+PandaFiles = RobotFiles  # (paths of the Panda description inside the installed ``example-robot-data``)
 
 
 def _candidate_share_dirs() -> list[Path]:
@@ -114,3 +121,32 @@ def lean_urdf_path() -> Path:
     out = out_dir / "panda_lean.urdf"
     out.write_text(_lean_urdf_text(panda_files()))
     return out
+
+
+#: The Franka Panda with the Franka Hand.
+PANDA = RobotDescription(
+    name="panda",
+    label="Panda",
+    arm_joints=ARM_JOINTS,
+    tcp_frame=TCP_FRAME,
+    hand_frame=HAND_FRAME,
+    wrist_joint=WRIST_JOINT,
+    gripper=Gripper(
+        kind="parallel",
+        finger_joints=FINGER_JOINTS,
+        finger_links=FINGER_LINKS,
+        finger_max_m=FINGER_MAX_M,
+        palm_above_tcp_m=PALM_ABOVE_TCP_M,
+        open_force_n=OPEN_FORCE_N,
+        speed_m_s=FINGER_SPEED_M_S,
+    ),
+    home_q=HOME_Q,
+    limits=JointLimits(
+        MIN_POSITION_RAD, MAX_POSITION_RAD, MAX_VELOCITY_RAD_S, MAX_ACCELERATION_RAD_S2, MAX_JERK_RAD_S3
+    ),
+    payload_kg=PAYLOAD_KG,
+    effort_nm=EFFORT_NM,
+    camera_mounts=CAMERA_MOUNTS,
+    locate=panda_files,
+    render_urdf=lean_urdf_path,
+)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pickdemo.robot import panda as rm
+from pickdemo.robot.description import JointLimits
 
 #: The limiter's share of the datasheet limits (the reflex sits at the datasheet itself).
 LIMITER_SHARE = 0.98
@@ -34,19 +34,23 @@ class JointRates:
     jerk: np.ndarray
 
     @classmethod
-    def datasheet(cls, share: float = 1.0) -> JointRates:
-        return cls(rm.MAX_VELOCITY_RAD_S * share, rm.MAX_ACCELERATION_RAD_S2 * share, rm.MAX_JERK_RAD_S3 * share)
+    def datasheet(cls, limits: JointLimits, share: float = 1.0) -> JointRates:
+        """A robot's datasheet rates (:class:`~pickdemo.robot.description.JointLimits`), times ``share``."""
+        return cls(
+            limits.max_velocity_rad_s * share, limits.max_acceleration_rad_s2 * share, limits.max_jerk_rad_s3 * share
+        )
 
 
 class RateLimiter:
     """``franka::limitRate`` for joint positions, one control tick of ``dt_s`` at a time."""
 
-    def __init__(self, q0: np.ndarray, dt_s: float, limits: JointRates | None = None) -> None:
+    def __init__(self, q0: np.ndarray, dt_s: float, limits: JointLimits, rates: JointRates | None = None) -> None:
+        """``limits``: the robot's datasheet; ``rates``: the limiter's own (default: ``LIMITER_SHARE`` of it)."""
         self.dt = float(dt_s)
-        self.lim = limits or JointRates.datasheet(LIMITER_SHARE)
+        self.lim = rates or JointRates.datasheet(limits, LIMITER_SHARE)
         self.q = np.asarray(q0, dtype=float).copy()
-        self.dq = np.zeros(7)
-        self.ddq = np.zeros(7)
+        self.dq = np.zeros(len(self.q))
+        self.ddq = np.zeros(len(self.q))
         self.limited_ticks = 0  # ticks on which any joint's command was changed
         self._ratio = self.lim.jerk / self.lim.acceleration
         # A short path for the usual tick: a joint whose last velocity is at least one tick of full
@@ -101,45 +105,51 @@ class ReflexError(RuntimeError):
 class Reflex:
     """The robot's check of each joint position command it is sent, tick to tick."""
 
-    def __init__(self, q0: np.ndarray, dt_s: float, limits: JointRates | None = None, rel_tol: float = 1e-6) -> None:
+    def __init__(
+        self, q0: np.ndarray, dt_s: float, limits: JointLimits, rates: JointRates | None = None, rel_tol: float = 1e-6
+    ) -> None:
+        """``limits``: the robot's datasheet (its rates too, unless ``rates`` says otherwise)."""
         self.dt = float(dt_s)
-        self.lim = limits or JointRates.datasheet()
+        self.lim = rates or JointRates.datasheet(limits)
+        self.lo, self.hi = limits.min_position_rad, limits.max_position_rad
         self.tol = 1.0 + rel_tol
         self.q = np.asarray(q0, dtype=float).copy()
-        self.dq = np.zeros(7)
-        self.ddq = np.zeros(7)
+        self.n = n = len(self.q)
+        self.dq = np.zeros(n)
+        self.ddq = np.zeros(n)
         # the position's distance from mid-range, the velocity, acceleration and jerk side by side,
         # each against its bound: one test a tick
-        self._mid = 0.5 * (rm.MIN_POSITION_RAD + rm.MAX_POSITION_RAD)
-        half = 0.5 * (rm.MAX_POSITION_RAD - rm.MIN_POSITION_RAD) + 1e-9
+        self._mid = 0.5 * (self.lo + self.hi)
+        half = 0.5 * (self.hi - self.lo) + 1e-9
         self._limits = np.concatenate([self.lim.velocity, self.lim.acceleration, self.lim.jerk]) * self.tol
         self._bounds = np.concatenate([half, self._limits])
-        self._buf = np.empty(28)
+        self._buf = np.empty(4 * n)
 
     def check(self, q_cmd: np.ndarray, time_s: float) -> None:
         """Raise :class:`ReflexError` naming the joint, the quantity and the limit."""
         q_cmd = np.asarray(q_cmd, dtype=float)
-        buf = self._buf
-        buf[:7] = q_cmd - self._mid
-        dq = buf[7:14] = (q_cmd - self.q) / self.dt
-        ddq = buf[14:21] = (dq - self.dq) / self.dt
-        buf[21:] = (ddq - self.ddq) / self.dt
+        buf, n = self._buf, self.n
+        buf[:n] = q_cmd - self._mid
+        dq = buf[n : 2 * n] = (q_cmd - self.q) / self.dt
+        ddq = buf[2 * n : 3 * n] = (dq - self.dq) / self.dt
+        buf[3 * n :] = (ddq - self.ddq) / self.dt
         if not np.all(np.abs(buf) <= self._bounds):
-            raise ReflexError(f"{self._what(q_cmd, buf[7:])} at {time_s:.3f} s: the robot stops")
+            raise ReflexError(f"{self._what(q_cmd, buf[n:])} at {time_s:.3f} s: the robot stops")
         self.q, self.dq, self.ddq = q_cmd.copy(), dq.copy(), ddq.copy()
 
     def _what(self, q_cmd: np.ndarray, rates: np.ndarray) -> str:
         """The first joint and quantity beyond its limit, said."""
-        out = np.flatnonzero((q_cmd < rm.MIN_POSITION_RAD - 1e-9) | (q_cmd > rm.MAX_POSITION_RAD + 1e-9))
+        out = np.flatnonzero((q_cmd < self.lo - 1e-9) | (q_cmd > self.hi + 1e-9))
+        n = self.n
         if out.size:
             j = int(out[0])
-            lo, hi = rm.MIN_POSITION_RAD[j], rm.MAX_POSITION_RAD[j]
+            lo, hi = self.lo[j], self.hi[j]
             return f"joint {j + 1} commanded to {q_cmd[j]:.4f} rad, outside [{lo:.4f}, {hi:.4f}]"
         limits = (self.lim.velocity, self.lim.acceleration, self.lim.jerk)
         for k, unit in enumerate(("rad/s", "rad/s^2", "rad/s^3")):
-            over = np.flatnonzero(np.abs(rates[7 * k : 7 * k + 7]) > self._limits[7 * k : 7 * k + 7])
+            over = np.flatnonzero(np.abs(rates[n * k : n * k + n]) > self._limits[n * k : n * k + n])
             if over.size:
                 j = int(over[0])
-                value = abs(rates[7 * k + j])
+                value = abs(rates[n * k + j])
                 return f"joint {j + 1} commanded at {value:.4g} {unit}, beyond its limit {limits[k][j]:.4g}"
         return "a command beyond the limits"  # (not reached)

@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickdemo.core.geometry import OrientedBox, Pose
-from pickdemo.robot import panda as rm
+from pickdemo.robot.description import RobotDescription
 
 #: A point this close to a link's bounding box counts as the link (depth noise, encoders).
 PAD_M = 0.005
@@ -37,10 +37,10 @@ def stl_vertices(data: bytes) -> np.ndarray:
 
 
 @functools.cache
-def link_bounds() -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def link_bounds(robot: RobotDescription) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Each link's collision geometry (meshes and boxes) bounded by a box in the link's frame:
     {link: (lo, hi)} (m)."""
-    files = rm.panda_files()
+    files = robot.files()
     root = ET.fromstring(files.urdf.read_bytes())
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for link in root.findall("link"):
@@ -48,7 +48,7 @@ def link_bounds() -> dict[str, tuple[np.ndarray, np.ndarray]]:
         for col in link.findall("collision"):
             mesh, box = col.find("geometry/mesh"), col.find("geometry/box")
             if mesh is not None:
-                rel = re.sub(r"^package://example-robot-data/", "", mesh.get("filename", ""))
+                rel = re.sub(r"^package://[^/]+/", "", mesh.get("filename", ""))
                 v = stl_vertices((files.package_root / rel).read_bytes())
             elif box is not None:
                 half = np.array([float(x) for x in box.get("size", "0 0 0").split()]) / 2.0
@@ -68,15 +68,15 @@ def link_bounds() -> dict[str, tuple[np.ndarray, np.ndarray]]:
 
 
 class RobotBody:
-    """The Panda's links posed by its joint states (forward kinematics of the full model, fingers
+    """A robot's links posed by its joint states (forward kinematics of the full model, fingers
     included)."""
 
-    def __init__(self) -> None:
-        self.model = pin.buildModelFromUrdf(str(rm.panda_files().urdf))
+    def __init__(self, robot: RobotDescription) -> None:
+        self.model = pin.buildModelFromUrdf(str(robot.files().urdf))
         self.data = self.model.createData()
-        self.bounds = [(self.model.getFrameId(name), lo, hi) for name, (lo, hi) in link_bounds().items()]
-        self._arm = [self.model.joints[self.model.getJointId(n)].idx_q for n in rm.ARM_JOINTS]
-        self._fingers = [self.model.joints[self.model.getJointId(n)].idx_q for n in rm.FINGER_JOINTS]
+        self.bounds = [(self.model.getFrameId(name), lo, hi) for name, (lo, hi) in link_bounds(robot).items()]
+        self._arm = [self.model.joints[self.model.getJointId(n)].idx_q for n in robot.arm_joints]
+        self._fingers = [self.model.joints[self.model.getJointId(n)].idx_q for n in robot.gripper.finger_joints]
 
     def boxes(self, arm_q: np.ndarray, fingers_m: np.ndarray, pad_m: float = PAD_M) -> tuple[OrientedBox, ...]:
         """Every link's bounding box in the world, padded by ``pad_m``, at these joint states."""
@@ -92,6 +92,6 @@ class RobotBody:
 
 
 @functools.cache
-def robot_body() -> RobotBody:
-    """One shared model per process."""
-    return RobotBody()
+def robot_body(robot: RobotDescription) -> RobotBody:
+    """One shared model per robot and process."""
+    return RobotBody(robot)

@@ -36,6 +36,7 @@ from pickdemo.core.result import (
     EpisodeResult,
     Failure,
     PhaseRecord,
+    RateLimits,
     Stage,
     limit_exceedances,
     peak_limit_ratios,
@@ -43,8 +44,8 @@ from pickdemo.core.result import (
 from pickdemo.core.shapes import Mesh, Unknown
 from pickdemo.grasping.top_down import GraspParams
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import panda_kinematics
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.runtime.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX, Observer, TraceRecorder
@@ -338,7 +339,7 @@ class Episode:
             self._build_pick_task(world)
         with self.timer("scene"):
             world.open(gui=self.options.gui)
-            kin = panda_kinematics()
+            kin = kinematics_of(world.robot)
         scene = world.scene
         dt = scene.time_step_s
         self.substeps = max(1, round(1.0 / (sc.control.control_rate_hz * dt)))
@@ -419,7 +420,7 @@ class Episode:
         sc = self.scenario
         self.target_name = sc.target.name
         drawn = world.placement(self.target_name).geometry
-        widest = 2.0 * rm.FINGER_MAX_M - GraspParams().width_margin_m
+        widest = world.robot.gripper.max_opening_m - GraspParams().width_margin_m
         width = drawn.top_down_width_m() if isinstance(drawn, Mesh) else 0.0
         if width > widest:  # a mesh no top-down grasp can hold: refused before it runs
             raise EpisodeFailure(
@@ -545,7 +546,7 @@ class Episode:
             frame = rig.take(world.scene, request.roi, T_world_tcp)
         frame = dataclasses.replace(frame, camera=request.camera)
         if obs is not None:
-            boxes = robot_body().boxes(obs.arm_q, obs.fingers_m)
+            boxes = robot_body(world.robot).boxes(obs.arm_q, obs.fingers_m)
             if world.tray is not None:  # the cell's tray, and what is in it, is no object on the table
                 boxes = (*boxes, world.tray.box())
             frame = dataclasses.replace(frame, robot_boxes=boxes)
@@ -627,6 +628,7 @@ class Episode:
         ticks = np.array(counts.tick_ms) if counts.tick_ms else np.zeros(1)
         lifted = ref.lifted_mm() if ref is not None and m is not None and m.attempts else None
         tracking_error_mm = ref.tracking_error_mm if ref is not None else None
+        rates = (self.world.robot if self.world is not None else robot_named()).limits.rates()
         return EpisodeResult(
             scenario=self.scenario.name,
             seed=self.seed,
@@ -664,8 +666,8 @@ class Episode:
                 "p95": float(np.percentile(ticks, 95)),
                 "ticks": len(counts.tick_ms),
             },
-            limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded)),
-            peak_joint_limit_ratio=_peak_ratios(counts.commanded),
+            limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded, rates)),
+            peak_joint_limit_ratio=_peak_ratios(counts.commanded, rates),
             place_position_m=None if self.world is None else self.world.place_xy,
             clear=self._round_score,
             trace=self.trace.freeze() if self.trace is not None else None,
@@ -680,14 +682,14 @@ class Episode:
 
 def _commanded_arrays(commanded: list[tuple[float, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
     t, q = zip(*commanded, strict=True)
-    return np.array(t, dtype=float), np.array(q, dtype=float).reshape(-1, 7)
+    return np.array(t, dtype=float), np.array(q, dtype=float).reshape(len(t), -1)
 
 
-def _peak_ratios(commanded: list[tuple[float, np.ndarray]]) -> dict[str, float] | None:
+def _peak_ratios(commanded: list[tuple[float, np.ndarray]], limits: RateLimits) -> dict[str, float] | None:
     """The commanded joint motion's largest ratios to the datasheet limits (``peak_joint_limit_ratio``)."""
-    return None if len(commanded) < 4 else peak_limit_ratios(*_commanded_arrays(commanded))
+    return None if len(commanded) < 4 else peak_limit_ratios(*_commanded_arrays(commanded), limits)
 
 
-def _exceedances(commanded: list[tuple[float, np.ndarray]]):
+def _exceedances(commanded: list[tuple[float, np.ndarray]], limits: RateLimits):  # noqa: ANN202
     """The joint command's excursions beyond the datasheet limits (as the motion plot marks them)."""
-    return [] if len(commanded) < 4 else limit_exceedances(*_commanded_arrays(commanded))
+    return [] if len(commanded) < 4 else limit_exceedances(*_commanded_arrays(commanded), limits)

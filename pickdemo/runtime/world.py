@@ -11,20 +11,18 @@ The true poses (:meth:`true_pose`) are the simulator's: for scoring and viewers,
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from pickdemo.core.camera import calibration_error, hand_camera_pose
+from pickdemo.core.geometry import Pose
 from pickdemo.core.streams import spawn_rngs
+from pickdemo.robot import robot_named
+from pickdemo.robot.description import RobotDescription
+from pickdemo.robot.kinematics import Kinematics, kinematics_of
 from pickdemo.scenario.layout import Placement, Tray, camera_position, sample_layout, sample_place, sample_round
 from pickdemo.scenario.load import Scenario, WristCameraSpec
-
-if TYPE_CHECKING:
-    from pickdemo.core.geometry import Pose
-    from pickdemo.sim.render import Camera, WristCamera
-    from pickdemo.sim.scene import Scene
-
+from pickdemo.sim.render import Camera, WristCamera
+from pickdemo.sim.scene import Scene
 
 #: The scenario's cameras by name: ``[camera]`` (fixed) and ``[wrist_camera]`` (on the hand)
 FIXED_CAMERA = "camera"
@@ -46,6 +44,7 @@ class World:
         self.tray: Tray | None = Tray.of(scenario)
         #: where the target is to be put down (the scenario's spot, or drawn for this seed; the tray's middle)
         self.place_xy: tuple[float, float] = sample_place(scenario, self.layout, self.rngs["place"])
+        self.robot: RobotDescription = robot_named()  # (a scenario does not choose its robot yet)
         self.scene: Scene | None = None
         self.camera: Camera | None = None
         self.wrist_camera: WristCamera | None = None  # a camera on the hand, if the scenario has one
@@ -60,17 +59,16 @@ class World:
     def open(self, *, gui: bool = False) -> World:
         """Build the scene (the laid-out objects, the robot at home) and place the camera: at the
         position drawn for this seed, told its pose with the calibration error drawn for it."""
-        from pickdemo.sim.render import Camera  # the simulator's side, imported late
-        from pickdemo.sim.scene import Scene
-
         sc = self.scenario
-        self.scene = Scene(sc, self.layout, gui=gui, tray=self.tray)
+        self.scene = Scene(sc, self.layout, gui=gui, tray=self.tray, robot=self.robot)
         where = camera_position(sc.camera, self.rngs["camera_pose"])
         error = calibration_error(*sc.camera.extrinsic_error, self.rngs["calibration"])
         self.camera = Camera(sc.camera, self.rngs["camera"], position=where, calibration_error=error)
         self.cameras = {FIXED_CAMERA: self.camera}
         if sc.wrist_camera is not None:
-            self.wrist_camera = wrist_camera(sc.wrist_camera, self.rngs["wrist_camera"], self.rngs["hand_eye"])
+            self.wrist_camera = wrist_camera(
+                sc.wrist_camera, self.rngs["wrist_camera"], self.rngs["hand_eye"], kinematics_of(self.robot)
+            )
             self.cameras[WRIST_CAMERA] = self.wrist_camera
         return self
 
@@ -102,10 +100,9 @@ class World:
         self.close()
 
 
-def wrist_camera(spec: WristCameraSpec, rng: np.random.Generator, hand_eye_rng: np.random.Generator) -> WristCamera:
+def wrist_camera(
+    spec: WristCameraSpec, rng: np.random.Generator, hand_eye_rng: np.random.Generator, kin: Kinematics
+) -> WristCamera:
     """The hand's camera where the scenario mounts it, told its pose with the hand-eye error drawn for it."""
-    from pickdemo.robot.kinematics import panda_kinematics
-    from pickdemo.sim.render import WristCamera
-
-    T_tcp_cam = hand_camera_pose(panda_kinematics().tcp_to_frame(spec.mount), spec.position, spec.look_at)
+    T_tcp_cam = hand_camera_pose(kin.tcp_to_frame(spec.mount), spec.position, spec.look_at)
     return WristCamera(spec, rng, T_tcp_cam, calibration_error(*spec.hand_eye_error, hand_eye_rng))

@@ -13,7 +13,9 @@ import numpy as np
 from pickdemo.core.camera import look_at_pose, project, rendered_intrinsics
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.grasping.top_down import GraspParams, top_down
-from pickdemo.robot import panda as rm
+from pickdemo.robot import robot_named
+from pickdemo.robot.description import RobotDescription
+from pickdemo.robot.kinematics import IKParams, kinematics_of
 from pickdemo.scenario.layout import LayoutError, Tray, sample_layout, sample_place, sample_round
 from pickdemo.scenario.schema import ConveyorSpec, ObjectSpec, PlaceSpec, Scenario, ScenarioError
 
@@ -22,7 +24,6 @@ ROBOT_BASE_RADIUS_M = 0.12
 #: Clearance the open gripper needs around the target's narrower side (m): the grasp planner's.
 GRIPPER_CLEARANCE_M = GraspParams().width_margin_m
 #: The Panda's payload (kg).
-MAX_PAYLOAD_KG = 3.0
 #: Seeds whose layouts must be possible (a range that leaves no room fails on most seeds).
 LAYOUT_SEEDS = range(3)
 #: A clear round's pile is at most this many objects deep (their footprints over its region's).
@@ -59,9 +60,15 @@ def check_scenario(sc: Scenario) -> None:
     _check_layout(sc)
 
 
+def _robot(sc: Scenario) -> RobotDescription:
+    """The robot a scenario runs (the default robot: a scenario does not choose one yet)."""
+    return robot_named()
+
+
 def _check_mesh_files(sc: Scenario) -> None:
     """Every mesh's files exist and are URDFs pickdemo can read (one line for the first bad one); a
     mesh to pick, some top-down grasp can hold."""
+    robot = _robot(sc)
     from pickdemo.core.meshes import MeshFileError, read_urdf
 
     for obj in sc.objects:
@@ -75,7 +82,7 @@ def _check_mesh_files(sc: Scenario) -> None:
         elif not obj.urdf_files:  # urdf_choice: its readable matches (a broken one is left out)
             _no_usable_file(f"objects.{obj.name}.urdf_choice", obj.urdf_choice or "")
         if (obj.target and sc.task == "pick") or sc.task == "clear":
-            _check_mesh_holdable(obj, f"objects.{obj.name}", 2.0 * rm.FINGER_MAX_M - GRIPPER_CLEARANCE_M)
+            _check_mesh_holdable(obj, f"objects.{obj.name}", robot.gripper.max_opening_m - GRIPPER_CLEARANCE_M, robot)
 
 
 def _no_usable_file(key: str, pattern: str) -> None:
@@ -258,11 +265,11 @@ def _check_camera(sc: Scenario) -> None:
 
 
 def _check_pick(sc: Scenario) -> None:
-    from pickdemo.robot.kinematics import IKParams, panda_kinematics  # loads the URDF: only when needed
+    robot = _robot(sc)
 
     target = sc.target
     key = f"objects.{target.name}"
-    opening = 2.0 * rm.FINGER_MAX_M
+    opening = robot.gripper.max_opening_m
     narrow = 0.0 if target.shape == "mesh" else target.largest_shape.grasp_width_m  # a mesh: _check_mesh_files
     if narrow > opening - GRIPPER_CLEARANCE_M:
         raise ScenarioError(
@@ -270,8 +277,9 @@ def _check_pick(sc: Scenario) -> None:
             f"and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance, so at most "
             f"{(opening - GRIPPER_CLEARANCE_M) * 1e3:.0f} mm"
         )
-    if target.mass > MAX_PAYLOAD_KG:
-        raise ScenarioError(f"{key}.mass: {target.mass} kg is more than the Panda carries ({MAX_PAYLOAD_KG} kg)")
+    if target.mass > robot.payload_kg:
+        carries = f"the {robot.label} carries ({robot.payload_kg} kg)"
+        raise ScenarioError(f"{key}.mass: {target.mass} kg is more than {carries}")
     grasp = GraspParams()
     carried = grasp.transport_height_m
     if sc.success.lift_height >= carried - 0.005:
@@ -279,7 +287,7 @@ def _check_pick(sc: Scenario) -> None:
             f"success.lift_height: {sc.success.lift_height:.3f} m; the arm lifts the target {carried:.3f} m, so "
             f"lift_height must stay below {carried - 0.005:.3f} m"
         )
-    kin = panda_kinematics()
+    kin = kinematics_of(robot)
     rng = np.random.default_rng(0)
     spots = [(f"{key} at ({x:.2f}, {y:.2f})", x, y) for x, y in _region(target)]
     spots += [(f"{sc.place.key} at ({x:.2f}, {y:.2f})" if sc.place.position is None else sc.place.key, x, y)
@@ -287,12 +295,12 @@ def _check_pick(sc: Scenario) -> None:
     for what, x, y in spots:
         z = max(target.largest_shape.height_m / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y)
         for dz in (0.0, grasp.pregrasp_height_m):
-            res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), rm.HOME_Q, rng, IKParams())
+            res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), robot.home_q, rng, IKParams())
             if not res.success:
                 raise ScenarioError(f"{what}: out of the arm's reach from above ({res.reason})")
 
 
-def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float) -> None:
+def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float, robot: RobotDescription) -> None:
     """A mesh target some top-down grasp of the hand can hold at its smallest scale (of a
     ``urdf_choice``: at least one of its files; a seed that draws one no grasp can hold is refused
     when its episode is built)."""
@@ -310,7 +318,8 @@ def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float) -> None:
     what = "it is" if len(files) == 1 else f"each of its {len(files)} files is, the narrowest"
     raise ScenarioError(
         f"{which}: no top-down grasp can hold it: at scale {target.scales[0]:g} {what} {min(widths) * 1e3:.0f} mm "
-        f"across where the fingers would close; the gripper opens to {2e3 * rm.FINGER_MAX_M:.0f} mm and needs "
+        f"across where the fingers would close; the gripper opens to {robot.gripper.max_opening_m * 1e3:.0f} mm and "
+        "needs "
         f"{GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance (a smaller scale?)"
     )
 
@@ -337,9 +346,9 @@ def _corners(box: tuple[tuple[float, float], tuple[float, float]]) -> list[tuple
 def _check_clear(sc: Scenario) -> None:
     """A clear round: its objects' files, its region on the table, in reach and in view, room for its
     count, and a tray on the table, in reach, apart from the region."""
+    robot = _robot(sc)
     from pickdemo.core.meshes import MeshFileError, read_urdf
     from pickdemo.core.shapes import Mesh
-    from pickdemo.robot.kinematics import IKParams, panda_kinematics  # loads the URDF: only when needed
 
     spec = sc.clear
     assert spec is not None
@@ -394,14 +403,15 @@ def _check_clear(sc: Scenario) -> None:
         area, _ = cv2.intersectConvexConvex(_grown_mm(_region_mm(obj), shape.footprint_radius_m * 1e3), tray_mm)
         if area > 0.0:
             raise ScenarioError(f"{key}: where it may stand reaches under the tray (place.position)")
-        if obj.shape != "mesh" and shape.grasp_width_m > 2.0 * rm.FINGER_MAX_M - GRIPPER_CLEARANCE_M:
+        if obj.shape != "mesh" and shape.grasp_width_m > robot.gripper.max_opening_m - GRIPPER_CLEARANCE_M:
             raise ScenarioError(
                 f"{key}.size: its narrower side is {shape.grasp_width_m * 1e3:.0f} mm; the gripper opens to "
-                f"{2e3 * rm.FINGER_MAX_M:.0f} mm and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance"
+                f"{robot.gripper.max_opening_m * 1e3:.0f} mm and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance"
             )
-        if obj.mass > MAX_PAYLOAD_KG:
-            raise ScenarioError(f"{key}.mass: {obj.mass} kg is more than the Panda carries ({MAX_PAYLOAD_KG} kg)")
-    kin = panda_kinematics()
+        if obj.mass > robot.payload_kg:
+            carries = f"the {robot.label} carries ({robot.payload_kg} kg)"
+            raise ScenarioError(f"{key}.mass: {obj.mass} kg is more than {carries}")
+    kin = kinematics_of(robot)
     rng = np.random.default_rng(0)
     grasp = GraspParams()
     spots = [(f"clear.region's corner ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m) for x, y in _corners(region)]
@@ -411,7 +421,7 @@ def _check_clear(sc: Scenario) -> None:
               for x, y in (tray.spot(k) for k in range(len(Tray.SPOTS)))]  # fmt: skip
     for what, x, y, z in spots:
         for dz in (0.0, grasp.pregrasp_height_m):
-            res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), rm.HOME_Q, rng, IKParams())
+            res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), robot.home_q, rng, IKParams())
             if not res.success:
                 raise ScenarioError(f"{what}: out of the arm's reach from above ({res.reason})")
     _check_region_in_view(sc, region)

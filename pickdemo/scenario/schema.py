@@ -27,6 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationIn
 
 from pickdemo.core.meshes import PYBULLET_DATA
 from pickdemo.core.shapes import SHAPES, Shape, ShapeName, make_shape
+from pickdemo.robot import robot_named
 
 PositiveFloat = Annotated[float, Field(gt=0.0)]
 UnitFloat = Annotated[float, Field(ge=0.0, le=1.0)]
@@ -149,8 +150,8 @@ class CameraSpec(_SensorSpec):
         return self.distance_range_m is not None
 
 
-#: The links a wrist camera may be mounted on: the hand's, which move rigidly with it (the fingers do not).
-WRIST_MOUNTS = ("panda_hand", "panda_link8", "panda_hand_tcp")
+#: The robot whose hand a wrist camera is mounted on (a scenario does not choose its robot yet)
+_ROBOT = robot_named()
 HandCoord = Annotated[float, Field(ge=-0.5, le=0.5)]  # m, in the mount link's frame
 
 
@@ -159,7 +160,7 @@ class WristCameraSpec(_SensorSpec):
     Franka hand. Defaults: a RealSense D405-like camera (87 x 58 deg, 424x240, from 5 cm) 9 cm beside the
     hand, looking down past the fingertips; the hand-eye calibration exact."""
 
-    mount: str = "panda_hand"  # a link of the hand (the frame ``position`` and ``look_at`` are in)
+    mount: str = _ROBOT.hand_frame  # a link of the hand (the frame ``position`` and ``look_at`` are in)
     #: m, in the mount's frame (the hand's z points from the flange to the fingertips)
     position: tuple[HandCoord, HandCoord, HandCoord] = (0.09, 0.0, 0.04)
     look_at: tuple[HandCoord, HandCoord, HandCoord] = (0.0, 0.0, 0.16)
@@ -183,8 +184,9 @@ class WristCameraSpec(_SensorSpec):
     @field_validator("mount")
     @classmethod
     def _on_the_hand(cls, mount: str) -> str:
-        if mount not in WRIST_MOUNTS:
-            raise ValueError(f"{printable(mount)!r} is not a link of the hand; one of {', '.join(WRIST_MOUNTS)}")
+        mounts = _ROBOT.camera_mounts  # the hand's links: they move rigidly with it (the fingers do not)
+        if mount not in mounts:
+            raise ValueError(f"{printable(mount)!r} is not a link of the hand; one of {', '.join(mounts)}")
         return mount
 
 

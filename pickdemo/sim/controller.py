@@ -12,22 +12,15 @@ import numpy as np
 import pybullet as p
 
 from pickdemo.core.interfaces import Command, Observation
-from pickdemo.robot import panda as rm
 from pickdemo.robot.rate_limit import Reflex
 from pickdemo.sim.scene import Scene
 
-ARM_EFFORT_NM = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
-FINGER_SPEED_M_S = 0.1
 POSITION_GAIN = 0.3
 VELOCITY_GAIN = 1.0
-# The motor call's constant arguments, built once (it runs every control tick).
-_ARM_FORCES = [float(v) for v in ARM_EFFORT_NM]
-_POSITION_GAINS = [POSITION_GAIN] * 7
-_VELOCITY_GAINS = [VELOCITY_GAIN] * 7
 
 
 class RobotInterface:
-    """The Panda's encoders, finger contacts, wrist force and motors inside a :class:`Scene`.
+    """The robot's encoders, finger contacts, wrist force and motors inside a :class:`Scene`.
 
     Like the Franka's controller, it checks each arm command against the datasheet before it sends
     it (:class:`~pickdemo.robot.rate_limit.Reflex`, one check per control tick of ``dt_s``): a command beyond
@@ -37,7 +30,14 @@ class RobotInterface:
     def __init__(self, scene: Scene, dt_s: float) -> None:
         self.scene = scene
         self._fingers: tuple[float, float] | None = None
-        self.reflex = Reflex(scene.joint_state().arm_q, dt_s)
+        robot = scene.robot
+        self.reflex = Reflex(scene.joint_state().arm_q, dt_s, robot.limits)
+        self.finger_max_m = robot.gripper.finger_max_m
+        self.finger_speed_m_s = robot.gripper.speed_m_s
+        # The motor call's constant arguments, built once (it runs every control tick).
+        self._forces = [float(v) for v in robot.effort_nm]
+        self._position_gains = [POSITION_GAIN] * robot.dof
+        self._velocity_gains = [VELOCITY_GAIN] * robot.dof
 
     def observe(self) -> Observation:
         js = self.scene.joint_state()
@@ -59,11 +59,11 @@ class RobotInterface:
             p.POSITION_CONTROL,
             targetPositions=np.asarray(cmd.arm_q, dtype=float).tolist(),
             targetVelocities=np.asarray(cmd.arm_dq, dtype=float).tolist(),
-            forces=_ARM_FORCES,
-            positionGains=_POSITION_GAINS,
-            velocityGains=_VELOCITY_GAINS,
+            forces=self._forces,
+            positionGains=self._position_gains,
+            velocityGains=self._velocity_gains,
         )
-        fingers = (min(max(float(cmd.finger_opening_m), 0.0), rm.FINGER_MAX_M), float(cmd.finger_force_n))
+        fingers = (min(max(float(cmd.finger_opening_m), 0.0), self.finger_max_m), float(cmd.finger_force_n))
         if fingers != self._fingers:  # motors keep their last command: send only changes
             for j in s.finger_joints:
                 s.client.setJointMotorControl2(
@@ -72,6 +72,6 @@ class RobotInterface:
                     p.POSITION_CONTROL,
                     targetPosition=fingers[0],
                     force=fingers[1],
-                    maxVelocity=FINGER_SPEED_M_S,
+                    maxVelocity=self.finger_speed_m_s,
                 )
             self._fingers = fingers

@@ -17,7 +17,8 @@ from pybullet_utils.bullet_client import BulletClient
 from pickdemo.core.geometry import Pose
 from pickdemo.core.meshes import resolve
 from pickdemo.core.shapes import Box, Cylinder, Mesh
-from pickdemo.robot import panda as rm
+from pickdemo.robot import robot_named
+from pickdemo.robot.description import RobotDescription
 from pickdemo.scenario.layout import Placement, Tray
 from pickdemo.scenario.load import ObjectSpec, Scenario
 from pickdemo.sim import quiet_c_stdout
@@ -82,9 +83,17 @@ class Scene:
     """A PyBullet world built from a scenario and a sampled layout."""
 
     def __init__(
-        self, scenario: Scenario, layout: tuple[Placement, ...], *, gui: bool = False, tray: Tray | None = None
+        self,
+        scenario: Scenario,
+        layout: tuple[Placement, ...],
+        *,
+        gui: bool = False,
+        tray: Tray | None = None,
+        robot: RobotDescription | None = None,
     ) -> None:
+        """``robot``: the arm and hand to load (default: the default robot)."""
         self.scenario = scenario
+        self.robot = robot or robot_named()
         self.gui = gui
         with quiet_c_stdout():
             self.client = BulletClient(connection_mode=p.GUI if gui else p.DIRECT)
@@ -150,7 +159,8 @@ class Scene:
     def _build_robot(self) -> None:
         c = self.client
         flags = p.URDF_USE_INERTIA_FROM_FILE
-        robot = c.loadURDF(str(rm.lean_urdf_path()), basePosition=[0, 0, 0], useFixedBase=True, flags=flags)
+        desc, gripper = self.robot, self.robot.gripper
+        robot = c.loadURDF(str(desc.render_urdf()), basePosition=[0, 0, 0], useFixedBase=True, flags=flags)
         self.bodies["robot"] = robot
         self.joint_index: dict[str, int] = {}
         self.link_index: dict[str, int] = {}
@@ -158,17 +168,17 @@ class Scene:
             info = c.getJointInfo(robot, j)
             self.joint_index[info[1].decode()] = j
             self.link_index[info[12].decode()] = j
-        self.arm_joints = [self.joint_index[n] for n in rm.ARM_JOINTS]
-        self.finger_joints = [self.joint_index[n] for n in rm.FINGER_JOINTS]
-        self.finger_links = [self.link_index[n] for n in rm.FINGER_LINKS]
-        self.tcp_link = self.link_index[rm.TCP_FRAME]
+        self.arm_joints = [self.joint_index[n] for n in desc.arm_joints]
+        self.finger_joints = [self.joint_index[n] for n in gripper.finger_joints]
+        self.finger_links = [self.link_index[n] for n in gripper.finger_links]
+        self.tcp_link = self.link_index[desc.tcp_frame]
         # The wrist's force sensor: the reaction of the flange-to-hand joint, in the hand's frame.
-        self.wrist_joint = self.joint_index[rm.WRIST_JOINT]
+        self.wrist_joint = self.joint_index[desc.wrist_joint]
         c.enableJointForceTorqueSensor(robot, self.wrist_joint, True)
-        for j, q in zip(self.arm_joints, rm.HOME_Q, strict=True):
+        for j, q in zip(self.arm_joints, desc.home_q, strict=True):
             c.resetJointState(robot, j, float(q))
         for j in self.finger_joints:
-            c.resetJointState(robot, j, rm.FINGER_MAX_M)
+            c.resetJointState(robot, j, gripper.finger_max_m)
         for link in self.finger_links:
             c.changeDynamics(robot, link, lateralFriction=FINGER_FRICTION, spinningFriction=PAD_TORSIONAL_FRICTION_M)
         # The real gripper couples its fingers mechanically (the URDF's <mimic>, which PyBullet
@@ -178,9 +188,14 @@ class Scene:
         )
         c.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=50)
         # Hold the home pose until the controller takes over.
-        c.setJointMotorControlArray(robot, self.arm_joints, p.POSITION_CONTROL, targetPositions=list(rm.HOME_Q))
+        c.setJointMotorControlArray(robot, self.arm_joints, p.POSITION_CONTROL, targetPositions=list(desc.home_q))
+        n = len(self.finger_joints)
         c.setJointMotorControlArray(
-            robot, self.finger_joints, p.POSITION_CONTROL, targetPositions=[rm.FINGER_MAX_M] * 2, forces=[20.0, 20.0]
+            robot,
+            self.finger_joints,
+            p.POSITION_CONTROL,
+            targetPositions=[gripper.finger_max_m] * n,
+            forces=[gripper.open_force_n] * n,
         )
 
     def _build_object(self, spec: ObjectSpec, placement: Placement) -> None:

@@ -20,7 +20,7 @@ from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.core.interfaces import Observation
 from pickdemo.motion import ik_goals
 from pickdemo.motion.online import CartesianLimits, MotionError, MotionSample, OnlineMotion, pose_to_x4
-from pickdemo.robot import panda as rm
+from pickdemo.robot.description import Gripper
 
 GRAVITY_M_S2 = 9.81
 #: A target within this of the last one whose way round the IK chose keeps that way round (rad, m).
@@ -129,10 +129,11 @@ class GripParams:
 class Grip:
     """The fingers: a target opening and force, and what the finger sensors say of them."""
 
-    def __init__(self, params: GripParams, dt_s: float) -> None:
+    def __init__(self, params: GripParams, dt_s: float, gripper: Gripper) -> None:
         self.p = params
         self.dt_s = dt_s
-        self.target_m = rm.FINGER_MAX_M
+        self.finger_max_m = gripper.finger_max_m
+        self.target_m = self.finger_max_m
         self.force_n = params.open_force_n
         self._stall = 0
         self._no_hold = 0
@@ -140,7 +141,7 @@ class Grip:
 
     def open(self, force_n: float | None = None) -> None:
         """Open wide (with ``force_n``, default the usual opening force)."""
-        self.target_m, self.force_n = rm.FINGER_MAX_M, self.p.open_force_n if force_n is None else force_n
+        self.target_m, self.force_n = self.finger_max_m, self.p.open_force_n if force_n is None else force_n
 
     def close(self, force_n: float) -> None:
         self.target_m, self.force_n = 0.0, force_n
@@ -159,7 +160,7 @@ class Grip:
         return self._stall >= self.p.stall_ticks
 
     def opened(self, obs: Observation) -> bool:
-        return obs.opening_m > 2.0 * rm.FINGER_MAX_M - self.p.open_margin_m
+        return obs.opening_m > 2.0 * self.finger_max_m - self.p.open_margin_m
 
     def holding(self, obs: Observation, width_m: float) -> bool:
         """Both fingers touch and the opening matches an object ``width_m`` wide."""

@@ -33,8 +33,7 @@ from pickdemo.grasping.top_down import GraspParams, GraspPlan, top_down
 from pickdemo.motion.online import MotionSample
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.perception.unknown import SeenObject, Survey
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import PandaKinematics
+from pickdemo.robot.kinematics import Kinematics
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.scenario.layout import Tray
 from pickdemo.skills.pick import CameraModel, Event, FrameRequest, MachineParams, PickMachine, State
@@ -102,7 +101,7 @@ class ClearSequencer:
     def __init__(
         self,
         *,
-        kin: PandaKinematics,
+        kin: Kinematics,
         tray: Tray,
         cameras: list[CameraModel],
         q0: np.ndarray,
@@ -351,7 +350,8 @@ class ClearSequencer:
         params = self.p.grasp
         for seen in survey.objects:
             tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in self._tried)
-            for g in sample_grasps(seen.cloud, 0.0, params)[:3]:  # the best few: the first that IK reaches
+            # the best few: the first that IK reaches
+            for g in sample_grasps(seen.cloud, 0.0, self.kin.robot.gripper, params)[:3]:
                 cost = g.cost + (TRIED_PENALTY if tried else 0.0)
                 if best is not None and cost >= best.cost:
                     break
@@ -363,7 +363,7 @@ class ClearSequencer:
     def _reachable(self, position: np.ndarray, hand_yaw: float, params: GraspParams) -> bool:
         for yaw in (hand_yaw, hand_yaw + np.pi):
             for p in (position, position + np.array([0.0, 0.0, params.pregrasp_height_m])):
-                res = self.kin.solve(top_down(p, yaw), rm.HOME_Q, self.rng, self.p.goals.ik)
+                res = self.kin.solve(top_down(p, yaw), self.kin.robot.home_q, self.rng, self.p.goals.ik)
                 if not res.success:
                     break
             else:
@@ -437,7 +437,9 @@ class ClearSequencer:
         pts = np.vstack([o.cloud.points[:: max(1, len(o.cloud.points) // 200)] for o in self.last_survey.objects])
         p_cam = T_cam_world.transform_points(pts)
         uv = project(p_cam[p_cam[:, 2] > 1e-3], K).astype(np.float32)
-        for box in robot_body().boxes(q, np.full(2, rm.FINGER_MAX_M), pad_m=ARM_VIEW_PAD_M):
+        robot = self.kin.robot
+        fingers = np.full(len(robot.gripper.finger_joints), robot.gripper.finger_max_m)
+        for box in robot_body(robot).boxes(q, fingers, pad_m=ARM_VIEW_PAD_M):
             c = T_cam_world.transform_points(box.corners())
             if np.any(c[:, 2] <= 1e-3):
                 return True  # a link beside or behind the camera: home, to be sure

@@ -26,8 +26,7 @@ from pickdemo.motion.ik_goals import (
     straight_carry_ok,
 )
 from pickdemo.motion.online import CartesianLimits, JointMotion, MotionError, MotionSample, OnlineMotion, pose_to_x4
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import PandaKinematics
+from pickdemo.robot.kinematics import Kinematics
 from pickdemo.robot.rate_limit import RateLimiter
 from pickdemo.skills.actions import Grip, Move
 from pickdemo.skills.pick.params import MachineParams
@@ -39,7 +38,7 @@ class ArmDriver:
     or a joint-space transfer drives it, and each tick's sample goes out through the rate limiter."""
 
     def __init__(
-        self, kin: PandaKinematics, q0: np.ndarray, dt_s: float, params: MachineParams, rng: np.random.Generator
+        self, kin: Kinematics, q0: np.ndarray, dt_s: float, params: MachineParams, rng: np.random.Generator
     ) -> None:
         self.kin = kin
         self.p = params
@@ -47,8 +46,8 @@ class ArmDriver:
         self.motion = OnlineMotion(kin, q0, dt_s, params.free)
         self.move = Move(self.motion, chase_fraction=params.chase_fraction, meet_horizon_s=params.meet_horizon_s)
         self.joints = JointMotion(kin, q0, dt_s)  # transfers in joint space
-        self.limiter = RateLimiter(q0, dt_s)  # every joint command within the datasheet, as libfranka's
-        self.home_q = rm.HOME_Q
+        self.limiter = RateLimiter(q0, dt_s, kin.robot.limits)  # every joint command within the datasheet
+        self.home_q = kin.robot.home_q
         self.home_x4 = pose_to_x4(kin.forward(self.home_q))
         self.joint = False  # the joint-space transfer drives the arm (else the Cartesian motion)
         self.legs: deque[Callable[[], None]] = deque()  # the state's motion still to come, leg by leg

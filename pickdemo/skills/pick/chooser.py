@@ -16,8 +16,7 @@ from pickdemo.grasping.top_down import GraspPlan, GraspPlanningError
 from pickdemo.motion.ik_goals import along_line, goal_candidates, line_speed_scale
 from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import TargetModel
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import IKParams, PandaKinematics
+from pickdemo.robot.kinematics import IKParams, Kinematics
 from pickdemo.skills.pick.arm import ArmDriver
 from pickdemo.skills.pick.intercept import Interceptor
 from pickdemo.skills.pick.params import MachineParams
@@ -30,7 +29,7 @@ class GraspChooser:
 
     def __init__(
         self,
-        kin: PandaKinematics,
+        kin: Kinematics,
         rng: np.random.Generator,
         params: MachineParams,
         model: TargetModel,
@@ -56,6 +55,7 @@ class GraspChooser:
             cloud=self.belief.cloud,
             surface_z=surface,
             plan_id=self.plan_id,
+            gripper=self.kin.robot.gripper,
         )
 
     def grasp(self, pose: Pose, near: float | None) -> GraspPlan:
@@ -94,7 +94,8 @@ class GraspChooser:
         speed limits) from here to the grasp and on to the place."""
         q_now = self.arm.q
         grasp = plan.grasp if held is None else Pose(np.array([*held, plan.grasp.position[2]]), plan.grasp.rotation)
-        best = self.best_ik(grasp, [q_now] if np.array_equal(q_now, rm.HOME_Q) else [q_now, rm.HOME_Q])
+        home, v_max = self.kin.robot.home_q, self.kin.robot.limits.max_velocity_rad_s
+        best = self.best_ik(grasp, [q_now] if np.array_equal(q_now, home) else [q_now, home])
         if best is None:
             return False, False, 0.0
         g = dataclasses.replace(self.p.goals, line_steps=self.p.goals.line_steps // 2)
@@ -104,10 +105,10 @@ class GraspChooser:
                 q_end = None
                 break
             q_end = q_k
-        travel = float(np.max(np.abs(best - q_now) / rm.MAX_VELOCITY_RAD_S))
+        travel = float(np.max(np.abs(best - q_now) / v_max))
         if q_end is None:
             return True, False, travel
-        travel += float(np.max(np.abs(q_end - best) / rm.MAX_VELOCITY_RAD_S))
+        travel += float(np.max(np.abs(q_end - best) / v_max))
         margin = min(self.kin.limit_margin(best), self.kin.limit_margin(q_end))
         return True, margin >= g.min_margin_rad, travel
 

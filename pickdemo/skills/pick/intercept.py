@@ -9,7 +9,7 @@ import numpy as np
 from pickdemo.core.geometry import Pose
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.motion.online import CartesianLimits
-from pickdemo.robot.kinematics import IKParams, PandaKinematics
+from pickdemo.robot.kinematics import IKParams, Kinematics
 from pickdemo.skills.pick.arm import ArmDriver
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.tracking.belief import TargetBelief
@@ -22,7 +22,7 @@ class Interceptor:
 
     def __init__(
         self,
-        kin: PandaKinematics,
+        kin: Kinematics,
         rng: np.random.Generator,
         params: MachineParams,
         belief: TargetBelief,

@@ -30,7 +30,7 @@ from pickdemo.grasping.selection import GraspSelector, selector_for
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.motion.online import MotionSample
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
-from pickdemo.robot.kinematics import PandaKinematics
+from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.actions import Grip, Scale
 from pickdemo.skills.pick.arm import ArmDriver
 from pickdemo.skills.pick.chooser import GraspChooser
@@ -62,7 +62,7 @@ class PickMachine:
     def __init__(
         self,
         *,
-        kin: PandaKinematics,
+        kin: Kinematics,
         model: TargetModel,
         symmetry_rad: float,
         place_xy: tuple[float, float],
@@ -103,7 +103,7 @@ class PickMachine:
         self.selector = selector
         # The parts.
         self.arm = ArmDriver(kin, q0, dt_s, p, rng)
-        self.grip = Grip(p.grip, dt_s)
+        self.grip = Grip(p.grip, dt_s, kin.robot.gripper)
         self.scale = Scale(p.payload)
         self.counters = Counters()
         self.belief = TargetBelief(

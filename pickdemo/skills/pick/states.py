@@ -101,7 +101,8 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
         if plan is None:
             return None
         m.plan = plan
-        unsafe = unsure(m.belief, plan, obs.time_s, m.p, calibration_only=True)  # (more frames cannot mend that)
+        # (more frames cannot mend that)
+        unsafe = unsure(m.belief, plan, obs.time_s, m.p, m.grip.finger_max_m, calibration_only=True)
         if unsafe and (not m.hand_cameras or m.open_loop):
             m.fail(Stage.PERCEPTION, f"{unsafe}, and no camera can see it closer: not tried")
             return None
@@ -171,7 +172,8 @@ def tick_approach(m: PickMachine, obs: Observation) -> Transition:
             m.go_to(plan.pregrasp)
     arrived = m.arm.finished or m.intercept.with_target(m.plan.pregrasp, m.now_s, m.planned_at_s)
     if arrived and not m.finished:
-        unsafe = "" if m.open_loop else unsure(m.belief, m.plan, obs.time_s, m.p)  # (open loop: one look's plan)
+        # (open loop: the plan of one look)
+        unsafe = "" if m.open_loop else unsure(m.belief, m.plan, obs.time_s, m.p, m.grip.finger_max_m)
         if unsafe:  # wait above it for more frames, or the hand's camera, to make it surer (a bounded wait)
             m.hover_since = obs.time_s if m.hover_since is None else m.hover_since
             if obs.time_s - m.hover_since >= m.p.hover_max_s:

@@ -11,8 +11,7 @@ import numpy as np
 from pickdemo.core.camera import project, roi_around
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.perception import TargetModel
-from pickdemo.robot import panda as rm
-from pickdemo.robot.kinematics import PandaKinematics
+from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.pick.params import (
     HAND_OVER_TARGET,
     TRACKING_STATES,
@@ -30,14 +29,20 @@ FOOTPRINT_RING = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0.0,
 
 
 def unsure(
-    belief: TargetBelief, plan: GraspPlan, now_s: float, params: MachineParams, *, calibration_only: bool = False
+    belief: TargetBelief,
+    plan: GraspPlan,
+    now_s: float,
+    params: MachineParams,
+    finger_max_m: float,
+    *,
+    calibration_only: bool = False,
 ) -> str:
     """Why the hand may not go down on the plan yet ("" when it may): where the target is, its
     cameras' calibration included (``calibration_only``: that alone), is less sure than the grasp's
-    clearance allows."""
+    clearance allows (how far the fingers, open ``finger_max_m`` each, reach past the object)."""
     tp = belief.predict(now_s)
     sigma = tp.calibration_sigma_m if calibration_only else tp.grasp_sigma_m
-    clearance = rm.FINGER_MAX_M - plan.object_width_m / 2.0  # from the fingers open to the object
+    clearance = finger_max_m - plan.object_width_m / 2.0  # from the fingers open to the object
     if params.clearance_sigmas * sigma <= clearance:
         return ""
     return (
@@ -53,7 +58,7 @@ class ViewPlanner:
 
     def __init__(
         self,
-        kin: PandaKinematics,
+        kin: Kinematics,
         params: MachineParams,
         model: TargetModel,
         belief: TargetBelief,
@@ -121,7 +126,8 @@ class ViewPlanner:
         enough for the grasp), when the target as tracked lies wholly in the camera's view and depth range."""
         if self.open_loop or state not in TRACKING_STATES or not self.belief.initialised:
             return None
-        if state is State.APPROACH and (plan is None or not unsure(self.belief, plan, now_s, self.p)):
+        finger = self.kin.robot.gripper.finger_max_m
+        if state is State.APPROACH and (plan is None or not unsure(self.belief, plan, now_s, self.p, finger)):
             return None  # on its way, the fixed camera sees it whole: the hand's looks when that is not sure enough
         T_world_cam = self.kin.forward(arm_q) @ cam.pose
         tp = self.belief.predict(now_s)

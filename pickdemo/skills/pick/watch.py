@@ -10,7 +10,7 @@ import numpy as np
 from pickdemo.core.interfaces import Observation
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.perception import TargetModel
-from pickdemo.robot.kinematics import PandaKinematics
+from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.tracking.belief import Offered, TargetBelief, Verdict
 
@@ -20,7 +20,7 @@ class MoveWatch:
 
     def __init__(
         self,
-        kin: PandaKinematics,
+        kin: Kinematics,
         params: MachineParams,
         model: TargetModel,
         belief: TargetBelief,
