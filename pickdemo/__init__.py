@@ -18,8 +18,10 @@ Or stepped, one control tick at a time (the same result)::
         pass
     result = episode.result()
 
-Importing the package stays light: the simulator and the kinematics load on the first episode (and
-``EpisodeOptions`` and ``Episode``, which live beside them in :mod:`pickdemo.runtime.episode`, on first use).
+Importing the package stays light, so that its pure parts (the skill, perception, the scenario
+schema) import without the simulator: ``run_episode``, ``Episode`` and ``EpisodeOptions``, which
+live beside the simulator in :mod:`pickdemo.runtime.episode`, load it on first use (the package's
+one import inside a function; everything else imports at the top).
 """
 
 from pickdemo.core.result import EpisodeResult, Failure, Stage

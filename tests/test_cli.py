@@ -126,9 +126,10 @@ def test_help_names_every_file_written(command: str, files: tuple[str, ...]) -> 
 
 
 def test_episode_options_from_the_package_and_import_stays_light() -> None:
+    """``import pickdemo`` loads the scenario checks (and so the kinematics), never the simulator."""
     code = (
         "import sys, pickdemo\n"
-        "assert 'pybullet' not in sys.modules and 'pinocchio' not in sys.modules\n"
+        "assert 'pybullet' not in sys.modules\n"
         "from pickdemo import EpisodeOptions\n"
         "from pickdemo.runtime.episode import EpisodeOptions as E\n"
         "assert EpisodeOptions is E and EpisodeOptions(open_loop=True).open_loop\n"

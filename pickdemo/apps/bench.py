@@ -34,6 +34,8 @@ from typing import Any, TypeAlias
 
 from pickdemo.core.result import EpisodeRecord, EpisodeResult, Stage, result_key, summary_name
 from pickdemo.core.stats import describe
+from pickdemo.runtime.episode import EpisodeOptions, run_episode
+from pickdemo.scenario.load import load_scenario
 
 DEFAULT_GUARD_S = 300.0  # wall-clock guard of one episode (a typical one takes 1-2 s)
 MAX_EPISODES = 100_000  # in one bench run (a day on a 2-core machine); more is split into several runs
@@ -144,15 +146,11 @@ def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> Ep
 
 def run_job(job: Job) -> EpisodeRecord:
     """Run one episode (in a worker) and return its result dict."""
-    from pickdemo.runtime.episode import run_episode
-    from pickdemo.scenario.load import load_scenario
-
     t0 = time.perf_counter()
     try:
         scenario = load_scenario(job.scenario_path, check=False)  # checked once, before the batch started
     except Exception as exc:  # noqa: BLE001 - a job must always come back with a result
         return failed_result(job, Stage.ERROR, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
-    from pickdemo.runtime.episode import EpisodeOptions
 
     options = EpisodeOptions(open_loop=job.open_loop, perception_method=job.perception)
     return run_episode(scenario, job.seed, options=options).to_dict()

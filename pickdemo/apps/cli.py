@@ -28,8 +28,12 @@ import tempfile
 import time
 from pathlib import Path
 
+from pickdemo.apps import bench, perceive, report
 from pickdemo.apps.bench import DEFAULT_MIN_SUCCESS
+from pickdemo.apps.profile import profile
 from pickdemo.core.result import EpisodeResult, PhaseRecord
+from pickdemo.perception.estimators import EstimatorError, resolve_estimator
+from pickdemo.runtime.episode import EpisodeOptions, run_episode
 from pickdemo.scenario.load import (
     ObjectSpec,
     Scenario,
@@ -39,6 +43,7 @@ from pickdemo.scenario.load import (
     resolve_scenario_path,
     suite_scenarios,
 )
+from pickdemo.scenario.tasks import TASK_RULES
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 MAX_SEED = 2**63 - 1
@@ -51,8 +56,6 @@ PERCEPTION_HELP = (
 
 
 def _check_method(name: str, flag: str = "--perception") -> None:
-    from pickdemo.perception.estimators import EstimatorError, resolve_estimator
-
     try:
         resolve_estimator(name)
     except EstimatorError as exc:
@@ -247,7 +250,7 @@ def _writable_dir(path: Path, flag: str) -> None:
 
 def _pick_scenario(name: str) -> Scenario:
     scenario = load_scenario(name)
-    if scenario.task == "perceive":
+    if not TASK_RULES[scenario.task].runs_episodes:
         raise UsageError(f'{name}: a perception-only scenario (task = "{scenario.task}"); use `pickdemo perceive`')
     return scenario
 
@@ -270,8 +273,6 @@ def _save_result(result: EpisodeResult, out: Path) -> Path:
 
 def _run_pictures(result: EpisodeResult, out: Path, *, video: bool) -> list[Path]:
     """motion.png and report.html beside result.json (the plots extra); never fails the run."""
-    from pickdemo.apps import report
-
     images: list[Path] = []
     try:
         if result.trace is not None and len(result.trace.time_s) > 3:
@@ -288,8 +289,6 @@ def _run_pictures(result: EpisodeResult, out: Path, *, video: bool) -> list[Path
 
 def _bench_pictures(outcome, out: Path, title: str, open_loop: bool) -> list[Path]:
     """bench.png and report.html beside summary.json (the plots extra); never fails the bench."""
-    from pickdemo.apps import bench, report
-
     sections = [("Scenarios", report.bench_table(outcome.summary, outcome.results))]
     written: list[Path] = []
     try:
@@ -307,8 +306,6 @@ def _bench_pictures(outcome, out: Path, title: str, open_loop: bool) -> list[Pat
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from pickdemo.runtime.episode import EpisodeOptions, run_episode  # heavy imports only when running
-
     _check_seed(args.seed)
     _check_method(args.perception)
     scenario = _pick_scenario(args.scenario)
@@ -353,7 +350,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         rerun_path=str(args.rerun) if args.rerun is not None else None,
     )
     result = run_episode(scenario, args.seed, options=options, on_phase=on_phase)
-    modulus = yaw_modulus_deg(scenario.target) if scenario.task == "pick" else None
+    modulus = yaw_modulus_deg(scenario.target) if TASK_RULES[scenario.task].one_target else None
     print(summary_line(result, modulus), flush=True)
     if args.out is not None:
         path = _save_result(result, args.out)
@@ -366,8 +363,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from pickdemo.apps import bench
-
     try:
         seeds = bench.parse_seeds(args.seeds)
     except bench.BenchError as exc:
@@ -475,8 +470,6 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_perceive(args: argparse.Namespace) -> int:
-    from pickdemo.apps import bench, perceive
-
     try:
         seeds = bench.parse_seeds(args.seeds)
     except bench.BenchError as exc:
@@ -522,7 +515,6 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
         print(rows)
     if args.out is not None:
         written = perceive.write_outputs(args.out, samples, summary, f"{scenario.name}, seeds {args.seeds}")
-        from pickdemo.apps import report
 
         sections = [("Summary", report.pre(perceive.format_summary(summary) + ("\n\n" + rows if rows else "")))]
         sections += [("Plots", report.image(p)) for p in written if p.suffix == ".png"]
@@ -534,9 +526,6 @@ def _cmd_perceive(args: argparse.Namespace) -> int:
 
 
 def _cmd_profile(args: argparse.Namespace) -> int:
-    from pickdemo.apps import bench
-    from pickdemo.apps.profile import profile
-
     try:
         seeds = bench.parse_seeds(args.seeds)
     except bench.BenchError as exc:

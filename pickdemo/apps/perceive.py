@@ -25,7 +25,9 @@ from pickdemo.perception.estimators import BUILTIN, resolve_estimator
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.runtime.evaluation import pose_errors
 from pickdemo.runtime.metrics import position_nees
+from pickdemo.runtime.world import World
 from pickdemo.scenario.load import Scenario
+from pickdemo.scenario.task import target_model
 
 MethodFn = Callable[..., PoseEstimate]
 METHODS: dict[str, MethodFn] = dict(BUILTIN)
@@ -63,9 +65,6 @@ ERROR_KEYS = (
 def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: int = 1) -> list[PerceptionSample]:
     """One sample per method and target for one seed. With ``repeat`` > 1 each method runs that many
     times on the frame and its time is the median (a steadier benchmark; the estimate is the same)."""
-    from pickdemo.runtime.world import World
-    from pickdemo.scenario.task import target_model
-
     with World.build(scenario, seed) as world:  # the episode's world for this seed
         if any(not o.static for o in scenario.objects):
             world.scene.step(120)  # let what is not held come to rest

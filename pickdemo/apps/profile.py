@@ -23,7 +23,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+from pickdemo.runtime.episode import Episode
 from pickdemo.scenario.load import Scenario
+from pickdemo.sim.scene import Scene
 
 #: The stages, in the order they are printed, and what each covers.
 STAGES: dict[str, str] = {
@@ -148,8 +150,6 @@ class Reference:
 
 def bare_physics(scenario: Scenario, steps: int = REFERENCE_STEPS) -> Reference:
     """Step the scenario's cell without its objects (the robot holding its home pose): the reference."""
-    from pickdemo.sim.scene import Scene  # the simulator's side, imported late
-
     with Scene(scenario, ()) as scene:
         scene.step(10)  # (the first steps warm the solver's caches)
         t0 = time.perf_counter()
@@ -176,8 +176,6 @@ class EpisodeProfile:
 
 def profile_episode(scenario: Scenario, seed: int) -> EpisodeProfile:
     """One episode, its loop timed stage by stage."""
-    from pickdemo.runtime.episode import Episode
-
     prof = Profiler()
     ep = Episode(scenario, seed)
     t0 = time.perf_counter()

@@ -35,6 +35,7 @@ from pickdemo.perception.segmentation import (
     unoccluded,
     world_heights,
 )
+from pickdemo.perception.unknown import estimate_unknown
 
 
 def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None) -> PoseEstimate:
@@ -46,8 +47,6 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
     :func:`~pickdemo.perception.unknown.estimate_unknown`.
     """
     if isinstance(model.geometry, Unknown):
-        from pickdemo.perception.unknown import estimate_unknown
-
         return estimate_unknown(frame, model, params)
     try:
         return _estimate_pose(frame, model, params or PerceptionParams())

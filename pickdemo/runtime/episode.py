@@ -26,7 +26,6 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -41,23 +40,31 @@ from pickdemo.core.result import (
     limit_exceedances,
     peak_limit_ratios,
 )
-from pickdemo.core.shapes import Mesh, Unknown
-from pickdemo.grasping.top_down import GraspParams
-from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, estimate_pose
+from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel
+from pickdemo.perception.unknown import survey_objects
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
 from pickdemo.robot.self_geometry import robot_body
-from pickdemo.runtime.observers import THIRD_PERSON_K, THIRD_PERSON_POSE, VIDEO_CROP_PX, Observer, TraceRecorder
-from pickdemo.runtime.referee import PERCEPTION_OFF_MM, ClearReferee, Referee, diagnose
+from pickdemo.runtime.observers import (
+    THIRD_PERSON_K,
+    THIRD_PERSON_POSE,
+    VIDEO_CROP_PX,
+    DebugDrawer,
+    Observer,
+    TraceRecorder,
+    VideoRecorder,
+)
+from pickdemo.runtime.recording import RerunRecorder
+from pickdemo.runtime.referee import PERCEPTION_OFF_MM, Referee, diagnose
+from pickdemo.runtime.tasks import episode_task
+from pickdemo.runtime.view import EpisodeView
 from pickdemo.runtime.world import World
 from pickdemo.scenario.layout import LayoutError
 from pickdemo.scenario.load import Scenario
-from pickdemo.scenario.task import target_model
+from pickdemo.sim.controller import RobotInterface
+from pickdemo.sim.disturb import PushPlayer, draw_push
 from pickdemo.skills.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
-
-if TYPE_CHECKING:
-    from pickdemo.sim.controller import RobotInterface
 
 __all__ = [
     "PERCEPTION_OFF_MM",
@@ -72,8 +79,6 @@ __all__ = [
 
 PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each note), as it happens
 
-SETTLE_MAX_S = 2.0  # the objects come to rest before the first look, within this
-SETTLE_CLEAR_MAX_S = 4.0  # ... a clear round's (a pile falls into its heap)
 CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
 
 
@@ -112,6 +117,17 @@ def run_episode(
     while not episode.step():
         pass
     return episode.result()
+
+
+def machine_params(sc: Scenario, params: MachineParams) -> MachineParams:
+    """The skill's parameters for this scenario's cell: a belt's, the motion's scales, its transfers."""
+    if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
+        params = params.on_a_belt()
+    m = sc.motion
+    scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
+    if scales != (1.0, 1.0, 1.0):
+        params = dataclasses.replace(params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales))
+    return dataclasses.replace(params, joint_transfers=m.transfers == "joint")
 
 
 class _Timer:
@@ -220,6 +236,8 @@ class Episode:
         self._wall_s = 0.0
         self._result: EpisodeResult | None = None
         self._round_score: dict | None = None  # a clear round's figures, read before the scene closes
+        opts = self.options
+        self.view = EpisodeView(self.scenario, self.seed, opts.open_loop, opts.perception)  # what observers see
 
     # ================================================================================ stepping
     @property
@@ -308,37 +326,21 @@ class Episode:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    @property
-    def truth_name(self) -> str:
-        """The object the viewers label with its true pose: the target, or in a clear round the object
-        nearest where the pick under way looks (truth: for viewers only, never for control)."""
-        if self.target_name or self.world is None:
-            return self.target_name
-        at = getattr(self.machine, "look_at", None) if self.machine is not None else None
-        names = [p.name for p in self.world.layout]
-        if at is None:
-            return names[0]
-        return min(names, key=lambda n: float(np.linalg.norm(self.world.true_pose(n).position[:2] - at[:2])))
-
     # =================================================================================== build
     def _build(self) -> None:
-        from pickdemo.sim.controller import RobotInterface  # simulator side, imported late
-
         sc = self.scenario
-        clear = sc.task == "clear"
-        if not clear and len(sc.targets) != 1:
-            raise EpisodeFailure(Stage.ERROR, f"a pick needs exactly one target; the scenario has {len(sc.targets)}")
+        task = episode_task(sc.task)
+        task.check(sc)
         try:
             world = World(sc, self.seed)  # the layout
         except LayoutError as exc:
             raise EpisodeFailure(Stage.ERROR, str(exc)) from None
         self.world = world
-        if clear:
-            self._build_clear_task()
-        else:
-            self._build_pick_task(world)
+        opts = self.options
+        told = task.told(sc, world, opts.perception_method, opts.perception, opts.open_loop)
+        self.target_name, self.model, self.estimator = told.target_name, told.model, told.estimator
         with self.timer("scene"):
-            world.open(gui=self.options.gui)
+            world.open(gui=opts.gui)
             kin = kinematics_of(world.robot)
         scene = world.scene
         dt = scene.time_step_s
@@ -347,109 +349,36 @@ class Episode:
         self.robot = RobotInterface(scene, self.dt_ctl)
         self.max_steps = int(round(sc.sim.max_sim_time_s / dt))
         self.frame_ticks = max(1, round(1.0 / (sc.control.perception_rate_hz * self.dt_ctl)))
-        self.video_ticks = max(1, round(1.0 / (self.options.video_fps * self.dt_ctl)))
-        self.referee = ClearReferee(sc, world) if clear else Referee(sc, world, self.target_name)
+        self.video_ticks = max(1, round(1.0 / (opts.video_fps * self.dt_ctl)))
+        self.referee = task.referee(sc, world, told)
+        view = self.view
+        view.world, view.model, view.target_name = world, told.model, told.target_name
+        view.dt_ctl, view.frame_ticks = self.dt_ctl, self.frame_ticks
         self._add_observers()
         with self.timer("settle"):
-            scene.settle(int((SETTLE_CLEAR_MAX_S if clear else SETTLE_MAX_S) / dt))
-        if clear:  # a round's objects lie still but for the one picked: those at rest leave the solver
-            scene.let_objects_sleep()
+            scene.settle(int(task.settle_max_s / dt))
+        task.settled(world)
         scene.start_belt()  # a conveyor runs from the robot's first tick
         self.referee.started()  # truth: for scoring only
-        params = self.options.machine
-        if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
-            params = params.on_a_belt()
-        m = sc.motion
-        scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
-        if scales != (1.0, 1.0, 1.0):
-            params = dataclasses.replace(
-                params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales)
-            )
-        params = dataclasses.replace(params, joint_transfers=m.transfers == "joint")
         cameras = [  # what the robot is told of its cameras: intrinsics, poses (as calibrated), depth ranges
             CameraModel(rig.intrinsics, rig.T_tcp_cam, name, on_hand=True, near_m=rig.spec.near_m, far_m=rig.spec.far_m)
             if rig.on_hand
             else CameraModel(rig.intrinsics, rig.T_world_cam, name)
             for name, rig in world.cameras.items()
         ]
-        common = dict(  # what the controller is told of its cell and its arm, for either task
+        common = dict(  # what the controller is told of its cell and its arm, for any task
             kin=kin,
             cameras=cameras,
             q0=self.robot.observe().arm_q,
             dt_s=self.dt_ctl,
             rng=world.rngs["ik"],
-            params=params,
+            params=machine_params(sc, opts.machine),
         )
-        if clear:
-            from pickdemo.skills.clear import ClearSequencer
-
-            assert sc.clear is not None and world.tray is not None
-            self.machine = ClearSequencer(
-                tray=world.tray,
-                max_consecutive_failures=sc.clear.max_consecutive_failures,
-                on_pick_end=self.referee.pick_ended,  # truth: for scoring only
-                **common,
-            )
-            return
-        self.machine = PickMachine(
-            model=self.model,
-            symmetry_rad=self.model.geometry.yaw_symmetry_rad,
-            place_xy=world.place_xy,
-            max_attempts=sc.control.max_attempts,
-            place_tolerance_m=sc.success.place_tolerance,
-            open_loop=self.options.open_loop,
-            surface_z=sc.surface_z,
-            **common,
-        )
-
-    def _build_clear_task(self) -> None:
-        """A clear round: every object is one nobody described, found by its geometry (the paper's method)."""
-        method = self.options.perception_method
-        if method != "paper":
-            raise EpisodeFailure(
-                Stage.PERCEPTION, f"a clear round finds its objects by their geometry: perception {method!r} cannot"
-            )
-        if self.options.open_loop:
-            raise EpisodeFailure(Stage.ERROR, "a clear round runs closed loop only (--open-loop is for a pick)")
-        perception = self.options.perception
-        self.model = TargetModel(Unknown(), color=None)
-        self.estimator = lambda frame, model: estimate_pose(frame, model, perception)
-
-    def _build_pick_task(self, world: World) -> None:
-        """A pick: its target, what the robot is told of it, and how it is seen."""
-        sc = self.scenario
-        self.target_name = sc.target.name
-        drawn = world.placement(self.target_name).geometry
-        widest = world.robot.gripper.max_opening_m - GraspParams().width_margin_m
-        width = drawn.top_down_width_m() if isinstance(drawn, Mesh) else 0.0
-        if width > widest:  # a mesh no top-down grasp can hold: refused before it runs
-            raise EpisodeFailure(
-                Stage.GRASP_PLANNING,
-                f"this seed drew {drawn.urdf} at scale {drawn.scale:.3g}: no top-down grasp can hold it (it is "
-                f"{width * 1e3:.0f} mm across where the fingers would close; at most {widest * 1e3:.0f} mm)",
-            )
-        self.model = target_model(sc, world.placement(self.target_name))
-        method = self.options.perception_method
-        perception = self.options.perception
-        if isinstance(self.model.geometry, Unknown) and method != "paper":
-            raise EpisodeFailure(
-                Stage.PERCEPTION, f"the target is a mesh nobody described: perception {method!r} needs its model"
-            )
-        if method == "paper":  # (an object nobody described: estimate_pose sends it to estimate_unknown)
-            self.estimator = lambda frame, model: estimate_pose(frame, model, perception)
-        else:
-            from pickdemo.perception.estimators import EstimatorError, resolve_estimator
-
-            try:
-                self.estimator = resolve_estimator(method)
-            except EstimatorError as exc:
-                raise EpisodeFailure(Stage.PERCEPTION, str(exc)) from None
+        self.machine = self.view.controller = task.controller(sc, world, told, self.referee, opts.open_loop, common)
 
     def _add_observers(self) -> None:
         """The observers the options ask for, in this order: the trace, the video, the debug
         drawing, the rerun recording; then the caller's."""
-        from pickdemo.runtime.observers import DebugDrawer, VideoRecorder
-
         opts = self.options
         if self.trace is not None:
             self.observers.append(self.trace)
@@ -457,11 +386,9 @@ class Episode:
             fps = round(1.0 / (self.video_ticks * self.dt_ctl))
             self.observers.append(VideoRecorder(opts.video_path, self.video_ticks, fps))
         if opts.gui or opts.debug_draw:
-            self.observers.append(DebugDrawer(self, self.video_ticks))
+            self.observers.append(DebugDrawer(self.view, self.video_ticks))
         if opts.rerun_path is not None:
-            from pickdemo.runtime.recording import RerunRecorder
-
-            self.observers.append(RerunRecorder(self, opts.rerun_path))
+            self.observers.append(RerunRecorder(self.view, opts.rerun_path))
         self.observers.extend(self.extra_observers)
         self._hooks = {
             hook: [(ob.timer, getattr(ob, hook)) for ob in self.observers if _overrides(ob, hook)] for hook in _HOOKS
@@ -470,10 +397,10 @@ class Episode:
     def _notify(self, hook: str, *args) -> None:
         for timer, call in self._hooks.get(hook, ()):
             if timer is None:
-                call(self, *args)
+                call(self.view, *args)
             else:
                 with self.timer(timer):
-                    call(self, *args)
+                    call(self.view, *args)
 
     # ==================================================================================== loop
     def _tick(self) -> bool:
@@ -505,6 +432,7 @@ class Episode:
             self._log_events(now)
             return False
         counts.commanded.append((now, cmd.arm_q))  # always: result.json's limit_exceedances
+        self.view.last_command = cmd.arm_q
         tracking = machine.state in TRACKING_STATES
         counts.tracking_ticks += tracking
         due = self.tick - self._last_frame_tick >= self.frame_ticks  # asked only then: a region costs a prediction
@@ -518,11 +446,10 @@ class Episode:
                 for push in self.pushes:
                     push.step(scene)
                 scene.step()
-        if machine.state in CARRY_STATES:  # truth: how high it was carried, for scoring
-            self.referee.carried()
-        if isinstance(self.referee, ClearReferee):  # truth: what came into the tray, when
-            self.referee.watch()
+        # truth: how high it was carried, what came into a tray: for scoring only
+        self.referee.tick(carrying=machine.state in CARRY_STATES)
         self.tick += 1
+        self.view.tick = self.tick
         return True
 
     def _end_loop(self) -> None:
@@ -535,8 +462,6 @@ class Episode:
 
     def _look(self, request: FrameRequest, now: float) -> None:
         """Render the requested frame and run perception on it (its result is delivered later)."""
-        from pickdemo.sim.disturb import PushPlayer, draw_push
-
         world = self.world
         obs = self.observation  # the joint states when the frame was taken: where the arm is in it
         rig = world.cameras[request.camera]
@@ -551,8 +476,6 @@ class Episode:
                 boxes = (*boxes, world.tray.box())
             frame = dataclasses.replace(frame, robot_boxes=boxes)
         if request.survey:  # a clear round's look at the whole table
-            from pickdemo.perception.unknown import survey_objects
-
             with self.timer("perceive"):
                 survey = survey_objects(frame, self.options.perception)
             self.counts.frames += 1
@@ -600,7 +523,7 @@ class Episode:
         try:
             if self.referee is not None:
                 self.referee.ended()
-                self._round_score = self._clear_score()  # (the truth is read before the scene closes)
+                self._round_score = self.referee.round_score(self.machine)  # (truth: read before the scene closes)
             phases = self.counts.phases
             if failure is not None and not (phases and phases[-1].phase == State.FAILED.value):
                 reason = f"{failure.stage.value}: {failure.reason}"
@@ -672,12 +595,6 @@ class Episode:
             clear=self._round_score,
             trace=self.trace.freeze() if self.trace is not None else None,
         )
-
-    def _clear_score(self) -> dict | None:
-        """A clear round's figures (truth: scored by the referee), or None."""
-        if not isinstance(self.referee, ClearReferee) or self.referee.in_round is None or self.machine is None:
-            return None
-        return self.referee.clear_score(self.machine.picks, self.machine.attempts)
 
 
 def _commanded_arrays(commanded: list[tuple[float, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:

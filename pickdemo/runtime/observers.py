@@ -5,7 +5,7 @@ the command, before the physics steps), each camera ``frame`` with what percepti
 ``estimate`` handed to the controller, each ``phase`` entered, the loop's ``end``; ``close`` last,
 always. Observers may read the simulator's truth (they are for viewers and scoring) but never change
 the episode: no random draw, no render through the scene's camera's random stream, no command. The
-episode (:class:`pickdemo.runtime.episode.Episode`) is what they get: its world, its machine, its clock.
+episode shows them a view of itself (:class:`~pickdemo.runtime.view.EpisodeView`): its world, its controller, its clock.
 
 The rerun recording is a fourth observer, in :mod:`pickdemo.runtime.recording`.
 """
@@ -13,17 +13,26 @@ The rerun recording is a fourth observer, in :mod:`pickdemo.runtime.recording`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from pickdemo.core.camera import RGBDFrame, look_at_pose, rendered_intrinsics
 from pickdemo.core.result import EpisodeTrace, PhaseRecord
 from pickdemo.perception import PerceptionError, PoseEstimate
-
-if TYPE_CHECKING:
-    from pickdemo.runtime.episode import Episode
-    from pickdemo.runtime.video import Overlay
+from pickdemo.runtime.video import (
+    GRASP_STATES,
+    TRACKER_STATES,
+    Overlay,
+    VideoWriter,
+    compose,
+    draw_overlay,
+    magnify,
+    panel_centre,
+)
+from pickdemo.runtime.view import EpisodeView
+from pickdemo.sim.debug import DebugDraw
+from pickdemo.sim.render import render_rgb
 
 Result = PoseEstimate | PerceptionError
 
@@ -40,19 +49,19 @@ class Observer:
 
     timer: str | None = None
 
-    def tick(self, ep: Episode, now: float) -> None:
+    def tick(self, ep: EpisodeView, now: float) -> None:
         """A control tick: the command is applied, the physics is about to step."""
 
-    def frame(self, ep: Episode, now: float, frame: RGBDFrame, result: Result) -> None:
+    def frame(self, ep: EpisodeView, now: float, frame: RGBDFrame, result: Result) -> None:
         """A camera frame was taken and perceived (its result reaches the controller after the latency)."""
 
-    def estimate(self, ep: Episode, now: float, taken_s: float, result: Result, status: str) -> None:
+    def estimate(self, ep: EpisodeView, now: float, taken_s: float, result: Result, status: str) -> None:
         """A frame's result reached the controller (taken at ``taken_s``); ``status``: what it did with it."""
 
-    def phase(self, ep: Episode, record: PhaseRecord) -> None:
+    def phase(self, ep: EpisodeView, record: PhaseRecord) -> None:
         """A state of the pick entered (or a note within one)."""
 
-    def end(self, ep: Episode, now: float) -> None:
+    def end(self, ep: EpisodeView, now: float) -> None:
         """The loop ended (done, failed or out of time), before the episode is scored."""
 
     def close(self) -> None:
@@ -86,8 +95,8 @@ class TraceRecorder(Observer):
     def __init__(self) -> None:
         self.ticks: list[TraceTick] = []
 
-    def tick(self, ep: Episode, now: float) -> None:
-        m = ep.machine
+    def tick(self, ep: EpisodeView, now: float) -> None:
+        m = ep.controller
         s = m.last_sample
         v, a, j = m.cartesian_limits()
         tracked = None
@@ -133,17 +142,16 @@ class _OverlayObserver(Observer):
         self.last_estimate: PoseEstimate | None = None
         self.last_estimate_s = -np.inf
 
-    def estimate(self, ep: Episode, now: float, taken_s: float, result: Result, status: str) -> None:
+    def estimate(self, ep: EpisodeView, now: float, taken_s: float, result: Result, status: str) -> None:
         if isinstance(result, PoseEstimate):
             self.last_estimate, self.last_estimate_s = result, taken_s
 
-    def overlay(self, ep: Episode, now: float) -> Overlay:
+    def overlay(self, ep: EpisodeView, now: float) -> Overlay:
         """What the video and the GUI draw now: the estimate of the newest frame (none once
         perception no longer looks), the truth (a label), the tracker's belief and path while it
         tracks, the chosen grasp until the gripper closes, and a caption."""
-        from pickdemo.runtime.video import GRASP_STATES, TRACKER_STATES, Overlay
 
-        m = ep.machine
+        m = ep.controller
         tracked = path = None
         # An estimate is current until a frame after it is due (the frame period, plus its latency).
         max_age = ep.scenario.control.perception_latency_s + 1.5 * ep.frame_ticks * ep.dt_ctl
@@ -155,8 +163,8 @@ class _OverlayObserver(Observer):
         plan = m.plan
         return Overlay(
             caption=f"{m.state.value}  |  t = {now:5.2f} s  |  "
-            + (f"pick {len(m.picks) + 1}" if ep.scenario.task == "clear" else f"attempt {m.attempt}")
-            + ("  |  open loop" if ep.options.open_loop else ""),
+            + m.progress
+            + ("  |  open loop" if ep.open_loop else ""),
             estimate=self.last_estimate if fresh else None,
             truth=ep.world.true_pose(ep.truth_name),  # a label for the viewer
             tracked=tracked,
@@ -173,24 +181,21 @@ class VideoRecorder(_OverlayObserver):
     timer = "video"
 
     def __init__(self, path: str, every: int, fps: int) -> None:
-        from pickdemo.runtime.video import VideoWriter
 
         super().__init__(every)
         self.writer = VideoWriter(path, fps=fps)
 
-    def tick(self, ep: Episode, now: float) -> None:
+    def tick(self, ep: EpisodeView, now: float) -> None:
         if ep.tick % self.every == 0:
             self._frame(ep, now)
 
-    def end(self, ep: Episode, now: float) -> None:
+    def end(self, ep: EpisodeView, now: float) -> None:
         self._frame(ep, now)  # the last frame: how it ended (and what the verifying look saw)
 
-    def _frame(self, ep: Episode, now: float) -> None:
-        from pickdemo.runtime.video import compose, draw_overlay, magnify, panel_centre
-        from pickdemo.sim.render import render_rgb
+    def _frame(self, ep: EpisodeView, now: float) -> None:
 
         overlay = self.overlay(ep, now)
-        m = ep.machine
+        m = ep.controller
         tracked = m.tracker.predict(now).position if m.tracker.initialised else None
         hand = None if m.last_sample is None else np.asarray(m.last_sample.setpoint[:3], dtype=float)
         place = np.array([*ep.world.place_xy, ep.model.height_m / 2.0])
@@ -211,12 +216,11 @@ class VideoRecorder(_OverlayObserver):
 class DebugDrawer(_OverlayObserver):
     """The same overlays as the video's, as debug lines in the PyBullet window (``--gui``)."""
 
-    def __init__(self, ep: Episode, every: int) -> None:
-        from pickdemo.sim.debug import DebugDraw
+    def __init__(self, ep: EpisodeView, every: int) -> None:
 
         super().__init__(every)
         self.draw = DebugDraw(ep.world.scene)
 
-    def tick(self, ep: Episode, now: float) -> None:
+    def tick(self, ep: EpisodeView, now: float) -> None:
         if ep.tick % self.every == 0:
             self.draw.draw(self.overlay(ep, now))

@@ -22,19 +22,19 @@ Recording never changes the episode: no random draw, no render, nothing the cont
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from pickdemo.core.camera import RGBDFrame
+from pickdemo.core.geometry import Pose
+from pickdemo.core.result import PhaseRecord
 from pickdemo.core.shapes import Box, Cylinder
 from pickdemo.perception import PerceptionError, PoseEstimate
+from pickdemo.perception.segmentation import segment_target, world_heights, world_points
+from pickdemo.perception.unknown import Survey
 from pickdemo.runtime.observers import Observer
-
-if TYPE_CHECKING:
-    from pickdemo.core.geometry import Pose
-    from pickdemo.core.result import PhaseRecord
-    from pickdemo.runtime.episode import Episode
+from pickdemo.runtime.view import EpisodeView
 
 APP_ID = "pickdemo"
 TIMELINE = "sim"
@@ -79,7 +79,7 @@ class RerunRecorder(Observer):
 
     timer = "rerun"
 
-    def __init__(self, ep: Episode, path: str | Path) -> None:
+    def __init__(self, ep: EpisodeView, path: str | Path) -> None:
         rr = import_rerun()
         self.rr = rr
         self.path = Path(path)
@@ -116,22 +116,21 @@ class RerunRecorder(Observer):
         self.rec.log(entity, self.rr.Transform3D(translation=pose.position, mat3x3=pose.rotation))
 
     # --------------------------------------------------------------------------------------- hooks
-    def tick(self, ep: Episode, now: float) -> None:
-        from pickdemo.core.geometry import Pose
+    def tick(self, ep: EpisodeView, now: float) -> None:
 
-        m = ep.machine
+        m = ep.controller
         self.ticks.append(now)
         self.tcp.append(np.array(ep.world.scene.true_tcp_pose().position, dtype=float))
         self.truth.append(ep.world.true_pose(ep.truth_name))  # for the viewer only
         if m.last_sample is not None:
             self.setpoints.append((now, np.array(m.last_sample.setpoint, dtype=float)))
-        if ep.counts.commanded:  # this tick's joint command
-            self.commands.append((now, np.array(ep.counts.commanded[-1][1], dtype=float)))
+        if ep.last_command is not None:  # this tick's joint command
+            self.commands.append((now, np.array(ep.last_command, dtype=float)))
         if m.tracker.initialised:
             tp = m.tracker.predict(now)
             self.tracked.append((now, Pose.from_xyz_rpy(tp.position, yaw=tp.yaw_rad)))
 
-    def frame(self, ep: Episode, now: float, frame: RGBDFrame, result: PoseEstimate | PerceptionError) -> None:
+    def frame(self, ep: EpisodeView, now: float, frame: RGBDFrame, result: PoseEstimate | PerceptionError) -> None:
         rr = self.rr
         self._time(frame.time_s)
         T, K = frame.T_world_cam, frame.intrinsics
@@ -172,12 +171,12 @@ class RerunRecorder(Observer):
             quats.append(_quaternion_xyzw(V))
         self.rec.log("world/target/features", rr.Ellipsoids3D(centers=centres, half_sizes=halves, quaternions=quats))
 
-    def estimate(self, ep: Episode, now: float, taken_s: float, result, status: str) -> None:
+    def estimate(self, ep: EpisodeView, now: float, taken_s: float, result, status: str) -> None:
         self._time(now)
         what = "estimate" if isinstance(result, PoseEstimate) else f"perception error ({result})"
         self.rec.log("estimates", self.rr.TextLog(f"{what} of the frame at {taken_s:.3f} s: {status}"))
 
-    def phase(self, ep: Episode, record: PhaseRecord) -> None:
+    def phase(self, ep: EpisodeView, record: PhaseRecord) -> None:
         self._time(record.sim_time_s)
         self.rec.log("phases", self.rr.TextLog(f"{record.phase}: {record.message}"))
 
@@ -220,12 +219,9 @@ class RerunRecorder(Observer):
         poses("world/tracker", self.tracked)
 
 
-def _target_points(ep: Episode, frame: RGBDFrame, result: object = None) -> np.ndarray:
+def _target_points(ep: EpisodeView, frame: RGBDFrame, result: object = None) -> np.ndarray:
     """The target's pixels in 3-D, as perception's segmentation finds them (none: an empty set); of an
     object nobody described, its cloud; of a clear round's survey, every object's."""
-    from pickdemo.perception import PerceptionError
-    from pickdemo.perception.segmentation import segment_target, world_heights, world_points
-    from pickdemo.perception.unknown import Survey
 
     none = np.zeros((0, 3))
     if isinstance(result, Survey):
@@ -233,11 +229,11 @@ def _target_points(ep: Episode, frame: RGBDFrame, result: object = None) -> np.n
     estimate = result if isinstance(result, PoseEstimate) else getattr(result, "estimate", None)
     if estimate is not None and estimate.cloud is not None:
         return estimate.cloud.points
-    model = ep.machine.model if ep.machine is not None else ep.model
+    model = ep.controller.model if ep.controller is not None else ep.model
     if model.color is None:
         return none
     try:
-        mask = segment_target(frame, model, ep.options.perception, world_heights(frame))
+        mask = segment_target(frame, model, ep.perception, world_heights(frame))
     except PerceptionError:
         return np.zeros((0, 3))
     pts = world_points(frame)[mask]
@@ -246,6 +242,5 @@ def _target_points(ep: Episode, frame: RGBDFrame, result: object = None) -> np.n
 
 def _quaternion_xyzw(R: np.ndarray) -> np.ndarray:
     """A rotation matrix's unit quaternion (x, y, z, w)."""
-    from pickdemo.core.geometry import Pose
 
     return np.asarray(Pose(np.zeros(3), R).quaternion_xyzw, dtype=float)

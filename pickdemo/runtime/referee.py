@@ -106,6 +106,15 @@ class Referee:
         """A tick while the target should be in the hand: how high it got."""
         self.max_z_m = max(self.max_z_m, float(self._truth().position[2]))
 
+    def tick(self, carrying: bool) -> None:
+        """After a control tick's physics: how high the target got while it should be in the hand."""
+        if carrying:
+            self.carried()
+
+    def round_score(self, controller: object) -> None:
+        """A clear round's figures (a pick has none)."""
+        return None
+
     def ended(self) -> None:
         """The episode is over: whether the target ended off the table (below its top, beyond its edges)."""
         if self.start_pose is None:
@@ -241,6 +250,16 @@ class ClearReferee:
 
     def carried(self) -> None:
         pass
+
+    def tick(self, carrying: bool) -> None:
+        """After a control tick's physics: what came to rest in the tray, when."""
+        self.watch()
+
+    def round_score(self, controller) -> dict | None:  # noqa: ANN001 - a pickdemo.skills.clear.ClearSequencer
+        """``result.json``'s ``clear`` (read before the scene closes), or None if the round never started."""
+        if self.in_round is None or controller is None:
+            return None
+        return self.clear_score(controller.picks, controller.attempts)
 
     def lifted_mm(self) -> None:
         return None

@@ -7,10 +7,14 @@ could never succeed is refused before any simulation starts (exit 2), not failed
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
 from pickdemo.core.camera import look_at_pose, project, rendered_intrinsics
+from pickdemo.core.meshes import MeshFileError, expand, read_urdf
+from pickdemo.core.shapes import Mesh
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.grasping.top_down import GraspParams, top_down
 from pickdemo.robot import robot_named
@@ -18,6 +22,7 @@ from pickdemo.robot.description import RobotDescription
 from pickdemo.robot.kinematics import IKParams, kinematics_of
 from pickdemo.scenario.layout import LayoutError, Tray, sample_layout, sample_place, sample_round
 from pickdemo.scenario.schema import ConveyorSpec, ObjectSpec, PlaceSpec, Scenario, ScenarioError
+from pickdemo.scenario.tasks import TASK_RULES
 
 #: The robot's base on the table: nothing may stand within this radius of the origin (m).
 ROBOT_BASE_RADIUS_M = 0.12
@@ -52,10 +57,7 @@ def check_scenario(sc: Scenario) -> None:
     _check_mesh_files(sc)
     _check_objects(sc)
     _check_conveyor(sc)
-    if sc.task == "pick":
-        _check_pick(sc)
-    if sc.task == "clear":
-        _check_clear(sc)
+    TASK_CHECKS[sc.task](sc)
     _check_camera(sc)
     _check_layout(sc)
 
@@ -69,7 +71,6 @@ def _check_mesh_files(sc: Scenario) -> None:
     """Every mesh's files exist and are URDFs pickdemo can read (one line for the first bad one); a
     mesh to pick, some top-down grasp can hold."""
     robot = _robot(sc)
-    from pickdemo.core.meshes import MeshFileError, read_urdf
 
     for obj in sc.objects:
         if obj.shape != "mesh":
@@ -81,14 +82,12 @@ def _check_mesh_files(sc: Scenario) -> None:
                 raise ScenarioError(f"objects.{obj.name}.urdf: {exc}") from None
         elif not obj.urdf_files:  # urdf_choice: its readable matches (a broken one is left out)
             _no_usable_file(f"objects.{obj.name}.urdf_choice", obj.urdf_choice or "")
-        if (obj.target and sc.task == "pick") or sc.task == "clear":
+        if obj.name in _picked(sc):
             _check_mesh_holdable(obj, f"objects.{obj.name}", robot.gripper.max_opening_m - GRIPPER_CLEARANCE_M, robot)
 
 
 def _no_usable_file(key: str, pattern: str) -> None:
     """Raise for a glob none of whose matches can be used: it matches nothing, or the first can't be read."""
-    from pickdemo.core.meshes import MeshFileError, expand, read_urdf
-
     matched = expand(pattern, None)
     if not matched:
         raise ScenarioError(f"{key}: {pattern!r} matches no file")
@@ -215,7 +214,7 @@ def _check_conveyor(sc: Scenario) -> None:
                     f"objects.{obj.name}: where it may stand, its footprint ({r * 1e3:.0f} mm radius) reaches onto "
                     f"the belt's overhang ({overhang}); keep it wholly on the strip or off that"
                 )
-    if sc.task == "pick":
+    if TASK_RULES[sc.task].places_target:
         target = sc.target
         r = target.largest_shape.footprint_radius_m
         for px, py in place_points(sc.place):
@@ -241,7 +240,7 @@ def _check_camera(sc: Scenario) -> None:
     K = rendered_intrinsics(cam.width, cam.height, cam.fov_deg[0], cam.fov_deg[1])
     T_cam_world = look_at_pose(np.array(cam.position), np.array(cam.look_at)).inverse()
     for obj in sc.objects:
-        if not (obj.target or sc.task == "clear"):  # (a clear round picks every object it lists)
+        if obj.name not in {t.name for t in sc.targets}:  # (a clear round's targets: every object it lists)
             continue
         shape = obj.largest_shape
         h, r = shape.height_m, shape.footprint_radius_m
@@ -304,8 +303,6 @@ def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float, robot: R
     """A mesh target some top-down grasp of the hand can hold at its smallest scale (of a
     ``urdf_choice``: at least one of its files; a seed that draws one no grasp can hold is refused
     when its episode is built)."""
-    from pickdemo.core.shapes import Mesh
-
     files = target.urdf_files
     widths = []
     for path in files:
@@ -329,9 +326,10 @@ def _check_layout(sc: Scenario) -> None:
         try:
             rngs = spawn_rngs(seed)
             layout = sample_layout(sc, rngs["layout"], rngs["objects"])
-            if sc.task == "pick":
+            rules = TASK_RULES[sc.task]
+            if rules.places_target:
                 sample_place(sc, layout, rngs["place"])
-            if sc.task == "clear":
+            if rules.draws_round:
                 sample_round(sc, rngs["clear"], layout)
         except LayoutError as exc:
             hint = "widen the position ranges or lower clearance_m" + (", or lower clear.count" if sc.clear else "")
@@ -347,8 +345,6 @@ def _check_clear(sc: Scenario) -> None:
     """A clear round: its objects' files, its region on the table, in reach and in view, room for its
     count, and a tray on the table, in reach, apart from the region."""
     robot = _robot(sc)
-    from pickdemo.core.meshes import MeshFileError, read_urdf
-    from pickdemo.core.shapes import Mesh
 
     spec = sc.clear
     assert spec is not None
@@ -445,3 +441,20 @@ def _check_region_in_view(sc: Scenario, region: tuple[tuple[float, float], tuple
             f"camera: clear.region is not all in the camera's view (a corner projects to pixel ({u:.0f}, {v:.0f}) "
             f"of {K.width}x{K.height}); aim look_at at it or widen fov_deg"
         )
+
+
+def _picked(sc: Scenario) -> set[str]:
+    """The names of the objects the robot picks: a pick's target, every object of a clear round."""
+    return {o.name for o in sc.targets} if TASK_RULES[sc.task].runs_episodes else set()
+
+
+def _no_checks(sc: Scenario) -> None:
+    """A task with no checks of its own (``perceive``: it only looks)."""
+
+
+#: Each task's own checks, by the scenario's ``task`` (:data:`~pickdemo.scenario.tasks.TASK_RULES`).
+TASK_CHECKS: dict[str, Callable[[Scenario], None]] = {
+    "pick": _check_pick,
+    "perceive": _no_checks,
+    "clear": _check_clear,
+}

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo.core.geometry import OrientedBox, Pose
-from pickdemo.core.meshes import MeshFileError
-from pickdemo.core.shapes import Shape
-from pickdemo.scenario.schema import CameraSpec, ObjectSpec, Scenario
+from pickdemo.core.meshes import MeshFileError, read_urdf
+from pickdemo.core.shapes import Mesh, Shape
+from pickdemo.scenario.schema import DRAWN_NAME, CameraSpec, ObjectSpec, Scenario
 
 MAX_DRAWS = 200
 
@@ -70,7 +70,6 @@ class Tray:
         place = scenario.place
         if place.tray is None:
             return None
-        from pickdemo.core.meshes import read_urdf
 
         v = read_urdf(place.tray).vertices * place.tray_scale
         lo, hi = v.min(axis=0), v.max(axis=0)
@@ -84,8 +83,6 @@ class Tray:
     @property
     def base_z(self) -> float:
         """Its body frame's height above the table (its lowest point on the table)."""
-        from pickdemo.core.meshes import read_urdf
-
         return float(-read_urdf(self.urdf).vertices[:, 2].min() * self.scale)
 
     @property
@@ -232,8 +229,6 @@ def sample_round(
     ``placed`` already). ``pile``: anywhere in the region, each above what it would fall on (the
     footprints drawn before it that it overlaps), ``drop_height_m`` higher: the scene lets them fall
     into a heap before the robot's first look."""
-    from pickdemo.scenario.schema import DRAWN_NAME
-
     spec = scenario.clear
     assert spec is not None
     files = spec.files
@@ -251,9 +246,6 @@ def sample_round(
         name = DRAWN_NAME.format(i + 1)
         scale = float(rng.uniform(lo, hi)) if hi > lo else lo
         try:
-            from pickdemo.core.meshes import read_urdf
-            from pickdemo.core.shapes import Mesh
-
             shape = Mesh(files[int(k)], scale, read_urdf(files[int(k)]).vertices * scale)
         except MeshFileError as exc:
             raise LayoutError(f"clear.objects_from: {exc}") from None

@@ -20,6 +20,7 @@ import sys
 from importlib import resources
 from pathlib import Path
 
+from pickdemo.scenario.checks import check_scenario
 from pickdemo.scenario.schema import (
     BELT_ACCELERATION_M_S2,
     BELT_REWIND_M,
@@ -151,8 +152,6 @@ def load_scenario(name_or_path: str | Path, *, check: bool = True, default_task:
         raise ScenarioError(f"{path}: invalid TOML: nested too deeply") from None
     scenario = parse_scenario(data, source=str(path), default_task=default_task)
     if check:
-        from pickdemo.scenario.checks import check_scenario  # loads pinocchio: only when checked (no cycle, see above)
-
         try:
             check_scenario(scenario)
         except ScenarioError as exc:

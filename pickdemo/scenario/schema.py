@@ -25,9 +25,10 @@ from typing import Annotated, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
-from pickdemo.core.meshes import PYBULLET_DATA
-from pickdemo.core.shapes import SHAPES, Shape, ShapeName, make_shape
+from pickdemo.core.meshes import PYBULLET_DATA, read_urdf, usable
+from pickdemo.core.shapes import SHAPES, Mesh, Shape, ShapeName, make_shape
 from pickdemo.robot import robot_named
+from pickdemo.scenario.tasks import TASK_RULES
 
 PositiveFloat = Annotated[float, Field(gt=0.0)]
 UnitFloat = Annotated[float, Field(ge=0.0, le=1.0)]
@@ -333,8 +334,6 @@ class ObjectSpec(_Model):
     def urdf_files(self) -> tuple[str, ...]:
         """A mesh's files: its ``urdf``, or every readable match of its ``urdf_choice`` (sorted; reads
         the disk: :func:`pickdemo.core.meshes.usable`)."""
-        from pickdemo.core.meshes import usable
-
         return (self.urdf,) if self.urdf is not None else usable(self.urdf_choice or "")
 
     @property
@@ -347,9 +346,6 @@ class ObjectSpec(_Model):
     def mesh_shape(self, urdf: str, scale: float) -> Shape:
         """Its mesh from one of its files at a scale (reads the file: a
         :class:`~pickdemo.core.meshes.MeshFileError` for a bad one)."""
-        from pickdemo.core.meshes import read_urdf
-        from pickdemo.core.shapes import Mesh
-
         return Mesh(urdf, scale, read_urdf(urdf).vertices * scale)
 
     @property
@@ -368,9 +364,6 @@ class ObjectSpec(_Model):
         camera). A mesh: every vertex of all its files at its largest scale, as one (it reads them)."""
         if self.shape == "mesh":
             import numpy as np
-
-            from pickdemo.core.meshes import read_urdf
-            from pickdemo.core.shapes import Mesh
 
             files = self.urdf_files
             big = self.scales[1]
@@ -640,8 +633,6 @@ class ClearSpec(_Model):
     @property
     def files(self) -> tuple[str, ...]:
         """The files ``objects_from`` matches that can be read (reads the disk)."""
-        from pickdemo.core.meshes import usable
-
         return usable(self.objects_from)
 
 
@@ -675,19 +666,20 @@ class Scenario(_Model):
 
     @model_validator(mode="after")
     def _check(self) -> Scenario:
-        if self.task == "clear":
+        rules = TASK_RULES[self.task]
+        if rules.draws_round:
             self._check_clear()
         elif not self.objects:
             raise ValueError("at least one object is needed")
         targets = [o for o in self.objects if o.target]
-        if not targets and self.task != "clear":
+        if not targets and not rules.picks_every_object:
             raise ValueError("one object must have target = true")
         names = [o.name for o in self.objects]
         if len(set(names)) != len(names):
             raise ValueError("object names must be unique")
         if not self.description.isprintable():
             raise ValueError("description: control characters are not allowed")
-        if self.task == "pick":
+        if rules.one_target:
             if len(targets) != 1:
                 names_t = ", ".join(o.name for o in targets)
                 raise ValueError(
@@ -728,7 +720,7 @@ class Scenario(_Model):
     def targets(self) -> tuple[ObjectSpec, ...]:
         """Every object marked as a target (perception evaluates them all; a pick needs exactly one; a
         clear round's are all its listed objects)."""
-        if self.task == "clear":
+        if TASK_RULES[self.task].picks_every_object:
             return self.objects
         return tuple(o for o in self.objects if o.target)
 

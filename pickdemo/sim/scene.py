@@ -22,6 +22,7 @@ from pickdemo.robot.description import RobotDescription
 from pickdemo.scenario.layout import Placement, Tray
 from pickdemo.scenario.load import ObjectSpec, Scenario
 from pickdemo.sim import quiet_c_stdout
+from pickdemo.sim.conveyor import Belt
 
 #: The scene's bodies that are not objects on the table.
 FIXTURES = ("robot", "table", "conveyor", "tray")
@@ -116,8 +117,6 @@ class Scene:
         self.bodies: dict[str, int] = {}
         self.belt = None
         if scenario.conveyor is not None:  # before the table: TinyRenderer then shades only the belt where both are
-            from pickdemo.sim.conveyor import Belt
-
             self.belt = Belt(self.client, scenario.conveyor)
             self.bodies["conveyor"] = self.belt.body
         self._build_table()

@@ -209,6 +209,11 @@ class ClearSequencer:
         return self.current.look_at
 
     @property
+    def progress(self) -> str:
+        """Where the round is, said for a viewer: the pick under way."""
+        return f"pick {len(self.picks) + 1}"
+
+    @property
     def last_sample(self) -> MotionSample | None:
         return self.current.last_sample
 

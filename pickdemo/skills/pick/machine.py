@@ -164,6 +164,11 @@ class PickMachine:
         return self.belief.tracker
 
     @property
+    def progress(self) -> str:
+        """Where it is, said for a viewer: the attempt under way."""
+        return f"attempt {self.attempt}"
+
+    @property
     def last_sample(self) -> MotionSample | None:
         return self.arm.sample
 

@@ -1,0 +1,180 @@
+"""Tasks by name: what an episode builds for each task a scenario may name (``task = "pick"`` or
+``"clear"``): what the robot is told of its target and how it sees it, the controller that does the
+task, the referee that scores it against the truth, and how long the objects settle first.
+
+A task is a value in :data:`TASKS`; the episode looks its scenario's up and never branches on the
+name. ``perceive`` runs no episode (``pickdemo perceive`` looks at its scenes), so it has none here.
+A new task is a class with these methods and an entry in :data:`TASKS` (and its scenario checks in
+:mod:`pickdemo.scenario.checks`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from pickdemo.core.result import EpisodeFailure, Stage
+from pickdemo.core.shapes import Mesh, Unknown
+from pickdemo.grasping.top_down import GraspParams
+from pickdemo.perception import PerceptionParams, PoseEstimate, TargetModel, estimate_pose
+from pickdemo.perception.estimators import EstimatorError, resolve_estimator
+from pickdemo.runtime.referee import ClearReferee, Referee
+from pickdemo.runtime.world import World
+from pickdemo.scenario.load import Scenario
+from pickdemo.scenario.task import target_model
+from pickdemo.skills.clear import ClearSequencer
+from pickdemo.skills.pick import PickMachine
+
+Estimator = Callable[..., PoseEstimate]
+
+
+@dataclass(frozen=True)
+class Told:
+    """What the robot is told of its task's target, and how it sees it."""
+
+    target_name: str  # "" when the task has no one target (a clear round)
+    model: TargetModel
+    estimator: Estimator
+
+
+class EpisodeTask(Protocol):
+    """One task an episode can run."""
+
+    name: str
+    settle_max_s: float  # the objects come to rest before the first look, within this
+
+    def check(self, scenario: Scenario) -> None:
+        """An :class:`EpisodeFailure` for a scenario this task cannot run (before its world is laid out)."""
+        ...
+
+    def told(
+        self, scenario: Scenario, world: World, method: str, perception: PerceptionParams, open_loop: bool
+    ) -> Told:
+        """The target, its model and the estimator; an :class:`EpisodeFailure` when the task cannot run so."""
+        ...
+
+    def referee(self, scenario: Scenario, world: World, told: Told) -> Referee | ClearReferee: ...
+
+    def controller(  # noqa: ANN201
+        self, scenario: Scenario, world: World, told: Told, referee: Any, open_loop: bool, common: dict
+    ):
+        """The controller (:class:`~pickdemo.skills.pick.PickMachine` or a sequencer of them)."""
+        ...
+
+    def settled(self, world: World) -> None:
+        """The objects have come to rest: the scene before the robot's first tick."""
+        ...
+
+
+def _paper(perception: PerceptionParams) -> Estimator:
+    return lambda frame, model: estimate_pose(frame, model, perception)
+
+
+class PickTask:
+    """Pick one target and put it down at the place."""
+
+    name = "pick"
+    settle_max_s = 2.0
+
+    def check(self, scenario: Scenario) -> None:
+        if len(scenario.targets) != 1:
+            n = len(scenario.targets)
+            raise EpisodeFailure(Stage.ERROR, f"a pick needs exactly one target; the scenario has {n}")
+
+    def told(
+        self, scenario: Scenario, world: World, method: str, perception: PerceptionParams, open_loop: bool
+    ) -> Told:
+        name = scenario.target.name
+        drawn = world.placement(name).geometry
+        widest = world.robot.gripper.max_opening_m - GraspParams().width_margin_m
+        width = drawn.top_down_width_m() if isinstance(drawn, Mesh) else 0.0
+        if width > widest:  # a mesh no top-down grasp can hold: refused before it runs
+            raise EpisodeFailure(
+                Stage.GRASP_PLANNING,
+                f"this seed drew {drawn.urdf} at scale {drawn.scale:.3g}: no top-down grasp can hold it (it is "
+                f"{width * 1e3:.0f} mm across where the fingers would close; at most {widest * 1e3:.0f} mm)",
+            )
+        model = target_model(scenario, world.placement(name))
+        if isinstance(model.geometry, Unknown) and method != "paper":
+            raise EpisodeFailure(
+                Stage.PERCEPTION, f"the target is a mesh nobody described: perception {method!r} needs its model"
+            )
+        if method == "paper":  # (an object nobody described: estimate_pose sends it to estimate_unknown)
+            return Told(name, model, _paper(perception))
+        try:
+            return Told(name, model, resolve_estimator(method))
+        except EstimatorError as exc:
+            raise EpisodeFailure(Stage.PERCEPTION, str(exc)) from None
+
+    def referee(self, scenario: Scenario, world: World, told: Told) -> Referee:
+        return Referee(scenario, world, told.target_name)
+
+    def controller(  # noqa: ANN201
+        self, scenario: Scenario, world: World, told: Told, referee: Any, open_loop: bool, common: dict
+    ):
+        return PickMachine(
+            model=told.model,
+            symmetry_rad=told.model.geometry.yaw_symmetry_rad,
+            place_xy=world.place_xy,
+            max_attempts=scenario.control.max_attempts,
+            place_tolerance_m=scenario.success.place_tolerance,
+            open_loop=open_loop,
+            surface_z=scenario.surface_z,
+            **common,
+        )
+
+    def settled(self, world: World) -> None:
+        pass
+
+
+class ClearTask:
+    """Clear the table: every object into the tray, one pick after another."""
+
+    name = "clear"
+    settle_max_s = 4.0  # a pile falls into its heap
+
+    def check(self, scenario: Scenario) -> None:
+        pass
+
+    def told(
+        self, scenario: Scenario, world: World, method: str, perception: PerceptionParams, open_loop: bool
+    ) -> Told:
+        """Every object is one nobody described, found by its geometry (the paper's method)."""
+        if method != "paper":
+            raise EpisodeFailure(
+                Stage.PERCEPTION, f"a clear round finds its objects by their geometry: perception {method!r} cannot"
+            )
+        if open_loop:
+            raise EpisodeFailure(Stage.ERROR, "a clear round runs closed loop only (--open-loop is for a pick)")
+        return Told("", TargetModel(Unknown(), color=None), _paper(perception))
+
+    def referee(self, scenario: Scenario, world: World, told: Told) -> ClearReferee:
+        return ClearReferee(scenario, world)
+
+    def controller(  # noqa: ANN201
+        self, scenario: Scenario, world: World, told: Told, referee: Any, open_loop: bool, common: dict
+    ):
+        assert scenario.clear is not None and world.tray is not None
+        return ClearSequencer(
+            tray=world.tray,
+            max_consecutive_failures=scenario.clear.max_consecutive_failures,
+            on_pick_end=referee.pick_ended,  # truth: for scoring only
+            **common,
+        )
+
+    def settled(self, world: World) -> None:
+        # a round's objects lie still but for the one picked: those at rest leave the solver
+        world.scene.let_objects_sleep()
+
+
+#: The tasks an episode runs, by the scenario's ``task``.
+TASKS: dict[str, EpisodeTask] = {task.name: task for task in (PickTask(), ClearTask())}
+
+
+def episode_task(name: str) -> EpisodeTask:
+    """The task of this name; an :class:`EpisodeFailure` for one that runs no episode (``perceive``)."""
+    task = TASKS.get(name)
+    if task is None:
+        raise EpisodeFailure(Stage.ERROR, f'task = "{name}" runs no episode (use `pickdemo perceive` to look at it)')
+    return task
