@@ -35,7 +35,7 @@ from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import RateLimiter
 from pickdemo.scenario.layout import sample_layout
-from pickdemo.scenario.schema import parse_scenario
+from pickdemo.scenario.parse import parse_scenario
 
 ROBOT = robot_named()
 

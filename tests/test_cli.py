@@ -140,7 +140,7 @@ def test_episode_options_from_the_package_and_import_stays_light() -> None:
 
 
 def test_yaw_is_said_modulo_the_targets_symmetry() -> None:
-    from pickdemo.apps.cli import summary_line, yaw_modulus_deg
+    from pickdemo.apps.summary import summary_line, yaw_modulus_deg
     from pickdemo.core.result import EpisodeResult, PerceptionScore
     from pickdemo.scenario.load import load_scenario
 

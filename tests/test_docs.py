@@ -13,7 +13,7 @@ import pytest
 from pydantic import BaseModel
 
 from pickdemo.core.result import EpisodeResult, Stage
-from pickdemo.scenario import schema
+from pickdemo.scenario import load as schema  # (it names every section of the schema)
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -11,7 +11,7 @@ from pickdemo.core.meshes import expand, obj_vertices, pybullet_data_dir, read_u
 from pickdemo.core.shapes import Box, Mesh
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.scenario.layout import sample_layout
-from pickdemo.scenario.schema import parse_scenario
+from pickdemo.scenario.parse import parse_scenario
 
 
 def _scenario(*objects: dict) -> dict:

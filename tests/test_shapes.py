@@ -12,9 +12,9 @@ import pickdemo
 from pickdemo.core.geometry import Pose
 from pickdemo.core.shapes import SHAPES, Box, Cylinder, make_shape
 from pickdemo.core.streams import spawn_rngs
+from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.layout import sample_layout
 from pickdemo.scenario.load import load_scenario, parse_scenario
-from pickdemo.scenario.schema import ScenarioError
 from pickdemo.scenario.task import target_model
 
 

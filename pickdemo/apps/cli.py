@@ -31,11 +31,11 @@ from pathlib import Path
 from pickdemo.apps import bench, perceive, report
 from pickdemo.apps.bench import DEFAULT_MIN_SUCCESS
 from pickdemo.apps.profile import profile
+from pickdemo.apps.summary import summary_line, yaw_modulus_deg
 from pickdemo.core.result import EpisodeResult, PhaseRecord
 from pickdemo.perception.estimators import EstimatorError, resolve_estimator
 from pickdemo.runtime.episode import EpisodeOptions, run_episode
 from pickdemo.scenario.load import (
-    ObjectSpec,
     Scenario,
     ScenarioError,
     list_scenarios,
@@ -176,59 +176,6 @@ def build_parser() -> argparse.ArgumentParser:
     listing = sub.add_parser("list", help="list the shipped scenarios with their descriptions")
     listing.add_argument("--names", action="store_true", help="only the names, one a line (for scripts)")
     return parser
-
-
-def yaw_modulus_deg(target: ObjectSpec) -> float | None:
-    """The turn (deg) after which the target looks the same, modulo which its yaw is estimated and
-    scored (90 for a square box, 180 for another box); None for a cylinder, which has no yaw."""
-    if target.shape == "mesh":
-        return 180.0  # seen as an unknown object: its principal axes, a half turn
-    symmetry = target.largest_shape.yaw_symmetry_rad
-    if symmetry == 0.0:
-        return None
-    if target.size is None:  # drawn per seed: square only if both sides are one fixed value
-        (a0, a1), (b0, b1) = target.size_range[:2]  # type: ignore[index]
-        if not a0 == a1 == b0 == b1:
-            return 180.0  # a box's half turn
-    return math.degrees(symmetry)
-
-
-def summary_line(result: EpisodeResult, yaw_modulus: float | None = None) -> str:
-    head = "SUCCESS" if result.success else f"FAILED in {result.failure.stage.value}"  # type: ignore[union-attr]
-    parts = [f"{head}: {result.scenario} seed {result.seed}"]
-    if result.perception_method != "paper":
-        parts[0] += f" [{result.perception_method}]"
-    if result.perception is not None:
-        yaw = result.perception.yaw_error_deg
-        modulo = f" modulo {yaw_modulus:g} deg" if yaw_modulus else ""
-        parts.append(
-            f"pose error {result.perception.position_error_mm:.2f} mm"
-            + (f", yaw error {yaw:.2f} deg{modulo}" if yaw is not None else "")
-        )
-    if result.place_error_mm is not None:
-        parts.append(f"place error {result.place_error_mm:.1f} mm")
-    c = result.clear
-    if c is not None:
-        rate = c["grasp_success_rate"]
-        parts.append(
-            f"cleared {c['cleared']}/{c['total']} ({c['percent_cleared']:.0f} %), "
-            f"grasps {c['successful_grasps']}/{c['grasp_attempts']}"
-            + (f" ({100 * rate:.0f} %)" if rate is not None else "")
-            + f", {c['picks_per_hour']:.0f} picks/h"
-        )
-    if result.attempts:
-        parts.append(f"{len(result.attempts)} attempt(s)")
-    parts.append(f"{result.perception_frames} frames")
-    video = result.stage_wall_times_s.get("video")
-    parts.append(
-        f"{result.sim_time_s:.1f} s simulated in {result.wall_time_s:.2f} s"
-        + (f" ({video:.2f} s of it the video)" if video else "")
-    )
-    line = " | ".join(parts)
-    if result.failure is not None:
-        line += f"\n  reason: {result.failure.reason}"
-        line += f"\n  diagnosis (from the truth): {result.diagnosis}"
-    return line
 
 
 def _check_seed(seed: int) -> None:

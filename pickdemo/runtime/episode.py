@@ -25,9 +25,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
-
-import numpy as np
+from dataclasses import dataclass
 
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import (
@@ -35,14 +33,10 @@ from pickdemo.core.result import (
     EpisodeResult,
     Failure,
     PhaseRecord,
-    RateLimits,
     Stage,
-    limit_exceedances,
-    peak_limit_ratios,
 )
 from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel
 from pickdemo.perception.unknown import survey_objects
-from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
 from pickdemo.robot.self_geometry import robot_body
@@ -57,6 +51,7 @@ from pickdemo.runtime.observers import (
 )
 from pickdemo.runtime.recording import RerunRecorder
 from pickdemo.runtime.referee import PERCEPTION_OFF_MM, Referee, diagnose
+from pickdemo.runtime.results import LoopCounts, episode_result
 from pickdemo.runtime.tasks import episode_task
 from pickdemo.runtime.view import EpisodeView
 from pickdemo.runtime.world import World
@@ -162,18 +157,6 @@ class _InFlight:
     camera: str = "camera"  # which camera took the frame
 
 
-@dataclass
-class _Counts:
-    """What the loop counts as it runs (the truth's view is the referee's)."""
-
-    phases: list[PhaseRecord] = field(default_factory=list)
-    frames: int = 0
-    tracking_frames: int = 0  # frames taken while tracking (approach, descend, close, back off)
-    tracking_ticks: int = 0
-    tick_ms: list[float] = field(default_factory=list)
-    commanded: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (t, joint command) per tick
-
-
 class Episode:
     """One seeded episode of a scenario, stepped one control tick at a time::
 
@@ -217,7 +200,7 @@ class Episode:
         self.observers: list[Observer] = []
         self.trace = TraceRecorder() if self.options.record_trace else None  # (an empty trace if it never ran)
         self.pushes: list = []  # the disturbances, drawn at the first look
-        self.counts = _Counts()
+        self.counts = LoopCounts()
         self.substeps = 1  # physics steps per control tick
         self.dt_ctl = 0.0  # one control tick (s)
         self.max_steps = 0  # the simulated-time budget, in physics steps
@@ -547,66 +530,20 @@ class Episode:
                 self.world.close()
 
     def _make_result(self) -> EpisodeResult:
-        counts, ref, m, failure = self.counts, self.referee, self.machine, self._failure
-        ticks = np.array(counts.tick_ms) if counts.tick_ms else np.zeros(1)
-        lifted = ref.lifted_mm() if ref is not None and m is not None and m.attempts else None
-        tracking_error_mm = ref.tracking_error_mm if ref is not None else None
-        rates = (self.world.robot if self.world is not None else robot_named()).limits.rates()
-        return EpisodeResult(
-            scenario=self.scenario.name,
+        return episode_result(
+            scenario=self.scenario,
             seed=self.seed,
-            success=failure is None,
-            failure=failure,
-            perception=ref.perception if ref is not None else None,
-            place_error_mm=ref.place_error_mm if ref is not None else None,
-            lift_height_mm=lifted,
-            grasp_width_mm=None if m is None or m.grasp_width_m is None else m.grasp_width_m * 1e3,
+            options=self.options,
+            failure=self._failure,
+            counts=self.counts,
+            referee=self.referee,
+            controller=self.machine,
+            world=self.world,
             sim_time_s=self._sim_time_s,
-            wall_time_s=self._wall_s,
-            stage_wall_times_s={k: round(v, 6) for k, v in self.timer.times.items()},
-            phases=tuple(counts.phases),
-            open_loop=self.options.open_loop,
-            attempts=tuple(m.attempts) if m is not None else (),
-            perception_frames=counts.frames,
-            perception_rate_hz=(
-                counts.tracking_frames / (counts.tracking_ticks * self.dt_ctl) if counts.tracking_ticks else None
-            ),
-            estimates_rejected=m.counters.rejected if m is not None else 0,
-            perception_failures=m.counters.perception_errors if m is not None else 0,
-            target_moves_detected=m.counters.jumps if m is not None else 0,
-            retargets=m.counters.retargets if m is not None else 0,
-            tracking_error_mm=tracking_error_mm,
-            tracking_yaw_error_deg=ref.tracking_yaw_deg if ref is not None else None,
-            diagnosis=diagnose(failure, tracking_error_mm),
-            estimates_off=ref.wrong_estimates if ref is not None else 0,
-            estimates_off_accepted=ref.wrong_estimates_accepted if ref is not None else 0,
-            estimates_off_fit_rejected=ref.wrong_estimates_self_rejected if ref is not None else 0,
-            target_off_table=ref.off_table if ref is not None else None,
-            perception_method=self.options.perception_method,
-            disturbances=tuple(p.push.to_dict() for p in self.pushes),
-            control_tick_wall_ms={
-                "median": float(np.median(ticks)),
-                "p95": float(np.percentile(ticks, 95)),
-                "ticks": len(counts.tick_ms),
-            },
-            limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded, rates)),
-            peak_joint_limit_ratio=_peak_ratios(counts.commanded, rates),
-            place_position_m=None if self.world is None else self.world.place_xy,
-            clear=self._round_score,
-            trace=self.trace.freeze() if self.trace is not None else None,
+            wall_s=self._wall_s,
+            stage_wall_times_s=self.timer.times,
+            dt_ctl=self.dt_ctl,
+            pushes=self.pushes,
+            round_score=self._round_score,
+            trace=self.trace,
         )
-
-
-def _commanded_arrays(commanded: list[tuple[float, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    t, q = zip(*commanded, strict=True)
-    return np.array(t, dtype=float), np.array(q, dtype=float).reshape(len(t), -1)
-
-
-def _peak_ratios(commanded: list[tuple[float, np.ndarray]], limits: RateLimits) -> dict[str, float] | None:
-    """The commanded joint motion's largest ratios to the datasheet limits (``peak_joint_limit_ratio``)."""
-    return None if len(commanded) < 4 else peak_limit_ratios(*_commanded_arrays(commanded), limits)
-
-
-def _exceedances(commanded: list[tuple[float, np.ndarray]], limits: RateLimits):  # noqa: ANN202
-    """The joint command's excursions beyond the datasheet limits (as the motion plot marks them)."""
-    return [] if len(commanded) < 4 else limit_exceedances(*_commanded_arrays(commanded), limits)

@@ -20,8 +20,11 @@ from pickdemo.grasping.top_down import GraspParams, top_down
 from pickdemo.robot import robot_named
 from pickdemo.robot.description import RobotDescription
 from pickdemo.robot.kinematics import IKParams, kinematics_of
+from pickdemo.scenario.base import ScenarioError
+from pickdemo.scenario.belt import ConveyorSpec
 from pickdemo.scenario.layout import LayoutError, Tray, sample_layout, sample_place, sample_round
-from pickdemo.scenario.schema import ConveyorSpec, ObjectSpec, PlaceSpec, Scenario, ScenarioError
+from pickdemo.scenario.objects import ObjectSpec, PlaceSpec
+from pickdemo.scenario.schema import Scenario
 from pickdemo.scenario.tasks import TASK_RULES
 
 #: The robot's base on the table: nothing may stand within this radius of the origin (m).

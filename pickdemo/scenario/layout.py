@@ -16,7 +16,10 @@ import numpy as np
 from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.core.meshes import MeshFileError, read_urdf
 from pickdemo.core.shapes import Mesh, Shape
-from pickdemo.scenario.schema import DRAWN_NAME, CameraSpec, ObjectSpec, Scenario
+from pickdemo.scenario.base import DRAWN_NAME
+from pickdemo.scenario.objects import ObjectSpec
+from pickdemo.scenario.schema import Scenario
+from pickdemo.scenario.sensors import CameraSpec
 
 MAX_DRAWS = 200
 

@@ -20,34 +20,22 @@ import sys
 from importlib import resources
 from pathlib import Path
 
+from pickdemo.scenario.base import NAME_PATTERN, RESERVED_NAMES, ScenarioError, printable
+from pickdemo.scenario.belt import BELT_ACCELERATION_M_S2, BELT_REWIND_M, MAX_TIME_STEP_S, BeltSlab, ConveyorSpec
 from pickdemo.scenario.checks import check_scenario
+from pickdemo.scenario.objects import ObjectSpec, PlaceSpec, ReferenceSpec, TableSpec
+from pickdemo.scenario.parse import parse_scenario
 from pickdemo.scenario.schema import (
-    BELT_ACCELERATION_M_S2,
-    BELT_REWIND_M,
-    MAX_TIME_STEP_S,
-    NAME_PATTERN,
-    RESERVED_NAMES,
-    SENSOR_PRESETS,
-    BeltSlab,
-    CameraSpec,
     ClearSpec,
     ControlSpec,
-    ConveyorSpec,
     DisturbanceSpec,
     LayoutSpec,
     MotionSpec,
-    ObjectSpec,
-    PlaceSpec,
-    ReferenceSpec,
     Scenario,
-    ScenarioError,
     SimSpec,
     SuccessSpec,
-    TableSpec,
-    WristCameraSpec,
-    parse_scenario,
-    printable,
 )
+from pickdemo.scenario.sensors import SENSOR_PRESETS, CameraSpec, WristCameraSpec
 
 if sys.version_info >= (3, 11):
     import tomllib
