@@ -237,6 +237,15 @@ class Scale:
     def grip_force_n(self, payload_kg: float) -> float:
         return self.p.grip_n_per_kg * payload_kg
 
+    def weigh(self, load_z_n: float, grip_force_n: float, max_force_n: float) -> tuple[float, float] | None:
+        """A reading lifted, at rest (readings on the move are no use: the simulated sensor, like the
+        Franka's estimate, misses the motors' share then); once enough are in, the payload (kg) and
+        the grip force it asks for (N, at least ``grip_force_n``, at most ``max_force_n``)."""
+        payload = self.read(load_z_n, 0.0)
+        if payload is None:
+            return None
+        return payload, min(max(grip_force_n, self.grip_force_n(payload)), max_force_n)
+
     def carry_share(self) -> float:
         """The carry's speed share for what was weighed: a heavier hold is carried more gently (its
         accelerations as the square of this), so that it does not swing in the pads."""

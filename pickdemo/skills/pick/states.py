@@ -49,15 +49,14 @@ def _wrist_load(m: PickMachine, obs: Observation) -> float:
 
 
 def _weigh(m: PickMachine, obs: Observation) -> bool:
-    """Lifted, at rest: weigh what hangs in the fingers (a few ticks), and grip as hard as it
-    needs; True once weighed. (Readings on the move are no use: the simulated sensor, like the
-    Franka's estimate, misses the motors' share then.)"""
+    """Lifted, at rest: weigh what hangs in the fingers (a few ticks, :meth:`~pickdemo.skills.actions.Scale.weigh`),
+    and grip as hard as it needs; True once weighed."""
     if m.scale.payload_kg is not None:
         return True
-    payload = m.scale.read(_wrist_load(m, obs), 0.0)
-    if payload is None:
+    weighed = m.scale.weigh(_wrist_load(m, obs), m.grip_force_n, m.p.max_grip_force_n)
+    if weighed is None:
         return False
-    force = min(max(m.grip_force_n, m.scale.grip_force_n(payload)), m.p.max_grip_force_n)
+    payload, force = weighed
     m.weighed_force_n = force
     note = f"weighed {payload:.2f} kg at the wrist"
     if force > m.grip.force_n:
