@@ -24,7 +24,7 @@ from pickdemo.skills.pick import MachineParams
 
 ROBOT = robot_named()
 
-SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
 
 def _conveyor_toml(**edits: str) -> str:

@@ -9,7 +9,7 @@ import pytest
 
 from pickdemo.scenario.load import ScenarioError, list_scenarios, load_scenario
 
-SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
 GOOD = """
 name = "t"
