@@ -59,7 +59,8 @@ from pickdemo.scenario.layout import LayoutError
 from pickdemo.scenario.load import Scenario
 from pickdemo.sim.controller import RobotInterface
 from pickdemo.sim.disturb import PushPlayer, draw_push
-from pickdemo.skills.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, PickMachine, State
+from pickdemo.skills.controller import Controller
+from pickdemo.skills.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, State
 
 __all__ = [
     "PERCEPTION_OFF_MM",
@@ -192,7 +193,7 @@ class Episode:
         self.timer = _Timer()
         self.world: World | None = None
         self.robot: RobotInterface | None = None
-        self.machine: PickMachine | None = None
+        self.machine: Controller | None = None  # the task's controller (a pick, a clear round)
         self.model: TargetModel | None = None
         self.target_name: str = ""
         self.estimator: Callable[..., PoseEstimate] | None = None

@@ -24,6 +24,7 @@ from pickdemo.runtime.world import World
 from pickdemo.scenario.load import Scenario
 from pickdemo.scenario.task import target_model
 from pickdemo.skills.clear import ClearSequencer
+from pickdemo.skills.controller import Controller
 from pickdemo.skills.pick import PickMachine
 
 Estimator = Callable[..., PoseEstimate]
@@ -56,9 +57,9 @@ class EpisodeTask(Protocol):
 
     def referee(self, scenario: Scenario, world: World, told: Told) -> Referee | ClearReferee: ...
 
-    def controller(  # noqa: ANN201
+    def controller(
         self, scenario: Scenario, world: World, told: Told, referee: Any, open_loop: bool, common: dict
-    ):
+    ) -> Controller:
         """The controller (:class:`~pickdemo.skills.pick.PickMachine` or a sequencer of them)."""
         ...
 
@@ -110,9 +111,9 @@ class PickTask:
     def referee(self, scenario: Scenario, world: World, told: Told) -> Referee:
         return Referee(scenario, world, told.target_name)
 
-    def controller(  # noqa: ANN201
+    def controller(
         self, scenario: Scenario, world: World, told: Told, referee: Any, open_loop: bool, common: dict
-    ):
+    ) -> Controller:
         return PickMachine(
             model=told.model,
             symmetry_rad=told.model.geometry.yaw_symmetry_rad,
@@ -152,9 +153,9 @@ class ClearTask:
     def referee(self, scenario: Scenario, world: World, told: Told) -> ClearReferee:
         return ClearReferee(scenario, world)
 
-    def controller(  # noqa: ANN201
+    def controller(
         self, scenario: Scenario, world: World, told: Told, referee: Any, open_loop: bool, common: dict
-    ):
+    ) -> Controller:
         assert scenario.clear is not None and world.tray is not None
         return ClearSequencer(
             tray=world.tray,

@@ -10,13 +10,13 @@ tick; an observer has nothing on it to step, command or draw a random number wit
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from pickdemo.perception import PerceptionParams, TargetModel
 from pickdemo.runtime.world import World
 from pickdemo.scenario.load import Scenario
+from pickdemo.skills.controller import Controller
 
 
 @dataclass
@@ -28,7 +28,7 @@ class EpisodeView:
     open_loop: bool
     perception: PerceptionParams  # the perception's parameters (a viewer segments the frames as it did)
     world: World | None = None
-    controller: Any = None  # PickMachine or ClearSequencer: their state, tracker, plan, last_sample, ...
+    controller: Controller | None = None  # its read side: state, tracker, plan, last_sample, ...
     model: TargetModel | None = None  # what the robot is told of its target
     target_name: str = ""  # "" in a clear round
     dt_ctl: float = 0.0  # one control tick (s)
