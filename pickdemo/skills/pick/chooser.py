@@ -18,7 +18,7 @@ from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import TargetModel
 from pickdemo.robot.kinematics import IKParams, Kinematics
 from pickdemo.skills.pick.arm import ArmDriver
-from pickdemo.skills.pick.intercept import Interceptor
+from pickdemo.skills.pick.intercept import Interceptor, leaves_reach
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.tracking.belief import TargetBelief
@@ -200,7 +200,7 @@ class GraspChooser:
             res = self.kin.solve(target, q, self.rng, IKParams())
             if not res.success:
                 if name not in ("grasp", "place"):  # a moving target's
-                    return f"the target leaves the arm's reach before the arm can meet it: {name} is out of reach"
+                    return leaves_reach(name)
                 return f"{name} pose out of reach: {res.reason}"
         # Above the place, some IK solution from which the lowering can be followed: with joint
         # transfers the carry may go in joint space to any of them, the hand turned half a turn or not.

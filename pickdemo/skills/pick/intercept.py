@@ -15,6 +15,11 @@ from pickdemo.skills.pick.params import MachineParams
 from pickdemo.tracking.belief import TargetBelief
 
 
+def leaves_reach(where: str) -> str:
+    """Why a moving target cannot be picked: where the arm would meet or hold it is out of reach."""
+    return f"the target leaves the arm's reach before the arm can meet it: {where} is out of reach"
+
+
 class Interceptor:
     """A target the tracker sees moving (a belt) is met where it will be: each re-target solves for the
     soonest time the hand can be at the plan's pose carried along at the target's velocity, and sends
@@ -100,5 +105,5 @@ class Interceptor:
             return reach
         for name, target in reach:
             if not self.kin.solve(target, self.arm.motion.q, self.rng, IKParams()).success:
-                return f"the target leaves the arm's reach before the arm can meet it: {name} is out of reach"
+                return leaves_reach(name)
         return ""

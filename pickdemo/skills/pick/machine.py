@@ -112,7 +112,7 @@ class PickMachine:
         self.intercept = Interceptor(kin, rng, p, self.belief, self.arm, open_loop=open_loop)
         self.chooser = GraspChooser(kin, rng, p, model, place_xy, selector, self.belief, self.arm, self.intercept)
         self.watch = MoveWatch(kin, p, model, self.belief, self.hand_cameras, open_loop=open_loop)
-        self.cameras = ViewPlanner(
+        self.view_planner = ViewPlanner(
             kin, p, model, self.belief, self.watch, cameras, place_xy, look_at=self.look_at, open_loop=open_loop
         )
         # What happened.
@@ -183,7 +183,7 @@ class PickMachine:
     def views(self, now_s: float) -> list[FrameRequest]:
         """The frames its cameras should take now (the loop applies the frame rate)."""
         ready = self.entered and self.arm.finished
-        return self.cameras.requests(
+        return self.view_planner.requests(
             now_s, self.state, ready=ready, since_s=self.since_s, verify_asked=self.verify_asked, plan=self.plan,
             arm_q=self.arm_q,
         )  # fmt: skip
