@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 import pytest
-from test_unknown_object import T_CAM, Block, K, render
+from raycast import T_CAM, Block, K, render
 
 from pickdemo.apps.bench import clear_summary, format_summary, summarise
 from pickdemo.core.interfaces import Observation
