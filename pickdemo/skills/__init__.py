@@ -1,3 +1,3 @@
-"""What the robot does, as controllers called once per control tick: the pick skill (a state
-machine and its parts), the clearing sequencer, and the actions they drive (a move of the hand, a
-grip, a scale)."""
+"""What the robot does, as controllers called once per control tick (the ``Controller``
+protocol, :mod:`pickdemo.skills.controller`): the pick skill (a machine, its states and its parts),
+a clear round that sequences picks, and the actions they drive (a move of the hand, a grip, a scale)."""
