@@ -59,6 +59,7 @@ def check_scenario(sc: Scenario) -> None:
     """Raise :class:`ScenarioError` (``key: what is impossible``) for a scenario that cannot run."""
     _check_mesh_files(sc)
     _check_objects(sc)
+    _check_place_free(sc)
     _check_conveyor(sc)
     TASK_CHECKS[sc.task](sc)
     _check_camera(sc)
@@ -134,6 +135,25 @@ def _check_objects(sc: Scenario) -> None:
         if not table.holds(px, py):
             where = "" if sc.place.position is not None else "the region reaches off the table: "
             raise ScenarioError(f"{sc.place.key}: {where}({px:.3f}, {py:.3f}) m is off the table")
+
+
+def _check_place_free(sc: Scenario) -> None:
+    """A fixed place spot that an object standing at a fixed position takes (the target, put down
+    there, would land on it or against it) is refused: the object's footprint comes nearer the spot
+    than the target's footprint radius. (A spot drawn per seed is drawn clear of the objects.)"""
+    if not TASK_RULES[sc.task].places_target or sc.place.position is None:
+        return
+    px, py = (float(v) for v in sc.place.position[:2])
+    r_mm = sc.target.largest_shape.footprint_radius_m * 1e3
+    for obj in sc.objects:
+        if obj.target or obj.position is None:
+            continue
+        inside_mm = cv2.pointPolygonTest(_footprint_mm(obj), (px * 1e3, py * 1e3), True)  # > 0: inside it
+        if inside_mm > -r_mm:
+            raise ScenarioError(
+                f"{sc.place.key}: ({px:.3f}, {py:.3f}) m is taken: objects.{obj.name} stands there (the target "
+                f"needs {r_mm:.0f} mm clear around it); put the place elsewhere or move the object"
+            )
 
 
 def place_points(place: PlaceSpec, n: int = 5) -> list[tuple[float, float]]:

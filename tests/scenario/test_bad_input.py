@@ -311,6 +311,12 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "wrist_camera.hand_eye_errr: unknown key (did you mean 'hand_eye_error'?)",
     ),
     (
+        "a place taken by another object",
+        GOOD + '[[objects]]\nname = "box"\nshape = "box"\nsize = [0.06, 0.04, 0.08]\ncolor = [0.1, 0.1, 0.9]\n'
+        "position = [0.47, 0.31]\n",
+        "place.position: (0.450, 0.300) m is taken: objects.box stands there",
+    ),
+    (
         "clear: a region off the table",
         _clear("[-0.2, 0.12]", "[-0.2, 0.72]"),
         "clear.region: its corner (0.400, 0.720) m is off the table",

@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from pickdemo.scenario.checks import check_scenario
 from pickdemo.scenario.load import ScenarioError, list_scenarios, load_scenario
+from pickdemo.scenario.parse import parse_scenario
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
@@ -188,3 +196,19 @@ def test_a_bad_place_region_is_one_line_naming_the_key(tmp_path, place: str, mes
     with pytest.raises(ScenarioError) as err:
         load_scenario(f)
     assert message in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_place_is_refused_only_when_an_object_takes_it() -> None:
+    """The target put down at the place needs its footprint clear: a box whose footprint reaches
+    within the target's footprint radius of the spot takes it; one beside it does not."""
+
+    def with_box(x: float) -> dict:
+        data = tomllib.loads((SCENARIOS / "pick_cube.toml").read_text())
+        box = {"name": "box", "shape": "box", "size": [0.04, 0.04, 0.08], "color": [0.1, 0.1, 0.9]}
+        place = data["place"]["position"]
+        data["objects"].append({**box, "position": [place[0] + x, place[1]]})
+        return data
+
+    check_scenario(parse_scenario(with_box(0.09)))  # 7 cm from the spot to its side: free
+    with pytest.raises(ScenarioError, match="is taken: objects.box stands there"):
+        check_scenario(parse_scenario(with_box(0.04)))  # its side 2 cm from the spot: a 5 cm cube needs 3.5
