@@ -317,6 +317,12 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "place.position: (0.450, 0.300) m is taken: objects.box stands there",
     ),
     (
+        "a twin of the target",
+        GOOD + '[[objects]]\nname = "twin"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.87, 0.1, 0.1]\n'
+        "position = [0.6, -0.2]\n",
+        "objects.twin: looks the same as the target objects.cube",
+    ),
+    (
         "clear: a region off the table",
         _clear("[-0.2, 0.12]", "[-0.2, 0.72]"),
         "clear.region: its corner (0.400, 0.720) m is off the table",
