@@ -40,6 +40,8 @@ PILE_LAYERS = 3
 #: ``TWIN_COLOUR`` (each channel, 0-1) look the same to the robot.
 TWIN_SIZE_M = 0.003
 TWIN_COLOUR = 0.08
+#: The reach checks try an object's region on this many points a side.
+REACH_GRID = 5
 #: Pixels the pick region keeps from the image's edges.
 VIEW_MARGIN_PX = 2.0
 
@@ -50,6 +52,17 @@ def _region(obj: ObjectSpec) -> list[tuple[float, float]]:
         return [(obj.position[0], obj.position[1])]
     (x0, x1), (y0, y1) = obj.position_range  # type: ignore[misc]
     return [(x0, y0), (x0, y1), (x1, y0), (x1, y1)]
+
+
+def _reach_points(obj: ObjectSpec) -> list[tuple[float, float]]:
+    """Where the object's centre may be, as the reach checks try it: an n x n grid over its region
+    (corners included; its corners alone missed a region near the base whose middle is out of
+    reach), or its one fixed position."""
+    if obj.position is not None:
+        return [(obj.position[0], obj.position[1])]
+    (x0, x1), (y0, y1) = obj.position_range  # type: ignore[misc]
+    n = REACH_GRID
+    return [(float(x), float(y)) for x in np.linspace(x0, x1, n) for y in np.linspace(y0, y1, n)]
 
 
 def _footprint_mm(obj: ObjectSpec) -> np.ndarray:
@@ -120,6 +133,7 @@ def _check_objects(sc: Scenario) -> None:
                     f"(x {table.center[0] - table.size[0] / 2:.2f}..{table.center[0] + table.size[0] / 2:.2f}, "
                     f"y {table.center[1] - table.size[1] / 2:.2f}..{table.center[1] + table.size[1] / 2:.2f} m)"
                 )
+        for x, y in _reach_points(obj):  # (a region's corners may clear the base while its middle does not)
             if np.hypot(x, y) < ROBOT_BASE_RADIUS_M + r:
                 raise ScenarioError(
                     f"{key}: at ({x:.3f}, {y:.3f}) m it stands inside the robot's base "
@@ -357,7 +371,7 @@ def _check_pick(sc: Scenario) -> None:
         )
     kin = kinematics_of(robot)
     rng = np.random.default_rng(0)
-    spots = [(f"{key} at ({x:.2f}, {y:.2f})", x, y) for x, y in _region(target)]
+    spots = [(f"{key} at ({x:.2f}, {y:.2f})", x, y) for x, y in _reach_points(target)]
     spots += [(f"{sc.place.key} at ({x:.2f}, {y:.2f})" if sc.place.position is None else sc.place.key, x, y)
               for x, y in sc.place.spots]  # fmt: skip
     for what, x, y in spots:
@@ -481,7 +495,7 @@ def _check_clear(sc: Scenario) -> None:
     grasp = GraspParams()
     spots = [(f"clear.region's corner ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m) for x, y in _corners(region)]
     spots += [(f"objects.{o.name} at ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m)
-              for o in sc.objects for x, y in _region(o)]  # fmt: skip
+              for o in sc.objects for x, y in _reach_points(o)]  # fmt: skip
     spots += [(f"place.position: the tray's drop spot ({x:.2f}, {y:.2f})", x, y, tray.rim_z + 0.1)
               for x, y in (tray.spot(k) for k in range(len(Tray.SPOTS)))]  # fmt: skip
     for what, x, y, z in spots:

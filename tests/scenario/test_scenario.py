@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pickdemo.scenario import checks
 from pickdemo.scenario.checks import check_scenario
 from pickdemo.scenario.load import ScenarioError, list_scenarios, load_scenario
 from pickdemo.scenario.parse import parse_scenario
@@ -212,3 +213,14 @@ def test_a_place_is_refused_only_when_an_object_takes_it() -> None:
     check_scenario(parse_scenario(with_box(0.09)))  # 7 cm from the spot to its side: free
     with pytest.raises(ScenarioError, match="is taken: objects.box stands there"):
         check_scenario(parse_scenario(with_box(0.04)))  # its side 2 cm from the spot: a 5 cm cube needs 3.5
+
+
+def test_reach_is_checked_inside_a_region_not_only_at_its_corners(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A region near the base whose four corners the arm reaches from above, while points inside it
+    it does not (by the same IK the skill uses), is refused."""
+    data = tomllib.loads((SCENARIOS / "pick_cube.toml").read_text())
+    data["objects"][0]["position_range"] = [[0.2, 0.3], [-0.2, 0.2]]
+    with pytest.raises(ScenarioError, match=r"objects.cube at \(0.2\d, -?0.\d\d\): out of the arm's reach"):
+        check_scenario(parse_scenario(data))
+    monkeypatch.setattr(checks, "REACH_GRID", 2)  # its corners alone: it passed so
+    check_scenario(parse_scenario(data))
