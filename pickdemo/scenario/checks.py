@@ -54,15 +54,18 @@ def _region(obj: ObjectSpec) -> list[tuple[float, float]]:
     return [(x0, y0), (x0, y1), (x1, y0), (x1, y1)]
 
 
-def _reach_points(obj: ObjectSpec) -> list[tuple[float, float]]:
-    """Where the object's centre may be, as the reach checks try it: an n x n grid over its region
-    (corners included; its corners alone missed a region near the base whose middle is out of
-    reach), or its one fixed position."""
-    if obj.position is not None:
-        return [(obj.position[0], obj.position[1])]
-    (x0, x1), (y0, y1) = obj.position_range  # type: ignore[misc]
-    n = REACH_GRID
+def _grid(position, position_range, n: int) -> list[tuple[float, float]]:  # noqa: ANN001
+    """A fixed position, or an n x n grid over a region ((x0, x1), (y0, y1)), corners included."""
+    if position is not None:
+        return [(float(position[0]), float(position[1]))]
+    (x0, x1), (y0, y1) = position_range
     return [(float(x), float(y)) for x in np.linspace(x0, x1, n) for y in np.linspace(y0, y1, n)]
+
+
+def _reach_points(obj: ObjectSpec) -> list[tuple[float, float]]:
+    """Where the object's centre may be, as the reach checks try it: a grid over its region (its
+    corners alone missed a region near the base whose middle is out of reach)."""
+    return _grid(obj.position, obj.position_range, REACH_GRID)
 
 
 def _footprint_mm(obj: ObjectSpec) -> np.ndarray:
@@ -218,10 +221,7 @@ def _check_twins(sc: Scenario) -> None:
 
 def place_points(place: PlaceSpec, n: int = 5) -> list[tuple[float, float]]:
     """The place spot, or an n x n grid over its region (corners included): where the target may be put."""
-    if place.position is not None:
-        return [(float(place.position[0]), float(place.position[1]))]
-    (x0, x1), (y0, y1) = place.position_range  # type: ignore[misc]
-    return [(float(x), float(y)) for x in np.linspace(x0, x1, n) for y in np.linspace(y0, y1, n)]
+    return _grid(place.position, place.position_range, n)
 
 
 def belt_sweep_mm(belt: ConveyorSpec) -> np.ndarray:
