@@ -270,6 +270,25 @@ def _hits_obstacles(
     return np.any(in_fingers, axis=1) | np.any(under_palm, axis=1)
 
 
+def hand_hits(
+    obstacles: np.ndarray, tcp: np.ndarray, hand_yaw_rad: float, surface_z: float, palm_m: float, gap_m: float,
+    finger_max_m: float,
+) -> bool:  # fmt: skip
+    """Whether any of the ``obstacles`` (M, 3) lies where the open fingers go down to a top-down grasp
+    with the TCP at ``tcp`` and the hand angle ``hand_yaw_rad``, or under the palm (``palm_m`` above
+    the TCP), ``gap_m`` to spare; what rests on the surface (within 2 mm of it) is the surface."""
+    obs = obstacles[obstacles[:, 2] - surface_z > 0.002]
+    if len(obs) == 0:
+        return False
+    a, b = _axis_a(hand_yaw_rad), _axis_b(hand_yaw_rad)
+    level = float(tcp[2]) - surface_z
+    hits = _hits_obstacles(
+        obs[:, :2] @ a, obs[:, :2] @ b, obs[:, 2] - surface_z, np.array([float(tcp[:2] @ a)]), float(tcp[:2] @ b),
+        np.array([level + palm_m - gap_m]), np.array([level - FINGER_PAD_HALF_HEIGHT_M]), gap_m, finger_max_m,
+    )  # fmt: skip
+    return bool(hits[0])
+
+
 @dataclass
 class CloudGrasps:
     """Grasps of an object nobody described from its cloud (a

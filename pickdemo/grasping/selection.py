@@ -14,11 +14,20 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Protocol
 
+import numpy as np
+
 from pickdemo.core.camera import RGBDFrame
-from pickdemo.core.geometry import Pose
+from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.core.shapes import Unknown
-from pickdemo.grasping.cloud import CloudGrasps
-from pickdemo.grasping.top_down import GraspParams, GraspPlan, equivalent_hand_yaws, plan_grasp
+from pickdemo.grasping.cloud import CloudGrasps, hand_hits
+from pickdemo.grasping.top_down import (
+    FINGER_PAD_HALF_HEIGHT_M,
+    GraspParams,
+    GraspPlan,
+    GraspPlanningError,
+    equivalent_hand_yaws,
+    plan_grasp,
+)
 from pickdemo.perception import ObjectCloud, TargetModel
 from pickdemo.robot.description import Gripper
 
@@ -37,6 +46,9 @@ class GraspRequest:
     cloud: ObjectCloud | None = None
     surface_z: float = 0.0  # the height of what the target rests on
     plan_id: int = 0  # the skill's plan this request belongs to (a new one: plan afresh)
+    #: the points of everything else near the target (other objects, fixtures): the hand keeps out of
+    #: them (None: not seen)
+    obstacles: np.ndarray | None = None
     gripper: Gripper = field(kw_only=True)  # the robot's hand the grasps are for
 
 
@@ -52,26 +64,79 @@ class GraspSelector(Protocol):
         ...
 
 
+#: A grasp the hand can make beside what stands around the target: its hand angle, across the wider
+#: side or not, and how much higher than where the pads would close.
+Clear = tuple[float, bool, float]
+
+
 @dataclass(frozen=True)
 class TopDownFaceGrasps:
     """A top-down grasp closing across the target's narrower side, one candidate per hand angle asked
-    for (of the equivalent angles, the one nearest it)."""
+    for (of the equivalent angles, the one nearest it). With something beside the target (the
+    request's ``obstacles``), only grasps whose open fingers and palm keep out of its points: at the
+    hand angles that do, each as low as it can be; none across the narrower side, then across the
+    wider one if the hand opens wide enough; none at all, no grasp (a
+    :class:`~pickdemo.grasping.top_down.GraspPlanningError` naming it)."""
 
     params: GraspParams = GraspParams()
 
     def hand_yaws(self, request: GraspRequest) -> list[float]:
-        return equivalent_hand_yaws(request.pose, request.model)
+        clear = self._clear(request)
+        return equivalent_hand_yaws(request.pose, request.model) if clear is None else [c[0] for c in clear]
 
     def candidates(self, request: GraspRequest) -> Iterator[GraspPlan]:
+        clear = self._clear(request)
         for near in request.hand_yaws:
+            yaw, wide, raise_m = near, False, 0.0
+            if clear is not None:  # of the clear grasps, the one nearest the angle asked for
+                pick = clear[0] if near is None else min(clear, key=lambda c: abs(float(wrap_angle(c[0] - near))))
+                yaw, wide, raise_m = pick
             yield plan_grasp(
                 request.pose,
                 request.model,
                 request.place_xy,
                 self.params,
                 gripper=request.gripper,
-                hand_yaw_near_rad=near,
+                hand_yaw_near_rad=yaw,
+                wide=wide,
+                raise_m=raise_m,
             )
+
+    def _clear(self, request: GraspRequest) -> list[Clear] | None:
+        """The grasps clear of the request's obstacles (None: there are none; every grasp is)."""
+        obstacles = request.obstacles
+        if obstacles is None or len(obstacles) == 0:
+            return None
+        yaws = equivalent_hand_yaws(request.pose, request.model)
+        clear = [c for yaw in yaws if (c := self._lowest_clear(request, yaw, wide=False)) is not None]
+        shape = request.model.geometry
+        widest = request.gripper.max_opening_m - self.params.width_margin_m
+        if not clear and shape.yaw_symmetry_rad == np.pi and max(shape.top_extents_m) <= widest:
+            clear = [c for yaw in yaws if (c := self._lowest_clear(request, yaw + np.pi / 2.0, wide=True)) is not None]
+        if not clear:
+            raise GraspPlanningError(
+                f"every top-down grasp would put a finger or the palm into something beside the target "
+                f"({len(obstacles)} points seen within reach of the hand)"
+            )
+        return clear
+
+    def _lowest_clear(self, request: GraspRequest, yaw: float, *, wide: bool) -> Clear | None:
+        """The grasp at hand angle ``yaw`` as low as it is clear of the obstacles (None: at no height
+        with the pads wholly on the target)."""
+        p = self.params
+        plan = plan_grasp(request.pose, request.model, request.place_xy, p, gripper=request.gripper,
+                          hand_yaw_near_rad=yaw, wide=wide)  # fmt: skip
+        top = float(request.pose.position[2]) + request.model.height_m / 2.0
+        tcp = plan.grasp.position.copy()
+        gripper = request.gripper
+        raise_m = 0.0
+        while tcp[2] + raise_m <= top - FINGER_PAD_HALF_HEIGHT_M + 1e-9 or raise_m == 0.0:
+            at = tcp + [0.0, 0.0, raise_m]
+            if not hand_hits(request.obstacles, at, plan.hand_yaw_rad, request.surface_z, gripper.palm_above_tcp_m,
+                             p.neighbour_clearance_m, gripper.finger_max_m):  # fmt: skip
+                return plan.hand_yaw_rad, wide, raise_m
+            raise_m += p.raise_step_m
+        return None
 
 
 def selector_for(model: TargetModel, params: GraspParams) -> GraspSelector:

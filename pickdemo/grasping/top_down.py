@@ -39,6 +39,11 @@ class GraspParams:
     #: the open gripper must exceed the object by this much: 2.5 mm a side, for the estimate's error
     #: (sub-millimetre when the whole top face is seen) and the arm's tracking (under a millimetre)
     width_margin_m: float = 0.005
+    #: the open hand keeps this far from the points of anything beside the target (m)
+    neighbour_clearance_m: float = 0.004
+    #: a grasp whose hand would meet something beside the target is tried this much higher, step by
+    #: step, while the pads stay wholly on the object (m)
+    raise_step_m: float = 0.003
 
     def __post_init__(self) -> None:
         if min(self.pregrasp_height_m, self.transport_height_m, self.retreat_height_m) <= 0:
@@ -104,15 +109,23 @@ def plan_grasp(
     *,
     gripper: Gripper,
     hand_yaw_near_rad: float | None = None,
+    wide: bool = False,
+    raise_m: float = 0.0,
 ) -> GraspPlan:
     """All TCP poses of the pick and place from the estimated pose of the target, for this ``gripper``.
 
     ``hand_yaw_near_rad``: of the equivalent hand angles, take the one nearest this (the skill chooses
-    it; a re-plan keeps the hand's angle); by default the one nearest 0.
+    it; a re-plan keeps the hand's angle); by default the one nearest 0. ``wide``: a box closed across
+    its wider side (its narrower one is blocked); ``raise_m``: the grasp this much above where the
+    pads would close (something beside the target stands higher than the palm would be).
     """
     params = params or GraspParams()
     centre = 0.0 if hand_yaw_near_rad is None else hand_yaw_near_rad
-    psi, width = hand_yaw_for(pose, model, centre)
+    if wide:  # the wider side's angle: a quarter turn from the narrower one's
+        psi, _ = hand_yaw_for(pose, model, centre - np.pi / 2.0)
+        psi, width = psi + np.pi / 2.0, max(model.geometry.top_extents_m)
+    else:
+        psi, width = hand_yaw_for(pose, model, centre)
     opening = gripper.max_opening_m
     if width > opening - params.width_margin_m:
         raise GraspPlanningError(
@@ -125,7 +138,7 @@ def plan_grasp(
     # The pads close through the centre of mass (a held payload has no lever to turn on about the
     # finger axis), or as deep as the palm allows on a taller object.
     depth = min(model.height_m / 2.0, gripper.palm_above_tcp_m - params.palm_clearance_m)
-    grasp_z = max(top_z - depth, params.min_tcp_height_m)
+    grasp_z = max(top_z - depth, params.min_tcp_height_m) + raise_m
     bottom_z = center[2] - model.height_m / 2.0
     grasp_above_bottom = grasp_z - bottom_z
 

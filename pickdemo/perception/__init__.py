@@ -31,7 +31,8 @@ Steps (equation numbers as in the paper):
 
 The modules, in the order the method runs: :mod:`.model` (what crosses the boundary), :mod:`.equations`
 (the paper's eqs. 8-14), :mod:`.segmentation`, :mod:`.features`, :mod:`.fit2d`, :mod:`.fit6d` and
-:mod:`.pipeline` (:func:`estimate_pose`). Everything is re-exported here.
+:mod:`.pipeline` (:func:`estimate_pose`); :mod:`.neighbours`, what stands around the target (for
+any estimator's estimate). Everything is re-exported here.
 
 Each choice is stated where it is made (the mixture's variance but each pixel's own depth; features
 selected on the outline in the image; the cylinder's side arc left out); its evidence is in
@@ -68,6 +69,7 @@ from pickdemo.perception.model import (
     PoseEstimate,
     TargetModel,
 )
+from pickdemo.perception.neighbours import neighbour_points, with_neighbours
 from pickdemo.perception.pipeline import estimate_pose
 from pickdemo.perception.segmentation import (
     color_match,
@@ -86,7 +88,7 @@ __all__ = [
     "PerceptionError", "PerceptionParams", "PoseEstimate", "TargetModel", "circle_residuals", "closest_on_model",
     "color_match", "condition_on_plane", "crop_frame", "estimate_pose", "fit_face_plane", "fit_outline",
     "fit_plane_weighted", "intersect_rays_plane", "measure_features", "mixture_at", "mixture_moments",
-    "outline_pixels", "plane_basis", "point_covariance", "rectangle_residuals", "refine_circle", "refine_pose_6dof",
-    "refine_rectangle", "segment_target", "shi_tomasi_features", "target_roi", "top_face_mask", "unoccluded",
-    "world_heights", "world_points",
+    "neighbour_points", "outline_pixels", "plane_basis", "point_covariance", "rectangle_residuals", "refine_circle",
+    "refine_pose_6dof", "refine_rectangle", "segment_target", "shi_tomasi_features", "target_roi", "top_face_mask",
+    "unoccluded", "with_neighbours", "world_heights", "world_points",
 ]  # fmt: skip

@@ -173,6 +173,9 @@ class PoseEstimate:
     cloud: ObjectCloud | None = field(repr=False, default=None)
     #: something nearer the camera (the hand, another object) hides part of it: a partial view
     occluded: bool = False
+    #: the points (M, 3) of everything else near it, which a grasp's fingers and palm must keep out of
+    #: (:func:`~pickdemo.perception.neighbours.with_neighbours`; None: the frame did not show all around it)
+    neighbours: np.ndarray | None = field(repr=False, default=None)
     #: the part of ``position_cov`` that every frame from this view shares (m^2; an object nobody
     #: described: what the view hides of its shape), a bias rather than noise: it does not average
     #: away over frames, and it does not move when the object does (None: nothing shared)

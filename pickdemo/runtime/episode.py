@@ -35,7 +35,8 @@ from pickdemo.core.result import (
     PhaseRecord,
     Stage,
 )
-from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel
+from pickdemo.core.shapes import Unknown
+from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, with_neighbours
 from pickdemo.perception.unknown import survey_objects
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
@@ -471,6 +472,9 @@ class Episode:
                 result: PoseEstimate | PerceptionError = self.estimator(frame, self.machine.model)
                 if not isinstance(result, PoseEstimate):
                     raise TypeError(f"the perception method returned {type(result).__name__}, not a PoseEstimate")
+                model = self.machine.model
+                if not isinstance(model.geometry, Unknown):  # (one nobody described: its cloud's obstacles)
+                    result = with_neighbours(frame, result, model, self.options.perception)
             except PerceptionError as exc:
                 result = exc
         self.counts.frames += 1

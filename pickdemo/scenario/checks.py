@@ -50,7 +50,7 @@ def _region(obj: ObjectSpec) -> list[tuple[float, float]]:
     """Corners of where the object's centre may be (one point for a fixed position)."""
     if obj.position is not None:
         return [(obj.position[0], obj.position[1])]
-    (x0, x1), (y0, y1) = obj.position_range  # type: ignore[misc]
+    (x0, x1), (y0, y1) = obj.region_range  # type: ignore[misc]
     return [(x0, y0), (x0, y1), (x1, y0), (x1, y1)]
 
 
@@ -65,7 +65,7 @@ def _grid(position, position_range, n: int) -> list[tuple[float, float]]:  # noq
 def _reach_points(obj: ObjectSpec) -> list[tuple[float, float]]:
     """Where the object's centre may be, as the reach checks try it: a grid over its region (its
     corners alone missed a region near the base whose middle is out of reach)."""
-    return _grid(obj.position, obj.position_range, REACH_GRID)
+    return _grid(obj.position, obj.region_range, REACH_GRID)
 
 
 def _footprint_mm(obj: ObjectSpec) -> np.ndarray:

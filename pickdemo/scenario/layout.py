@@ -139,6 +139,34 @@ def _draw(obj: ObjectSpec, rng: np.random.Generator) -> tuple[np.ndarray, float,
     return xy, yaw, pitch, roll
 
 
+#: A side of an object (its own axes) as a unit vector.
+SIDE_AXES = {"+x": (1.0, 0.0), "-x": (-1.0, 0.0), "+y": (0.0, 1.0), "-y": (0.0, -1.0)}
+
+
+def _half_width(shape: Shape, yaw_rad: float, direction: np.ndarray) -> float:
+    """How far a footprint reaches from its centre along a unit ``direction`` (m): a box's rectangle,
+    turned by its yaw; any other shape's circle."""
+    if shape.kind != "box":
+        return shape.footprint_radius_m
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    sx, sy = shape.size[0], shape.size[1]
+    return float(abs(direction @ [c, s]) * sx / 2.0 + abs(direction @ [-s, c]) * sy / 2.0)
+
+
+def _beside(obj: ObjectSpec, shape: Shape, other: Placement, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+    """Where an object ``beside`` another stands, and its yaw: against one of the other's sides (drawn
+    when there are several), turned as the other is plus its own yaw, ``gap_m`` from it."""
+    spec = obj.beside
+    assert spec is not None
+    side = spec.sides[int(rng.integers(len(spec.sides)))] if len(spec.sides) > 1 else spec.sides[0]
+    other_yaw = float(other.pose.rpy[2])
+    yaw = other_yaw + _angle(obj.yaw_deg, obj.yaw_range_deg, rng)
+    c, s = np.cos(other_yaw), np.sin(other_yaw)
+    u = np.array([[c, -s], [s, c]]) @ np.array(SIDE_AXES[side])
+    d = _half_width(other.geometry, other_yaw, u) + _half_width(shape, yaw, u) + spec.gap_m
+    return other.pose.position[:2] + d * u, yaw
+
+
 def _mesh(obj: ObjectSpec, rng: np.random.Generator) -> Shape:
     """A mesh object's file (one of its ``urdf_choice`` matches) and scale for this seed, drawn from
     the seed's ``objects`` stream (so that the layout's own draws stay as they were)."""
@@ -170,11 +198,18 @@ def sample_layout(
         else:
             shape = obj.shape_of_size(_size(obj, rng))
         r = shape.footprint_radius_m
+        against = None if obj.beside is None else next(p for p in out if p.name == obj.beside.object)
         for _ in range(MAX_DRAWS):
-            xy, yaw, pitch, roll = _draw(obj, rng)
+            if against is not None:  # against it, clear of the others
+                xy, yaw = _beside(obj, shape, against, rng)
+                pitch = roll = 0.0
+                others = [(q, rq) for (q, rq), p in zip(placed, out, strict=True) if p is not against]
+            else:
+                xy, yaw, pitch, roll = _draw(obj, rng)
+                others = placed
             if obj.position is not None:  # a fixed spot: the scenario's author answers for the spacing
                 break
-            if all(np.linalg.norm(xy - q) >= r + rq + scenario.layout.clearance_m for q, rq in placed):
+            if all(np.linalg.norm(xy - q) >= r + rq + scenario.layout.clearance_m for q, rq in others):
                 break
         else:
             raise LayoutError(f"objects.{obj.name}: no free spot found in {MAX_DRAWS} draws")

@@ -4,9 +4,9 @@ they stand (fixed or drawn per seed), and where the target goes (a spot, a regio
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
-from pydantic import Field, ValidationInfo, field_validator, model_validator
+from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from pickdemo.core.meshes import PYBULLET_DATA, read_urdf, usable
 from pickdemo.core.shapes import SHAPES, Mesh, Shape, ShapeName, make_shape
@@ -60,6 +60,20 @@ def resolve_path(spec: str | None, info: ValidationInfo) -> str | None:
     return str(path if path.is_absolute() or base is None else Path(base) / path)
 
 
+#: The sides of an object another may stand beside: along its own x or y axis, either way.
+Side = Literal["+x", "-x", "+y", "-y"]
+
+
+class BesideSpec(Model):
+    """Where an object stands against another one (the scenes users set up: a cube flush against a
+    carton): beside ``object`` (named before it), on one of ``sides`` of it (its own axes; one drawn
+    per seed), ``gap_m`` from it (0: touching), turned as it is (plus the object's own yaw)."""
+
+    object: Name
+    gap_m: Annotated[float, Field(ge=0.0, le=0.2)] = 0.0
+    sides: Annotated[tuple[Side, ...], Field(min_length=1)] = ("+x", "-x", "+y", "-y")
+
+
 class ObjectSpec(Model):
     """One object on the table: a box or a cylinder (upright unless tilted), or a mesh from a URDF file
     (as the file stands it, turned about z)."""
@@ -79,6 +93,7 @@ class ObjectSpec(Model):
     friction: Friction = 0.9  # (a mesh: its file's unless given)
     position: tuple[Coord, Coord] | tuple[Coord, Coord, Coord] | None = None  # m: x, y (and centre z)
     position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
+    beside: BesideSpec | None = None  # ... or against another object
     yaw_deg: Angle | None = None
     yaw_range_deg: tuple[Angle, Angle] | None = None
     pitch_deg: Angle | None = None
@@ -88,6 +103,8 @@ class ObjectSpec(Model):
     static: bool = False  # held where it is placed (no gravity): for tilted objects in perception tests
     target: bool = False
     reference: ReferenceSpec | None = None  # published errors for this object, shown by `perceive`
+    #: an object ``beside`` another: where its centre may be (the scenario sets it from the other's)
+    _beside_range: tuple[Vec2, Vec2] | None = PrivateAttr(default=None)
 
     @field_validator("name")
     @classmethod
@@ -127,8 +144,8 @@ class ObjectSpec(Model):
                 raise ValueError(f"a {self.shape} needs a color ([r, g, b], each 0-1)")
         if self.shape != "mesh" and (self.size is None) == (self.size_range is None):
             raise ValueError("give exactly one of size, size_range")
-        if (self.position is None) == (self.position_range is None):
-            raise ValueError("give exactly one of position, position_range")
+        if sum(v is not None for v in (self.position, self.position_range, self.beside)) != 1:
+            raise ValueError("give exactly one of position, position_range, beside")
         for fixed, rng, name in (
             (self.yaw_deg, self.yaw_range_deg, "yaw"),
             (self.pitch_deg, self.pitch_range_deg, "pitch"),
@@ -158,6 +175,13 @@ class ObjectSpec(Model):
             raise ValueError("scale_range must be [min, max]")
         if self.color is not None:
             raise ValueError("a mesh has its file's colours: no color")
+
+    @property
+    def region_range(self) -> tuple[Vec2, Vec2] | None:
+        """Where its centre may be, as ((x_min, x_max), (y_min, y_max)): its ``position_range``, or
+        for an object ``beside`` another the other's region grown by how far apart their centres stand
+        (None: a fixed position)."""
+        return self.position_range if self.beside is None else self._beside_range
 
     def shape_of_size(self, size: tuple[float, ...]) -> Shape:
         """Its :class:`~pickdemo.core.shapes.Shape` at this size (its own, or one drawn from ``size_range``)."""

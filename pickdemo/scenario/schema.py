@@ -173,6 +173,7 @@ class Scenario(Model):
             raise ValueError("object names must be unique")
         if not self.description.isprintable():
             raise ValueError("description: control characters are not allowed")
+        self._place_beside()
         if rules.one_target:
             if len(targets) != 1:
                 names_t = ", ".join(o.name for o in targets)
@@ -184,6 +185,31 @@ class Scenario(Model):
                     f"objects.{targets[0].name}: the target of a pick cannot be static (it could never be lifted)"
                 )
         return self
+
+    def _place_beside(self) -> None:
+        """Each object ``beside`` another: the other named before it; where it may stand (its
+        ``region_range``): the other's region grown by their footprints' radii and the gap."""
+        before: dict[str, ObjectSpec] = {}
+        for obj in self.objects:
+            if obj.beside is not None:
+                other = before.get(obj.beside.object)
+                if other is None:
+                    raise ValueError(
+                        f"objects.{obj.name}.beside.object: {obj.beside.object!r} is not an object named before it"
+                    )
+                if "mesh" in (obj.shape, other.shape):  # (a mesh's size is its file's, read after validating)
+                    raise ValueError(f"objects.{obj.name}.beside: for a box or a cylinder beside another, not a mesh")
+                if obj.static or other.static:
+                    raise ValueError(f"objects.{obj.name}.beside: not for a static object (it stands where it is put)")
+                reach = obj.largest_shape.footprint_radius_m + other.largest_shape.footprint_radius_m
+                reach += obj.beside.gap_m
+                rng = other.region_range
+                if rng is None:
+                    x, y = other.position[:2]  # type: ignore[index]
+                    rng = ((x, x), (y, y))
+                (x0, x1), (y0, y1) = rng
+                obj._beside_range = ((x0 - reach, x1 + reach), (y0 - reach, y1 + reach))
+            before[obj.name] = obj
 
     def _check_clear(self) -> None:
         if self.clear is None:

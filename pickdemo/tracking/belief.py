@@ -105,6 +105,9 @@ class TargetBelief:
         #: first seen at all until then (grasps are planned from it); its extents as first seen on this track
         self.cloud: ObjectCloud | None = None
         self._extents: tuple[float, float] | None = None
+        #: the points of everything near it, from the newest accepted estimate that saw all around it
+        #: with the hand away (:attr:`~pickdemo.perception.model.PoseEstimate.neighbours`; None: not seen)
+        self.neighbours: np.ndarray | None = None
 
     @property
     def top_extents_m(self) -> tuple[float, float] | None:
@@ -116,6 +119,7 @@ class TargetBelief:
         """Forget the target: the next estimate starts a new track."""
         self.tracker = TargetTracker(self.symmetry, self.tracker_params)
         self._extents = None
+        self.neighbours = None
         self._seen, self._moving, self._decided = [], False, None
 
     @property
@@ -172,6 +176,8 @@ class TargetBelief:
             var = float(np.mean(np.diag(result.position_cov)[:2]))  # its stated variance across the table
             self._seen.append((frame_time_s, float(p[0]), float(p[1]), var))
             self._seen = [s for s in self._seen if s[0] >= frame_time_s - MOVING_WINDOW_S]  # (the window only)
+        if up.accepted and result.neighbours is not None and not hand_over_target:
+            self.neighbours = result.neighbours
         if up.accepted and self.unknown and result.cloud is not None and not hand_over_target:
             if self._extents is None or up.jumped:
                 self._extents = result.top_face_size_m

@@ -323,6 +323,18 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "objects.twin: looks the same as the target objects.cube",
     ),
     (
+        "beside an object not named before it",
+        GOOD + '[[objects]]\nname = "carton"\nshape = "box"\nsize = [0.06, 0.1, 0.07]\ncolor = [0.2, 0.3, 0.8]\n'
+        'beside = { object = "crate" }\n',
+        "objects.carton.beside.object: 'crate' is not an object named before it",
+    ),
+    (
+        "beside and a position both",
+        GOOD + '[[objects]]\nname = "carton"\nshape = "box"\nsize = [0.06, 0.1, 0.07]\ncolor = [0.2, 0.3, 0.8]\n'
+        'position = [0.6, 0.1]\nbeside = { object = "cube" }\n',
+        "give exactly one of position, position_range, beside",
+    ),
+    (
         "clear: a region off the table",
         _clear("[-0.2, 0.12]", "[-0.2, 0.72]"),
         "clear.region: its corner (0.400, 0.720) m is off the table",

@@ -10,6 +10,7 @@ import pytest
 
 from pickdemo.scenario import checks
 from pickdemo.scenario.checks import check_scenario
+from pickdemo.scenario.layout import sample_layout
 from pickdemo.scenario.load import ScenarioError, list_scenarios, load_scenario
 from pickdemo.scenario.parse import parse_scenario
 
@@ -224,3 +225,21 @@ def test_reach_is_checked_inside_a_region_not_only_at_its_corners(monkeypatch: p
         check_scenario(parse_scenario(data))
     monkeypatch.setattr(checks, "REACH_GRID", 2)  # its corners alone: it passed so
     check_scenario(parse_scenario(data))
+
+
+def test_an_object_beside_another_touches_it_on_the_sides_drawn() -> None:
+    """``beside``: flush against the other object's face (their footprints touch), turned as it is,
+    on each of its four sides over the seeds; clear of the place."""
+    sc = load_scenario("pick_beside_carton")
+    sides = set()
+    for seed in range(12):
+        cube, carton = sample_layout(sc, np.random.default_rng(seed))
+        yaw = float(cube.pose.rpy[2])
+        assert float(carton.pose.rpy[2]) == pytest.approx(yaw)
+        c, s = np.cos(yaw), np.sin(yaw)
+        local = np.array([[c, s], [-s, c]]) @ (carton.pose.position[:2] - cube.pose.position[:2])
+        k = int(np.argmax(np.abs(local)))
+        touching = cube.size[k] / 2 + (carton.size[k] / 2)
+        assert abs(local[k]) == pytest.approx(touching, abs=1e-9) and abs(local[1 - k]) < 1e-9
+        sides.add((k, bool(local[k] > 0)))
+    assert len(sides) == 4

@@ -55,6 +55,7 @@ class GraspChooser:
             cloud=self.belief.cloud,
             surface_z=surface,
             plan_id=self.plan_id,
+            obstacles=self.belief.neighbours,
             gripper=self.kin.robot.gripper,
         )
 
@@ -112,14 +113,15 @@ class GraspChooser:
         margin = min(self.kin.limit_margin(best), self.kin.limit_margin(q_end))
         return True, margin >= g.min_margin_rad, travel
 
-    def ranked_hand_yaws(self, pose: Pose, held: np.ndarray | None, other_faces_than: float | None) -> list[float]:
+    def ranked_hand_yaws(self, pose: Pose, held: np.ndarray | None, other_faces_than: tuple[float, ...]) -> list[float]:
         """The target's equivalent hand angles (the selector's ``hand_yaws``), best
         first by IK (:meth:`hand_angle_score`): those whose grasp has a solution; of them those from
         which the carry to the place can be followed with room at both ends; then the least joint
         travel, or for a moving target the least turn of the hand from where it is (turning the
         wrist while chasing a target across the table drifts the arm's redundancy towards a
-        singularity, measured). ``other_faces_than``: a square box missed at this angle is taken by
-        its other pair of faces first."""
+        singularity, measured). ``other_faces_than``: hand angles that missed the target, or whose
+        finger touched something beside it: the other faces first (a cube's other pair; the hand
+        turned half a turn is the same grasp)."""
         scored = []
         try:
             yaws = self.selector.hand_yaws(self.request(pose, (None,)))
@@ -131,8 +133,7 @@ class GraspChooser:
             except GraspPlanningError:
                 return []
             feasible, carries, travel = self.hand_angle_score(plan, held)
-            missed = other_faces_than
-            same_faces = missed is not None and abs(float(wrap_angle(yaw - missed, np.pi))) < np.pi / 4
+            same_faces = any(abs(float(wrap_angle(yaw - bad, np.pi))) < np.pi / 4 for bad in other_faces_than)
             turn = abs(float(wrap_angle(yaw - float(self.arm.motion.setpoint[3]))))
             scored.append(((not feasible, same_faces, not carries, turn if held is not None else travel), yaw))
         return [yaw for _, yaw in sorted(scored, key=lambda kv: kv[0])]
@@ -149,7 +150,7 @@ class GraspChooser:
         try:
             plan = self.grasp(pose, near)
             if not self.room_kept(plan):  # this hand angle is running out of room: choose again
-                ranked = self.ranked_hand_yaws(pose, held, None)
+                ranked = self.ranked_hand_yaws(pose, held, ())
                 # ... but not with the hand going down over the target (the room was judged before
                 # it went down; another angle there reads as the target turning, and backed the
                 # hand off again and again)
@@ -164,14 +165,16 @@ class GraspChooser:
                 return Failure(Stage.IK, reason)
         return plan
 
-    def first_plan(self, pose: Pose, v: np.ndarray | None, missed: float | None, now_s: float) -> GraspPlan | Failure:
+    def first_plan(
+        self, pose: Pose, v: np.ndarray | None, avoid: tuple[float, ...], now_s: float
+    ) -> GraspPlan | Failure:
         """An attempt's first plan: the best of the equivalent hand angles by IK
-        (:meth:`ranked_hand_yaws`) that the whole pick and place can reach; after a miss (``missed``,
-        the angle it missed at), a square box's other pair of faces first."""
+        (:meth:`ranked_hand_yaws`) that the whole pick and place can reach; the other faces before
+        those of the angles in ``avoid`` (it missed there, or a finger touched something beside it)."""
         held = None if v is None else pose.position[:2] + v * self.p.grasp_time_s
         self.plan_id += 1  # a first plan: the selector plans afresh
         try:
-            hand_yaws = self.ranked_hand_yaws(pose, held, missed) or [None]
+            hand_yaws = self.ranked_hand_yaws(pose, held, avoid) or [None]
             candidates = iter(self.selector.candidates(self.request(pose, tuple(hand_yaws))))
         except GraspPlanningError as exc:
             return Failure(Stage.GRASP_PLANNING, str(exc))

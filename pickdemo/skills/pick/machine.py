@@ -129,6 +129,7 @@ class PickMachine:
         self.grip_force_n = p.grip_force_n
         self.lift_scale = 1.0
         self.turn_hand = False  # after a miss: try a square box by its other pair of faces
+        self.touched_yaws: list[float] = []  # hand angles at which a finger touched something going down
         self.weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
         self.forced_open = False  # releasing: the fingers were told to open with full force
         self.lifted_off = False  # lifting: past the pause just off the table where it is weighed
@@ -321,9 +322,9 @@ class PickMachine:
         self.planned_at_s = self.now_s
         v = self.intercept.velocity(self.now_s)
         if first:
-            missed = self.plan.hand_yaw_rad if (self.turn_hand and self.plan is not None) else None
+            missed = (self.plan.hand_yaw_rad,) if (self.turn_hand and self.plan is not None) else ()
             self.turn_hand = False
-            out = self.chooser.first_plan(pose, v, missed, self.now_s)
+            out = self.chooser.first_plan(pose, v, missed + tuple(self.touched_yaws), self.now_s)
         else:
             over, approaching = self.state in HAND_OVER_TARGET, self.state is State.APPROACH
             out = self.chooser.replan(

@@ -205,6 +205,7 @@ def _touched_early(m: PickMachine, obs: Observation) -> Transition:
     touched = m.watch.touched(obs, m.plan)
     if touched is None:
         return None
+    m.touched_yaws.append(m.plan.hand_yaw_rad)  # (the next look grasps it by other faces first)
     m.grip.open()
     m.after_back_off = State.LOOK
     return State.BACK_OFF, f"{touched}: backing off to look again"

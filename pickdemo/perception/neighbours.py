@@ -1,0 +1,101 @@
+"""What stands around the target: the points of everything else near it (another object, a carton
+flush against it), which a grasp's fingers and palm must keep out of.
+
+Pure: arrays in, arrays out; no simulator. Any estimator's estimate of a described target gets them
+(:func:`with_neighbours`), from the frame it was made from, when that frame shows the whole
+neighbourhood a hand about the target sweeps; an object nobody described has its own
+(:attr:`~pickdemo.perception.model.ObjectCloud.obstacles`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+
+from pickdemo.core.camera import RGBDFrame, project
+from pickdemo.core.shapes import Box
+from pickdemo.perception.model import PerceptionParams, PoseEstimate, TargetModel
+from pickdemo.perception.segmentation import robot_pixels, world_points
+
+#: How far from the target's centre a hand about it reaches (m, across the table): the palm's half
+#: length along the closing axis, with room (a parallel hand's body is some 0.2 m long).
+NEIGHBOURHOOD_M = 0.13
+#: ... and up to how high above the target's top the frame must show it (m): the hand's lower part
+NEIGHBOURHOOD_ABOVE_M = 0.08
+#: Points higher than this above the table are no neighbour's (m).
+NEIGHBOURHOOD_TOP_M = 0.5
+#: A point within this of the target's own surface, as estimated, is the target's (m).
+OWN_MARGIN_M = 0.006
+#: Neighbours' points kept at most (a regular thinning beyond).
+MAX_POINTS = 3000
+
+
+def neighbourhood_px(frame: RGBDFrame, centre: np.ndarray, top: float) -> tuple[int, int, int, int] | None:
+    """The pixel box (x0, y0, x1, y1, of the frame as cropped) of the neighbourhood about ``centre``
+    up to ``top`` above the table, or None when the frame does not show all of it (a region of
+    interest about the target alone)."""
+    r = NEIGHBOURHOOD_M
+    corners = np.array([[centre[0] + dx, centre[1] + dy, z] for dx in (-r, r) for dy in (-r, r) for z in (0.0, top)])
+    cam = frame.T_world_cam.inverse().transform_points(corners)
+    if np.any(cam[:, 2] <= 1e-3):
+        return None
+    uv = project(cam, frame.intrinsics)
+    K = frame.intrinsics
+    x0, y0 = np.floor(uv.min(axis=0)).astype(int)
+    x1, y1 = np.ceil(uv.max(axis=0)).astype(int) + 1
+    if x0 < 0 or y0 < 0 or x1 > K.width or y1 > K.height:
+        return None
+    return int(x0), int(y0), int(x1), int(y1)
+
+
+def neighbour_points(
+    frame: RGBDFrame, estimate: PoseEstimate, model: TargetModel, params: PerceptionParams
+) -> np.ndarray | None:
+    """World points (M, 3) of everything above the table within :data:`NEIGHBOURHOOD_M` of the target
+    but the target itself (its model at the estimated pose, :data:`OWN_MARGIN_M` wider) and the robot's
+    own body; specks of a pixel or two (depth noise) left out. None when the frame does not show the
+    whole neighbourhood."""
+    centre = estimate.pose.position
+    box = neighbourhood_px(frame, centre, float(centre[2]) + model.height_m / 2.0 + NEIGHBOURHOOD_ABOVE_M)
+    if box is None:
+        return None
+    x0, y0, x1, y1 = box
+    window = dataclasses.replace(
+        frame,
+        rgb=frame.rgb[y0:y1, x0:x1],
+        depth_m=frame.depth_m[y0:y1, x0:x1],
+        intrinsics=dataclasses.replace(frame.intrinsics, width=x1 - x0, height=y1 - y0,
+                                       cx=frame.intrinsics.cx - x0, cy=frame.intrinsics.cy - y0),
+    )  # fmt: skip
+    pts = world_points(window)
+    with np.errstate(invalid="ignore"):
+        near = (np.abs(pts[..., 0] - centre[0]) < NEIGHBOURHOOD_M) & (np.abs(pts[..., 1] - centre[1]) < NEIGHBOURHOOD_M)
+        cand = near & (pts[..., 2] > params.min_height_m) & (pts[..., 2] < NEIGHBOURHOOD_TOP_M)
+    # (a speck of noise is no object: an opening keeps what is 3 px wide and more)
+    cand = cv2.morphologyEx(cand.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)).astype(bool)
+    cand &= ~robot_pixels(window, cand)
+    p = pts[cand]
+    local = (p - centre) @ estimate.pose.rotation  # in the target's own frame
+    shape = model.geometry
+    half_h = shape.height_m / 2.0 + OWN_MARGIN_M
+    if isinstance(shape, Box):
+        across = np.all(np.abs(local[:, :2]) <= np.asarray(shape.size_m[:2]) / 2.0 + OWN_MARGIN_M, axis=1)
+    else:
+        across = np.hypot(local[:, 0], local[:, 1]) <= shape.footprint_radius_m + OWN_MARGIN_M
+    others = p[~(across & (np.abs(local[:, 2]) <= half_h))]
+    if len(others) > MAX_POINTS:
+        others = others[:: int(np.ceil(len(others) / MAX_POINTS))]
+    return others
+
+
+def with_neighbours(
+    frame: RGBDFrame, estimate: PoseEstimate, model: TargetModel, params: PerceptionParams | None = None
+) -> PoseEstimate:
+    """The estimate with its :attr:`~pickdemo.perception.model.PoseEstimate.neighbours` from ``frame``
+    (unchanged when it has them, or when the frame does not show all around the target)."""
+    if estimate.neighbours is not None:
+        return estimate
+    points = neighbour_points(frame, estimate, model, params or PerceptionParams())
+    return estimate if points is None else dataclasses.replace(estimate, neighbours=points)
