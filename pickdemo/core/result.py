@@ -195,6 +195,9 @@ class EpisodeResult:
     #: joints and ticks (at most 1.0: within); None when nothing was commanded
     peak_joint_limit_ratio: dict[str, float] | None = None
     place_position_m: tuple[float, float] | None = None  # where it was to be put down (drawn per seed from a range)
+    #: the other objects the episode moved 10 mm or more from where they stood, {name: mm} (truth); None
+    #: for a clear round (it moves them all) or a belt (it carries them)
+    others_moved_mm: dict[str, float] | None = None
     #: a clear round's figures: each object's fate, its picks, cleared, percent_cleared, grasp_success_rate,
     #: picks_per_hour (simulated time); None for a pick
     clear: dict[str, Any] | None = None
@@ -269,6 +272,7 @@ class EpisodeResult:
                 "peak_joint_limit_ratio": None
                 if self.peak_joint_limit_ratio is None
                 else dict(self.peak_joint_limit_ratio),
+                "others_moved_mm": None if self.others_moved_mm is None else dict(self.others_moved_mm),
                 **({} if self.clear is None else {"clear": self.clear}),
             }
         )

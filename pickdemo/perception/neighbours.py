@@ -1,15 +1,18 @@
-"""What stands around the target: the points of everything else near it (another object, a carton
-flush against it), which a grasp's fingers and palm must keep out of.
+"""What stands around the target, and at the place: the points of everything else near it (another
+object, a carton flush against it), which a grasp's fingers and palm must keep out of, and of
+whatever stands where the target is to be put down.
 
 Pure: arrays in, arrays out; no simulator. Any estimator's estimate of a described target gets them
 (:func:`with_neighbours`), from the frame it was made from, when that frame shows the whole
 neighbourhood a hand about the target sweeps; an object nobody described has its own
-(:attr:`~pickdemo.perception.model.ObjectCloud.obstacles`).
+(:attr:`~pickdemo.perception.model.ObjectCloud.obstacles`). :func:`look_at_place` says what a frame
+shows standing at a spot (:class:`PlaceView`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -32,11 +35,23 @@ OWN_MARGIN_M = 0.006
 MAX_POINTS = 3000
 
 
-def neighbourhood_px(frame: RGBDFrame, centre: np.ndarray, top: float) -> tuple[int, int, int, int] | None:
-    """The pixel box (x0, y0, x1, y1, of the frame as cropped) of the neighbourhood about ``centre``
+@dataclass(frozen=True)
+class PlaceView:
+    """What a frame showed standing at a spot (where something is to be put down): the points
+    (M, 3) above the table within ``radius_m`` of ``xy`` (the robot's own body left out), and when."""
+
+    xy: tuple[float, float]
+    radius_m: float
+    points: np.ndarray
+    time_s: float
+
+
+def neighbourhood_px(
+    frame: RGBDFrame, centre: np.ndarray, top: float, r: float = NEIGHBOURHOOD_M
+) -> tuple[int, int, int, int] | None:
+    """The pixel box (x0, y0, x1, y1, of the frame as cropped) of the square ``r`` about ``centre``
     up to ``top`` above the table, or None when the frame does not show all of it (a region of
     interest about the target alone)."""
-    r = NEIGHBOURHOOD_M
     corners = np.array([[centre[0] + dx, centre[1] + dy, z] for dx in (-r, r) for dy in (-r, r) for z in (0.0, top)])
     cam = frame.T_world_cam.inverse().transform_points(corners)
     if np.any(cam[:, 2] <= 1e-3):
@@ -58,7 +73,41 @@ def neighbour_points(
     own body; specks of a pixel or two (depth noise) left out. None when the frame does not show the
     whole neighbourhood."""
     centre = estimate.pose.position
-    box = neighbourhood_px(frame, centre, float(centre[2]) + model.height_m / 2.0 + NEIGHBOURHOOD_ABOVE_M)
+    top = float(centre[2]) + model.height_m / 2.0 + NEIGHBOURHOOD_ABOVE_M
+    p = _standing(frame, centre, top, NEIGHBOURHOOD_M, params)
+    if p is None:
+        return None
+    local = (p - centre) @ estimate.pose.rotation  # in the target's own frame
+    shape = model.geometry
+    half_h = shape.height_m / 2.0 + OWN_MARGIN_M
+    if isinstance(shape, Box):
+        across = np.all(np.abs(local[:, :2]) <= np.asarray(shape.size_m[:2]) / 2.0 + OWN_MARGIN_M, axis=1)
+    else:
+        across = np.hypot(local[:, 0], local[:, 1]) <= shape.footprint_radius_m + OWN_MARGIN_M
+    others = p[~(across & (np.abs(local[:, 2]) <= half_h))]
+    if len(others) > MAX_POINTS:
+        others = others[:: int(np.ceil(len(others) / MAX_POINTS))]
+    return others
+
+
+def look_at_place(
+    frame: RGBDFrame, xy: tuple[float, float], radius_m: float, params: PerceptionParams | None = None
+) -> PlaceView | None:
+    """What ``frame`` shows standing within ``radius_m`` of ``xy`` (None: it does not show all of it)."""
+    centre = np.array([xy[0], xy[1], 0.0])
+    p = _standing(frame, centre, NEIGHBOURHOOD_ABOVE_M, radius_m, params or PerceptionParams())
+    if p is None:
+        return None
+    p = p[np.hypot(p[:, 0] - xy[0], p[:, 1] - xy[1]) <= radius_m]
+    return PlaceView((float(xy[0]), float(xy[1])), radius_m, p, frame.time_s)
+
+
+def _standing(
+    frame: RGBDFrame, centre: np.ndarray, top: float, r: float, params: PerceptionParams
+) -> np.ndarray | None:
+    """The points (M, 3) of what stands on the table within the square ``r`` about ``centre`` (the
+    frame showing it up to ``top``; None if it does not), the robot's own body and specks left out."""
+    box = neighbourhood_px(frame, centre, top, r)
     if box is None:
         return None
     x0, y0, x1, y1 = box
@@ -71,23 +120,12 @@ def neighbour_points(
     )  # fmt: skip
     pts = world_points(window)
     with np.errstate(invalid="ignore"):
-        near = (np.abs(pts[..., 0] - centre[0]) < NEIGHBOURHOOD_M) & (np.abs(pts[..., 1] - centre[1]) < NEIGHBOURHOOD_M)
+        near = (np.abs(pts[..., 0] - centre[0]) < r) & (np.abs(pts[..., 1] - centre[1]) < r)
         cand = near & (pts[..., 2] > params.min_height_m) & (pts[..., 2] < NEIGHBOURHOOD_TOP_M)
     # (a speck of noise is no object: an opening keeps what is 3 px wide and more)
     cand = cv2.morphologyEx(cand.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)).astype(bool)
     cand &= ~robot_pixels(window, cand)
-    p = pts[cand]
-    local = (p - centre) @ estimate.pose.rotation  # in the target's own frame
-    shape = model.geometry
-    half_h = shape.height_m / 2.0 + OWN_MARGIN_M
-    if isinstance(shape, Box):
-        across = np.all(np.abs(local[:, :2]) <= np.asarray(shape.size_m[:2]) / 2.0 + OWN_MARGIN_M, axis=1)
-    else:
-        across = np.hypot(local[:, 0], local[:, 1]) <= shape.footprint_radius_m + OWN_MARGIN_M
-    others = p[~(across & (np.abs(local[:, 2]) <= half_h))]
-    if len(others) > MAX_POINTS:
-        others = others[:: int(np.ceil(len(others) / MAX_POINTS))]
-    return others
+    return pts[cand]
 
 
 def with_neighbours(

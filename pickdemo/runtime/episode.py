@@ -36,7 +36,15 @@ from pickdemo.core.result import (
     Stage,
 )
 from pickdemo.core.shapes import Unknown
-from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel, with_neighbours
+from pickdemo.perception import (
+    PerceptionError,
+    PerceptionParams,
+    PlaceView,
+    PoseEstimate,
+    TargetModel,
+    look_at_place,
+    with_neighbours,
+)
 from pickdemo.perception.unknown import survey_objects
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
@@ -154,7 +162,7 @@ class _InFlight:
 
     arrival_s: float
     taken_s: float
-    result: PoseEstimate | PerceptionError
+    result: PoseEstimate | PerceptionError | PlaceView
     error_mm: float | None  # against the truth when the frame was taken: for the referee only
     camera: str = "camera"  # which camera took the frame
 
@@ -402,6 +410,8 @@ class Episode:
         while self._pending and self._pending[0].arrival_s <= now + 1e-9:
             f = self._pending.popleft()
             status = machine.on_estimate(f.result, f.taken_s, f.camera)
+            if isinstance(f.result, PlaceView):  # (no estimate of the target: nothing to score or show)
+                continue
             self.referee.delivered(f.result, f.error_mm, status)
             self._notify("estimate", now, f.taken_s, f.result, status)
         t0 = time.perf_counter()
@@ -488,6 +498,11 @@ class Episode:
         error_mm = self.referee.error_mm(result)
         latency = self.scenario.control.perception_latency_s
         self._pending.append(_InFlight(now + latency, now, result, error_mm, frame.camera))
+        if request.place is not None:  # what stands at the place, from the same frame
+            with self.timer("perceive"):
+                place = look_at_place(frame, request.place[0], request.place[1], self.options.perception)
+            if place is not None:
+                self._pending.append(_InFlight(now + latency, now, place, None, frame.camera))
         self._notify("frame", now, frame, result)
 
     def _log_events(self, now: float) -> None:
@@ -511,6 +526,7 @@ class Episode:
         try:
             if self.referee is not None:
                 self.referee.ended()
+                failure = self.referee.named_moves(failure)
                 self._round_score = self.referee.round_score(self.machine)  # (truth: read before the scene closes)
             phases = self.counts.phases
             if failure is not None and not (phases and phases[-1].phase == State.FAILED.value):

@@ -35,6 +35,11 @@ def diagnose(failure: Failure | None, tracking_error_mm: float | None) -> str | 
     return "perception_off" if tracking_error_mm > PERCEPTION_OFF_MM else "perception_ok"
 
 
+#: Another object that ended this far (mm) from where it started was moved by the robot (a nudge of a
+#: few millimetres while the hand goes down beside it is not counted).
+OTHER_MOVED_MM = 10.0
+
+
 @dataclass
 class Referee:
     """The truth's view of one episode (filled in as it runs; read into the result at its end)."""
@@ -52,6 +57,8 @@ class Referee:
     wrong_estimates_accepted: int = 0  # of those, how many it acted on (fused into its belief)
     wrong_estimates_self_rejected: int = 0  # of those, how many perception's own fit check rejected
     off_table: bool | None = None  # the target ended off the table (fell, or was knocked off)
+    #: the other objects that ended this far (mm) or more from where they started: {name: mm}
+    others_moved_mm: dict[str, float] | None = None
 
     def _truth(self) -> Pose:
         return self.world.true_pose(self.target)
@@ -116,11 +123,27 @@ class Referee:
         return None
 
     def ended(self) -> None:
-        """The episode is over: whether the target ended off the table (below its top, beyond its edges)."""
+        """The episode is over: whether the target ended off the table (below its top, beyond its
+        edges), and which other objects it moved (:data:`OTHER_MOVED_MM`)."""
         if self.start_pose is None:
             return
         x, y, z = self._truth().position
         self.off_table = bool(z < -0.005 or not self.scenario.table.holds(float(x), float(y)))
+        belt = self.scenario.conveyor is not None  # (a belt moves them all)
+        moved = {}
+        for p in self.world.layout:
+            if p.name != self.target and not belt:
+                d = float(np.linalg.norm(self.world.true_pose(p.name).position - p.pose.position)) * 1e3
+                if d >= OTHER_MOVED_MM:
+                    moved[p.name] = round(d, 1)
+        self.others_moved_mm = moved
+
+    def named_moves(self, failure: Failure | None) -> Failure | None:
+        """A failure that moved another object says so first: the robot may have carried it instead."""
+        if failure is None or not self.others_moved_mm:
+            return failure
+        moved = ", ".join(f"objects.{n} {mm:.0f} mm" for n, mm in self.others_moved_mm.items())
+        return Failure(failure.stage, f"another object moved from where it stood ({moved}); {failure.reason}")
 
     def score(self) -> None:
         """Success: lifted high enough, put down where asked, upright and at rest (raises the failure)."""
@@ -263,6 +286,10 @@ class ClearReferee:
 
     def lifted_mm(self) -> None:
         return None
+
+    def named_moves(self, failure: Failure | None) -> Failure | None:
+        """(A clear round moves every object: its failures say which were left.)"""
+        return failure
 
     def ended(self) -> None:
         if self.in_round is not None:

@@ -99,6 +99,7 @@ def episode_result(
         limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded, rates)),
         peak_joint_limit_ratio=_peak_ratios(counts.commanded, rates),
         place_position_m=None if world is None else world.place_xy,
+        others_moved_mm=getattr(ref, "others_moved_mm", None),
         clear=round_score,
         trace=trace.freeze() if trace is not None else None,
     )

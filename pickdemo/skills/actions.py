@@ -139,9 +139,11 @@ class Grip:
         self._no_hold = 0
         self._prev_opening: float | None = None
 
-    def open(self, force_n: float | None = None) -> None:
-        """Open wide (with ``force_n``, default the usual opening force)."""
-        self.target_m, self.force_n = self.finger_max_m, self.p.open_force_n if force_n is None else force_n
+    def open(self, force_n: float | None = None, to_m: float | None = None) -> None:
+        """Open wide, or each finger ``to_m`` from the middle (with ``force_n``, default the usual
+        opening force)."""
+        self.target_m = self.finger_max_m if to_m is None else min(to_m, self.finger_max_m)
+        self.force_n = self.p.open_force_n if force_n is None else force_n
 
     def close(self, force_n: float) -> None:
         self.target_m, self.force_n = 0.0, force_n
@@ -160,7 +162,8 @@ class Grip:
         return self._stall >= self.p.stall_ticks
 
     def opened(self, obs: Observation) -> bool:
-        return obs.opening_m > 2.0 * self.finger_max_m - self.p.open_margin_m
+        """As open as they were told to be (wide, or as far as :meth:`open` said)."""
+        return obs.opening_m > 2.0 * self.target_m - self.p.open_margin_m
 
     def holding(self, obs: Observation, width_m: float) -> bool:
         """Both fingers touch and the opening matches an object ``width_m`` wide."""

@@ -29,7 +29,7 @@ from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.grasping.selection import GraspSelector, selector_for
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.motion.online import MotionSample
-from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
+from pickdemo.perception import PerceptionError, PlaceView, PoseEstimate, TargetModel
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.actions import Grip, Scale
 from pickdemo.skills.pick.arm import ArmDriver
@@ -48,6 +48,7 @@ from pickdemo.skills.pick.params import (
     State,
     Transition,
 )
+from pickdemo.skills.pick.place import PlaceFinder
 from pickdemo.skills.pick.plans import PlacedHigher
 from pickdemo.skills.pick.states import STATES
 from pickdemo.skills.pick.views import ViewPlanner
@@ -112,9 +113,13 @@ class PickMachine:
         self.intercept = Interceptor(kin, rng, p, self.belief, self.arm, open_loop=open_loop)
         self.chooser = GraspChooser(kin, rng, p, model, place_xy, selector, self.belief, self.arm, self.intercept)
         self.watch = MoveWatch(kin, p, model, self.belief, self.hand_cameras, open_loop=open_loop)
-        self.view_planner = ViewPlanner(
-            kin, p, model, self.belief, self.watch, cameras, place_xy, look_at=self.look_at, open_loop=open_loop
+        self.place_finder = PlaceFinder(
+            p, model, self.belief, place_xy, place_tolerance_m, kin.robot.gripper, place_z_m
         )
+        self.view_planner = ViewPlanner(
+            kin, p, model, self.belief, self.watch, cameras, place_xy, look_at=self.look_at, open_loop=open_loop,
+            place_look=self.place_finder.look,
+        )  # fmt: skip
         # What happened.
         self.state = State.LOOK
         self.failure: Failure | None = None
@@ -123,6 +128,10 @@ class PickMachine:
         self.plan: GraspPlan | None = None
         self.grasp_width_m: float | None = None  # finger opening on the object at the last grasp
         self.verify_estimate: PoseEstimate | None = None
+        self.place_view: PlaceView | None = None  # what the camera last saw standing at the place
+        self.place_z_m = place_z_m
+        self.release_m: float | None = None  # letting go, each finger opens this far (None: wide)
+        self.rest_height_m: float | None = None  # its centre above what it stood on, when grasped
         self.released_at_s: float | None = None  # when it last began to let go of the target
         # Per attempt: what a retry may change.
         self.attempt = 1
@@ -190,10 +199,13 @@ class PickMachine:
         )  # fmt: skip
 
     def on_estimate(
-        self, result: PoseEstimate | PerceptionError, frame_time_s: float, camera: str = "camera"
+        self, result: PoseEstimate | PerceptionError | PlaceView, frame_time_s: float, camera: str = "camera"
     ) -> Verdict:
         """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``
-        by ``camera``; what became of it (:class:`~pickdemo.tracking.belief.Verdict`)."""
+        by ``camera``, or what it saw at the place; what became of it (:class:`~pickdemo.tracking.belief.Verdict`)."""
+        if isinstance(result, PlaceView):
+            self.place_view = result
+            return Verdict.UNUSED
         if self.state is State.VERIFY:
             self.verify_asked = True
             if isinstance(result, PoseEstimate):
@@ -314,9 +326,9 @@ class PickMachine:
         return State.BACK_OFF, f"{outcome}: {reason}; attempt {self.attempt} of {self.max_attempts} follows"
 
     # ================================================================================ planning
-    def replan(self, *, first: bool) -> GraspPlan | None:
+    def replan(self, *, first: bool, avoid: tuple[float, ...] = ()) -> GraspPlan | None:
         """A grasp plan from the tracker's belief now (:class:`~pickdemo.skills.pick.chooser.GraspChooser`);
-        None after failing the episode."""
+        None after failing the episode. ``avoid``: a first plan by other faces than these hand angles', if it can."""
         tp = self.belief.predict(self.now_s)
         pose = Pose.from_xyz_rpy(tp.position, yaw=tp.yaw_rad)
         self.planned_at_s = self.now_s
@@ -324,7 +336,7 @@ class PickMachine:
         if first:
             missed = (self.plan.hand_yaw_rad,) if (self.turn_hand and self.plan is not None) else ()
             self.turn_hand = False
-            out = self.chooser.first_plan(pose, v, missed + tuple(self.touched_yaws), self.now_s)
+            out = self.chooser.first_plan(pose, v, missed + tuple(self.touched_yaws) + avoid, self.now_s)
         else:
             over, approaching = self.state in HAND_OVER_TARGET, self.state is State.APPROACH
             out = self.chooser.replan(
@@ -334,6 +346,11 @@ class PickMachine:
             self.fail(out.stage, out.reason)
             return None
         return out
+
+    def put_down_at(self, xy: tuple[float, float]) -> None:
+        """Put the target down at ``xy``, not where the task's place is (it is taken there)."""
+        self.place_xy = xy
+        self.chooser.place_xy = self.view_planner.place_xy = xy
 
     def track_plan(self) -> GraspPlan | None:
         """A fresh plan when a new estimate has come in (closed loop), else None."""

@@ -112,6 +112,19 @@ class MachineParams:
     drop_place: bool = False
     #: after the place, home (off: done where it let go, at rest; a sequencer goes on from there)
     home_after_place: bool = True
+    #: before the first approach (and each attempt's), the fixed camera's whole view of the place:
+    #: something standing there fails the episode in ``place`` before the target is picked up
+    check_place: bool = True
+    #: ... something: at least this many points of it (a 1 cm square seen from a metre is about 40)
+    place_taken_points: int = 20
+    #: ... within this of the target's footprint about the place (m)
+    place_clearance_m: float = 0.005
+    #: ... then the nearest spot where it is free, up to this share of the task's place tolerance away
+    place_shift_share: float = 0.5
+    #: ... or where the fingers, opening only this far past the target (m, each), let go of it clear of it
+    release_margin_m: float = 0.01
+    #: at the end, the target seen this far (m) above where it should rest: on something, not placed
+    verify_height_tolerance_m: float = 0.015
     #: the machine ends with the arm at rest: a last failed attempt backs off first (straight up, the
     #: fingers open), any other failure brakes the motion under way (a sequencer goes on from there)
     end_at_rest: bool = False
@@ -178,3 +191,5 @@ class FrameRequest:
     roi: tuple[int, int, int, int] | None
     survey: bool = False  # every object on the table (a clear round's look), not the target's pose
     camera: str = "camera"
+    #: also what stands within this circle ((x, y), radius, m): the place, before the target is picked
+    place: tuple[tuple[float, float], float] | None = None

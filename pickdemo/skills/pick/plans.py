@@ -1,5 +1,5 @@
-"""Grasp plans turned and raised: the same plan with the hand turned half a turn (a parallel
-gripper's equivalent), and a selector whose plans let go higher (over a tray's rim)."""
+"""Grasp plans turned, moved and raised: the same plan with the hand turned half a turn (a parallel
+gripper's equivalent), put down elsewhere, and a selector whose plans let go higher (over a tray's rim)."""
 
 from __future__ import annotations
 
@@ -17,6 +17,17 @@ def half_turn(pose: Pose, shift: np.ndarray | None = None) -> Pose:
     """A top-down TCP pose turned half a turn about the vertical: a parallel gripper's equivalent (moved
     by ``shift``, m)."""
     return top_down(pose.position if shift is None else pose.position + shift, float(pose.rpy[2]) + np.pi)
+
+
+def moved_place(plan: GraspPlan, dxy: tuple[float, float]) -> GraspPlan:
+    """The plan put down ``dxy`` (m, across the table) from where it was to be put down."""
+    d = np.array([dxy[0], dxy[1], 0.0])
+    return dataclasses.replace(
+        plan,
+        place_above=Pose(plan.place_above.position + d, plan.place_above.rotation),
+        place=Pose(plan.place.position + d, plan.place.rotation),
+        retreat=Pose(plan.retreat.position + d, plan.retreat.rotation),
+    )
 
 
 def turned_plan(plan: GraspPlan, *, pick: bool, place: bool) -> GraspPlan:

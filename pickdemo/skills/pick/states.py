@@ -31,7 +31,7 @@ import numpy as np
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Stage
 from pickdemo.skills.pick.params import HAND_OVER_TARGET, Event, State, Transition
-from pickdemo.skills.pick.plans import turned_plan
+from pickdemo.skills.pick.plans import moved_place, turned_plan
 from pickdemo.skills.pick.views import unsure
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
@@ -99,6 +99,29 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
         plan = m.replan(first=True)
         if plan is None:
             return None
+        found = m.place_finder.spot(m.place_view, obs.time_s, plan)
+        tried = [plan.hand_yaw_rad]
+        while isinstance(found, str):  # the hand let go across other faces, if the target has them?
+            other = m.replan(first=True, avoid=tuple(tried))
+            if other is None:
+                return None
+            if any(abs(_wrap(other.hand_yaw_rad - yaw, np.pi)) < np.pi / 4 for yaw in tried):
+                break  # (no other faces)
+            tried.append(other.hand_yaw_rad)
+            plan, found = other, m.place_finder.spot(m.place_view, obs.time_s, other)
+        if isinstance(found, str):  # (put down there, it would stand on it, or be pressed into it)
+            m.fail(Stage.PLACE, f"{found}: the target was not picked")
+            return None
+        spot, m.release_m = found
+        if m.release_m is not None:
+            m.note(f"something stands near the place: letting go with the fingers {m.release_m * 1e3:.0f} mm open each")
+        if spot != m.place_xy:
+            task = m.place_finder.place_xy
+            off = float(np.hypot(spot[0] - task[0], spot[1] - task[1]))
+            m.note(f"something stands at the place: putting the target down at ({spot[0]:.3f}, {spot[1]:.3f}), "
+                   f"{off * 1e3:.0f} mm from it")  # fmt: skip
+            plan = moved_place(plan, (spot[0] - m.place_xy[0], spot[1] - m.place_xy[1]))
+            m.put_down_at(spot)
         m.plan = plan
         # (more frames cannot mend that)
         unsafe = unsure(m.belief, plan, obs.time_s, m.p, m.grip.finger_max_m, calibration_only=True)
@@ -249,6 +272,8 @@ def tick_descend(m: PickMachine, obs: Observation) -> Transition:
 
 # ---- CLOSE: fingers close with this attempt's force; held or missed.
 def enter_close(m: PickMachine, obs: Observation) -> None:
+    tp = m.belief.predict(obs.time_s)  # how high its centre rests above what it stands on: so at the place
+    m.rest_height_m = float(tp.position[2]) - m.belief.surface_z(float(tp.position[0]), float(tp.position[1]))
     m.grip.close(m.grip_force_n)
     m.grip.watch()
     m.watch.start_hold()
@@ -360,7 +385,7 @@ def tick_lower(m: PickMachine, obs: Observation) -> Transition:
 # ---- RELEASE, RETREAT, HOME, VERIFY.
 def enter_release(m: PickMachine, obs: Observation) -> None:
     m.released_at_s = obs.time_s
-    m.grip.open()
+    m.grip.open(to_m=m.release_m)
     m.grip.watch()
     m.forced_open = False
 
@@ -419,6 +444,12 @@ def tick_verify(m: PickMachine, obs: Observation) -> Transition:
     if m.verify_estimate is None:
         return State.DONE, "the camera does not find the target at the end"
     seen = m.verify_estimate.pose.position
+    if m.rest_height_m is not None:  # on the table at the place, not on something there
+        high = float(seen[2]) - (m.place_z_m + m.rest_height_m)
+        if high > m.p.verify_height_tolerance_m:
+            m.fail(Stage.PLACE, f"the camera sees the target {high * 1e3:.0f} mm above where it should rest: "
+                                "put down on something at the place")  # fmt: skip
+            return None
     err = float(np.hypot(seen[0] - m.place_xy[0], seen[1] - m.place_xy[1]))
     said = f"the camera sees the target {err * 1e3:.1f} mm from the place position"
     if m.place_tolerance_m is None or err <= m.place_tolerance_m:

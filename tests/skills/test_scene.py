@@ -1,0 +1,72 @@
+"""The whole scene, not only the target: a place that is taken, a neighbour flush against the target.
+Episodes over several seeds; properties of them all, never one seed's fate."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from pickdemo.core.geometry import Pose
+from pickdemo.core.shapes import Box
+from pickdemo.grasping.top_down import plan_grasp
+from pickdemo.perception import PlaceView, TargetModel
+from pickdemo.robot import robot_named
+from pickdemo.skills.pick.params import MachineParams
+from pickdemo.skills.pick.place import PlaceFinder
+from tests.episodes import at_least, describe, episodes
+
+ROBOT = robot_named()
+CUBE = TargetModel(Box((0.05, 0.05, 0.05)), (0.85, 0.1, 0.1))
+PLACE = (0.45, 0.3)
+
+
+def _finder(tolerance_m: float | None = 0.02) -> tuple[PlaceFinder, object]:
+    """A finder with the cube tracked at (0.5, 0, 0.025), yaw 0, and a plan that puts it down at PLACE."""
+    p = MachineParams()
+    pose = Pose.from_xyz_rpy([0.5, 0.0, 0.025])
+    tracked = SimpleNamespace(position=pose.position, yaw_rad=0.0)
+    belief = SimpleNamespace(unknown=False, top_extents_m=(0.05, 0.05), predict=lambda t: tracked)
+    plan = plan_grasp(pose, CUBE, PLACE, gripper=ROBOT.gripper, hand_yaw_near_rad=0.0)
+    return PlaceFinder(p, CUBE, belief, PLACE, tolerance_m, ROBOT.gripper), plan  # type: ignore[arg-type]
+
+
+def _carton(x0: float, x1: float, y0: float, y1: float, top: float = 0.05) -> np.ndarray:
+    xs, ys = np.linspace(x0, x1, 15), np.linspace(y0, y1, 15)
+    return np.array([[x, y, top] for x in xs for y in ys])
+
+
+def test_a_free_place_is_the_place_and_a_taken_one_is_moved_within_the_tolerance_or_refused() -> None:
+    finder, plan = _finder()
+    view = lambda pts: PlaceView(PLACE, 0.1, pts, 0.0)  # noqa: E731
+    assert finder.spot(view(np.zeros((0, 3))), 0.0, plan) == (PLACE, None)
+    # a carton whose edge is 20 mm from the place along x (the cube's half side is 25): moved away from it
+    (x, y), _ = finder.spot(view(_carton(0.47, 0.53, 0.25, 0.35)), 0.0, plan)
+    assert 0.0 < np.hypot(x - PLACE[0], y - PLACE[1]) <= 0.01 + 1e-9 and x < PLACE[0]
+    # on the place itself: no spot within half the tolerance
+    reason = finder.spot(view(_carton(0.43, 0.49, 0.27, 0.33)), 0.0, plan)
+    assert isinstance(reason, str) and "is taken" in reason
+    # a task with no tolerance takes the place or nothing
+    strict, plan = _finder(None)
+    assert isinstance(strict.spot(view(_carton(0.47, 0.53, 0.25, 0.35)), 0.0, plan), str)
+
+
+def test_a_place_that_may_be_taken_is_put_down_on_free_or_refused_before_the_pick() -> None:
+    """``pick_place_maybe_taken``: a carton drawn beside the place. Every episode puts the cube down
+    within the tolerance, or fails in ``place`` before any attempt, saying it is taken; the carton is
+    never moved, and the cube never ends on it."""
+    results = episodes("pick_place_maybe_taken", (0, 1, 2, 3, 4, 5))
+    for r in results:
+        assert r.others_moved_mm == {}, describe(r)
+        if not r.success:
+            assert r.failure.stage.value == "place" and "is taken" in r.failure.reason, describe(r)  # type: ignore[union-attr]
+            assert not r.attempts, describe(r)
+    at_least(results, 2)  # (the layout leaves some seeds' place free)
+
+
+def test_a_cube_flush_against_a_carton_is_grasped_by_its_free_faces_first_time() -> None:
+    results = episodes("pick_beside_carton", (0, 1, 2, 3))
+    good = at_least(results, 4)
+    at_least(good, 4, lambda r: len(r.attempts) == 1, "succeed at the first attempt")
+    for r in results:
+        assert r.others_moved_mm == {}, describe(r)
