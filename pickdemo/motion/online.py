@@ -398,6 +398,7 @@ class JointMotion:
         self._inp.current_position = self.q.tolist()
         self._inp.current_velocity = [0.0] * len(self.q)
         self._inp.current_acceleration = [0.0] * len(self.q)
+        self._inp.control_interface = ControlInterface.Position  # (after a brake: to a goal again)
         self._write(q_goal, scale)
         self._finished = False
 

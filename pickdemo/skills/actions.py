@@ -121,8 +121,10 @@ class GripParams:
     stall_ticks: int = 8  # ticks in a row of fingers not moving: they have closed or opened
     drop_ticks: int = 3  # ticks in a row without a hold before a drop is called
     hold_margin_m: float = 0.008  # fingers closed this far past the object's width: nothing held
-    #: fingers stopped this far wider than a known object's width: held askew, or not it alone
+    #: fingers stopped this far wider than a known object's width: held askew, or not it alone ...
     wide_margin_m: float = 0.008
+    #: ... or this share of its width, if less: a small cube held corner to corner is 41 % wider
+    wide_share: float = 0.25
     open_margin_m: float = 0.004  # fingers within this of wide open: opened
 
 
@@ -171,9 +173,9 @@ class Grip:
         return left > 0 and right > 0 and obs.opening_m > width_m - self.p.hold_margin_m
 
     def too_wide(self, obs: Observation, width_m: float) -> bool:
-        """The fingers stopped wider than an object ``width_m`` wide by ``wide_margin_m``: held askew
-        (turned between the pads) or with something else."""
-        return obs.opening_m > width_m + self.p.wide_margin_m
+        """The fingers stopped wider than an object ``width_m`` wide by ``wide_margin_m`` (or
+        ``wide_share`` of its width, if less): held askew (turned between the pads) or with something else."""
+        return obs.opening_m > width_m + min(self.p.wide_margin_m, self.p.wide_share * width_m)
 
     def watch_hold(self) -> None:
         self._no_hold = 0

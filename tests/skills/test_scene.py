@@ -70,3 +70,25 @@ def test_a_cube_flush_against_a_carton_is_grasped_by_its_free_faces_first_time()
     at_least(good, 4, lambda r: len(r.attempts) == 1, "succeed at the first attempt")
     for r in results:
         assert r.others_moved_mm == {}, describe(r)
+
+
+def test_a_motion_that_fails_is_planned_again_within_the_attempts(monkeypatch) -> None:  # noqa: ANN001
+    """A motion that fails in the approach (here made to, once: IK lost its setpoint) brakes the arm
+    to rest within its limits, looks again and takes the target by other faces; it succeeds."""
+    from pickdemo import load_scenario, run_episode
+    from pickdemo.core.result import Failure, Stage
+    from pickdemo.skills.pick.arm import ArmDriver
+
+    step = ArmDriver.step
+    for seed in (0, 1):
+        ticks = {"n": 0}
+
+        def failing_once(self, grip, ticks=ticks):  # noqa: ANN001, ANN202
+            ticks["n"] += 1
+            return Failure(Stage.TRAJECTORY, "IK lost the setpoint") if ticks["n"] == 40 else step(self, grip)
+
+        monkeypatch.setattr(ArmDriver, "step", failing_once)
+        r = run_episode(load_scenario("pick_cube"), seed)
+        assert r.success, describe(r)
+        assert [a.outcome for a in r.attempts] == ["motion failed", "placed"], describe(r)
+        assert r.peak_joint_limit_ratio is not None and max(r.peak_joint_limit_ratio.values()) <= 1.0

@@ -130,6 +130,12 @@ class ArmDriver:
         self.sample = sample
         return self._send(sample.q, sample.dq, grip)
 
+    def rested(self) -> None:
+        """Braked to rest (not at the episode's end): the next motion starts afresh from here."""
+        self._braking = False
+        self.braked = False
+        self.cartesian()  # (at rest where the brake left the joints)
+
     # ====================================================================== joint transfers
     def transfer_to(self, q_goal: np.ndarray, scale: float) -> None:
         """A transfer in joint space to ``q_goal`` (from rest where the Cartesian motion is, or a new

@@ -38,6 +38,7 @@ from pickdemo.skills.pick.intercept import Interceptor
 from pickdemo.skills.pick.params import (
     HAND_OVER_TARGET,
     MAX_TRANSITIONS_PER_TICK,
+    REPLANNABLE,
     RETRIES,
     SLIPPED,
     TRACKING_STATES,
@@ -138,7 +139,10 @@ class PickMachine:
         self.grip_force_n = p.grip_force_n
         self.lift_scale = 1.0
         self.turn_hand = False  # after a miss: try a square box by its other pair of faces
-        self.touched_yaws: list[float] = []  # hand angles at which a finger touched something going down
+        #: hand angles to take the target by other faces than, if it has them: a finger touched
+        #: something beside it going down, or the arm's motion failed
+        self.avoid_yaws: list[float] = []
+        self.recovering = False  # a motion failed: the arm is brought to rest, to look again from home
         self.weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
         self.forced_open = False  # releasing: the fingers were told to open with full force
         self.lifted_off = False  # lifting: past the pause just off the table where it is weighed
@@ -253,12 +257,32 @@ class PickMachine:
             self.arm.legs.popleft()()
         if self.finished:
             return self._stopped()
+        if self.recovering:
+            return self._recover()
         out = self.arm.step(self.grip)
         if isinstance(out, Failure):
+            if self.state in REPLANNABLE and self.attempt < self.max_attempts and self.plan is not None:
+                # Another attempt may take another IK goal or hand angle: at rest first, then home.
+                self.avoid_yaws.append(self.plan.hand_yaw_rad)
+                nxt = self.retry(out.stage, "motion failed", out.reason)
+                assert nxt is not None  # (an attempt is left)
+                self.note(nxt[1].replace("; attempt", ": braking to look again; attempt"))
+                self.recovering = True
+                return self._recover()
             self.fail(out.stage, out.reason)
             return self._stopped()
         self.counters.retargets = self.arm.retargets
         return out
+
+    def _recover(self) -> Command:
+        """A tick of bringing the arm to rest after a failed motion (within the joints' limits); at rest,
+        look again from home."""
+        cmd = self.arm.brake(self.grip)
+        if self.arm.braked:
+            self.arm.rested()
+            self.recovering = False
+            self.go(State.LOOK, "at rest after the failed motion: looking again")
+        return cmd
 
     def _stopped(self) -> Command:
         """The command once finished: held where it is (with ``end_at_rest``, after a failure, braked first)."""
@@ -336,7 +360,7 @@ class PickMachine:
         if first:
             missed = (self.plan.hand_yaw_rad,) if (self.turn_hand and self.plan is not None) else ()
             self.turn_hand = False
-            out = self.chooser.first_plan(pose, v, missed + tuple(self.touched_yaws) + avoid, self.now_s)
+            out = self.chooser.first_plan(pose, v, missed + tuple(self.avoid_yaws) + avoid, self.now_s)
         else:
             over, approaching = self.state in HAND_OVER_TARGET, self.state is State.APPROACH
             out = self.chooser.replan(

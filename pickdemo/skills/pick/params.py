@@ -43,6 +43,9 @@ class State(str, enum.Enum):
 
 #: States in which the closed loop keeps looking at the target (a region of interest around it).
 TRACKING_STATES = frozenset({State.APPROACH, State.DESCEND, State.CLOSE, State.BACK_OFF})
+#: States whose motion, failed (IK, a trajectory), the next attempt may plan again: the hand empty, or
+#: the target just lifted (let go there, it falls back where it was)
+REPLANNABLE = frozenset({State.APPROACH, State.DESCEND, State.LIFT})
 #: States in which the hand is over the target: a partial view of it is not acted on.
 HAND_OVER_TARGET = frozenset({State.DESCEND, State.CLOSE})
 
@@ -154,7 +157,7 @@ class Retry:
 
 #: The retry policy, by the failed attempt's outcome: a miss looks again (a square box by its other
 #: faces), a hold off centre grasps it again where it lies, a slip holds harder and lifts more gently.
-RETRIES: dict[str, Retry] = {"missed": Retry(other_faces=True), "held off centre": Retry()}
+RETRIES: dict[str, Retry] = {"missed": Retry(other_faces=True), "held off centre": Retry(), "motion failed": Retry()}
 SLIPPED = Retry(force_factor=2.0, lift_factor=0.5)  # any other outcome: it slipped out
 
 

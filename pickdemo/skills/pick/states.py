@@ -228,7 +228,7 @@ def _touched_early(m: PickMachine, obs: Observation) -> Transition:
     touched = m.watch.touched(obs, m.plan)
     if touched is None:
         return None
-    m.touched_yaws.append(m.plan.hand_yaw_rad)  # (the next look grasps it by other faces first)
+    m.avoid_yaws.append(m.plan.hand_yaw_rad)  # (the next look grasps it by other faces first)
     m.grip.open()
     m.after_back_off = State.LOOK
     return State.BACK_OFF, f"{touched}: backing off to look again"
@@ -330,6 +330,11 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
     if not (m.arm.finished and _weigh(m, obs)):
         return None
     if not m.lifted_off:  # weighed just off the table: on up to the carry height
+        if m.plan.width_known and m.grasp_width_m is not None and m.grip.too_wide(obs, m.grasp_width_m):
+            # It turned between the pads as it came off the table (held off its centre of mass, or a
+            # light cube pivoting on the pads): carried so, it lands askew and off the place.
+            reason = f"fingers at {obs.opening_m * 1e3:.1f} mm, {m.grasp_width_m * 1e3:.1f} mm when it was grasped"
+            return m.retry(Stage.LIFT, "turned in the grip", reason)
         m.lifted_off = True
         lift = m.arm.move.x4(m.plan.lift)
         m.arm.motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
