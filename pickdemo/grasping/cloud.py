@@ -260,6 +260,21 @@ def _hits_obstacles(
 ) -> np.ndarray:
     """For each height (rows of ``mid``, the palm's underside ``palm_tops`` and the pads' lower edge
     ``pad_lows``), whether another object's points lie where the open fingers go down or under the palm."""
+    return _hit_counts(oa, ob, oh, mid, cb, palm_tops, pad_lows, gap, finger_max_m) > 0
+
+
+def _hit_counts(
+    oa: np.ndarray,
+    ob: np.ndarray,
+    oh: np.ndarray,
+    mid: np.ndarray,
+    cb: float,
+    palm_tops: np.ndarray,
+    pad_lows: np.ndarray,
+    gap: float,
+    finger_max_m: float,
+) -> np.ndarray:
+    """For each height, how many of the points lie where the open fingers go down or under the palm."""
     finger_reach = finger_max_m + FINGER_THICKNESS_M + gap
     across = np.abs(ob - cb)
     da = np.abs(oa[None, :] - mid[:, None])  # (L, O)
@@ -267,26 +282,27 @@ def _hits_obstacles(
     in_fingers = f[None, :] & (da < finger_reach) & (oh[None, :] >= (pad_lows - gap)[:, None])
     u = across < PALM_HALF_WIDTH_M
     under_palm = u[None, :] & (da < PALM_HALF_LENGTH_M) & (oh[None, :] > palm_tops[:, None])
-    return np.any(in_fingers, axis=1) | np.any(under_palm, axis=1)
+    return np.sum(in_fingers | under_palm, axis=1)
 
 
 def hand_hits(
     obstacles: np.ndarray, tcp: np.ndarray, hand_yaw_rad: float, surface_z: float, palm_m: float, gap_m: float,
-    finger_max_m: float,
+    finger_max_m: float, min_points: int = 1,
 ) -> bool:  # fmt: skip
-    """Whether any of the ``obstacles`` (M, 3) lies where the open fingers go down to a top-down grasp
-    with the TCP at ``tcp`` and the hand angle ``hand_yaw_rad``, or under the palm (``palm_m`` above
-    the TCP), ``gap_m`` to spare; what rests on the surface (within 2 mm of it) is the surface."""
+    """Whether ``min_points`` of the ``obstacles`` (M, 3) lie where the open fingers go down to a
+    top-down grasp with the TCP at ``tcp`` and the hand angle ``hand_yaw_rad``, or under the palm
+    (``palm_m`` above the TCP), ``gap_m`` to spare; what rests on the surface (within 2 mm of it) is
+    the surface."""
     obs = obstacles[obstacles[:, 2] - surface_z > 0.002]
     if len(obs) == 0:
         return False
     a, b = _axis_a(hand_yaw_rad), _axis_b(hand_yaw_rad)
     level = float(tcp[2]) - surface_z
-    hits = _hits_obstacles(
+    hits = _hit_counts(
         obs[:, :2] @ a, obs[:, :2] @ b, obs[:, 2] - surface_z, np.array([float(tcp[:2] @ a)]), float(tcp[:2] @ b),
         np.array([level + palm_m - gap_m]), np.array([level - FINGER_PAD_HALF_HEIGHT_M]), gap_m, finger_max_m,
     )  # fmt: skip
-    return bool(hits[0])
+    return bool(hits[0] >= min_points)
 
 
 @dataclass

@@ -133,7 +133,7 @@ class TopDownFaceGrasps:
         while tcp[2] + raise_m <= top - FINGER_PAD_HALF_HEIGHT_M + 1e-9 or raise_m == 0.0:
             at = tcp + [0.0, 0.0, raise_m]
             if not hand_hits(request.obstacles, at, plan.hand_yaw_rad, request.surface_z, gripper.palm_above_tcp_m,
-                             p.neighbour_clearance_m, gripper.finger_max_m):  # fmt: skip
+                             p.neighbour_clearance_m, gripper.finger_max_m, p.neighbour_min_points):  # fmt: skip
                 return plan.hand_yaw_rad, wide, raise_m
             raise_m += p.raise_step_m
         return None

@@ -39,8 +39,10 @@ class GraspParams:
     #: the open gripper must exceed the object by this much: 2.5 mm a side, for the estimate's error
     #: (sub-millimetre when the whole top face is seen) and the arm's tracking (under a millimetre)
     width_margin_m: float = 0.005
-    #: the open hand keeps this far from the points of anything beside the target (m)
+    #: the open hand keeps this far from the points of anything beside the target (m) ...
     neighbour_clearance_m: float = 0.004
+    #: ... so many of them at least (a speck of depth noise, or a pixel of the arm's edge, is not a neighbour)
+    neighbour_min_points: int = 5
     #: a grasp whose hand would meet something beside the target is tried this much higher, step by
     #: step, while the pads stay wholly on the object (m)
     raise_step_m: float = 0.003

@@ -51,6 +51,7 @@ from pickdemo.skills.pick.params import (
 )
 from pickdemo.skills.pick.place import PlaceFinder
 from pickdemo.skills.pick.plans import PlacedHigher
+from pickdemo.skills.pick.sightline import Sightline
 from pickdemo.skills.pick.states import STATES
 from pickdemo.skills.pick.views import ViewPlanner
 from pickdemo.skills.pick.watch import MoveWatch
@@ -121,6 +122,7 @@ class PickMachine:
             kin, p, model, self.belief, self.watch, cameras, place_xy, look_at=self.look_at, open_loop=open_loop,
             place_look=self.place_finder.look,
         )  # fmt: skip
+        self.sight = Sightline(kin, self.view_planner.fixed)
         # What happened.
         self.state = State.LOOK
         self.failure: Failure | None = None
@@ -160,6 +162,7 @@ class PickMachine:
         self.hover_since: float | None = None  # above the target, waiting to be sure enough of it
         self.verify_asked = False
         self.relooks = 0
+        self.looked_aside = False  # this look has moved the arm aside (it hid the table from the camera)
         self.failing: Failure | None = None  # the last attempt failed: backing off before failing so
 
     # ================================================================================ interface

@@ -109,7 +109,7 @@ class PlaceFinder:
             for off in free:
                 at = np.array([place[0] + off[0], place[1] + off[1], 0.0]) + tcp
                 if not hand_hits(others, at, plan.hand_yaw_rad, self.surface_z, g.palm_above_tcp_m,
-                                 self.p.place_clearance_m, fingers):  # fmt: skip
+                                 self.p.place_clearance_m, fingers, self.p.grasp.neighbour_min_points):  # fmt: skip
                     xy = (float(place[0] + off[0]), float(place[1] + off[1]))
                     return xy, (None if fingers == g.finger_max_m else fingers)
         tall = float(others[:, 2].max()) if len(others) else 0.0

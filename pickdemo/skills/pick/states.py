@@ -84,6 +84,7 @@ def enter_look(m: PickMachine, obs: Observation) -> None:
     m.scale.start()
     m.weighed_force_n = 0.0
     m.look_frames = 0
+    m.looked_aside = False
     m.fresh_estimate = False
     if m.look_here:  # the first look, from where the arm is (at rest)
         m.look_here = False
@@ -138,6 +139,18 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
             f"from {m.belief.accepted} estimate(s); grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg"
             + (f" (attempt {m.attempt})" if m.attempt > 1 else "")
         )
+    if m.look_frames >= m.p.look_aside_frames and not m.looked_aside and m.belief.accepted == 0 and m.arm.finished:
+        m.looked_aside = True
+        aside = m.sight.aside(m.arm.q, m.rng)
+        if aside is not None:  # (the frames start again once it is there)
+            q, hid, still = aside
+            m.note(
+                f"no estimate in {m.look_frames} frames, and the arm hides {hid:.0%} of the table from the camera: "
+                f"moving aside to look again (it still hides {still:.0%} of that)"
+            )
+            m.look_frames = 0
+            m.arm.transfer_to(q, m.p.transfer_scale)
+            return None
     if m.look_frames >= m.p.look_max_frames:
         m.fail(
             Stage.PERCEPTION,
@@ -169,7 +182,8 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
 
 
 def tick_approach(m: PickMachine, obs: Observation) -> Transition:
-    if not m.open_loop and m.belief.lost(obs.time_s):
+    hidden = m.belief.initialised and m.sight.hidden(obs.arm_q, m.belief.predict(obs.time_s).position[None, :])[0]
+    if not m.open_loop and m.belief.lost(obs.time_s) and not hidden:  # (hidden by the arm: on, on its belief)
         # Nothing it sees agrees with its belief any more: look again from home, a few times.
         m.relooks += 1
         if m.relooks > m.p.max_relooks:
@@ -195,7 +209,11 @@ def tick_approach(m: PickMachine, obs: Observation) -> Transition:
     arrived = m.arm.finished or m.intercept.with_target(m.plan.pregrasp, m.now_s, m.planned_at_s)
     if arrived and not m.finished:
         # (open loop: the plan of one look)
-        unsafe = "" if m.open_loop else unsure(m.belief, m.plan, obs.time_s, m.p, m.grip.finger_max_m)
+        when = obs.time_s
+        last = m.belief.tracker.last_accept_s
+        if hidden and not m.hand_cameras and last is not None and m.intercept.velocity(m.now_s) is None:
+            when = last  # the arm hides it from the camera: as sure as when it was last seen (it stood still)
+        unsafe = "" if m.open_loop else unsure(m.belief, m.plan, when, m.p, m.grip.finger_max_m)
         if unsafe:  # wait above it for more frames, or the hand's camera, to make it surer (a bounded wait)
             m.hover_since = obs.time_s if m.hover_since is None else m.hover_since
             if obs.time_s - m.hover_since >= m.p.hover_max_s:

@@ -1,0 +1,123 @@
+"""Whether the arm stands between the fixed camera and what it should see, and where the arm could
+stand instead: the robot's own links (their bounding boxes where its joint states put them, as
+the self-filter has them) against the camera's lines of sight. A part of the pick skill: it returns
+values, never writes the machine's state.
+
+Looking for the target from home, a camera over the robot's shoulder may see the arm where the
+target is. The arm then moves aside to the posture that shows most of the table it hid (the target
+is not where the camera sees the table), and looks again: turned about its first joint (when that
+joint turns it about the vertical, as a Panda's, a UR's and an SO-101's do), or, when no turn will
+do (a camera right behind the shoulder), a posture drawn about home with every link clear of the
+table all the way there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pickdemo.robot.kinematics import Kinematics
+from pickdemo.robot.self_geometry import robot_body
+from pickdemo.skills.pick.params import CameraModel
+
+#: Turns of the first joint (rad) the arm may take to look from, nearest first.
+ASIDE_TURNS_RAD = (0.6, -0.6, 1.0, -1.0, 1.4, -1.4)
+#: ... then postures drawn about home: this many, each joint within this of home's (rad)
+ASIDE_DRAWS = 24
+ASIDE_SPREAD_RAD = 1.2
+#: A posture to look from keeps every link this far above the table (m), on its way there too.
+ASIDE_CLEAR_M = 0.1
+#: Samples along a line of sight (the links are some centimetres thick or more).
+RAY_SAMPLES = 48
+#: The table the camera sees, sampled on this grid of its image (columns, rows).
+TABLE_GRID = (16, 12)
+#: ... within this of the robot's base (m): where it picks.
+TABLE_REACH_M = 0.85
+#: Moving aside is worth it when it shows at least this share of the table the arm hid.
+ASIDE_GAIN = 0.5
+
+
+class Sightline:
+    """The fixed camera's lines of sight against the arm's links."""
+
+    def __init__(self, kin: Kinematics, camera: CameraModel) -> None:
+        self.kin, self.camera = kin, camera
+        self.body = robot_body(kin.robot)
+        self.fingers = np.full(len(kin.robot.gripper.finger_joints), kin.robot.gripper.finger_max_m)
+        self._table: np.ndarray | None = None
+
+    def hidden(self, q: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Which of the world points (N, 3) the arm at ``q`` hides from the camera."""
+        cam = self.camera.pose.position
+        t = np.linspace(0.02, 0.97, RAY_SAMPLES)[None, :, None]
+        samples = cam + (np.atleast_2d(points)[:, None, :] - cam) * t  # (N, S, 3)
+        flat = samples.reshape(-1, 3)
+        inside = np.zeros(len(flat), dtype=bool)
+        for box in self.body.boxes(np.asarray(q, dtype=float), self.fingers):
+            inside |= box.contains(flat)
+        return inside.reshape(samples.shape[:2]).any(axis=1)
+
+    def table(self) -> np.ndarray:
+        """Points of the table top (z = 0) the camera sees, within reach of the robot's base."""
+        if self._table is None:
+            K, T = self.camera.intrinsics, self.camera.pose
+            us = np.linspace(0.5, K.width - 0.5, TABLE_GRID[0])
+            vs = np.linspace(0.5, K.height - 0.5, TABLE_GRID[1])
+            uv = np.array([(u, v) for v in vs for u in us])
+            rays = np.column_stack([(uv[:, 0] - K.cx) / K.fx, (uv[:, 1] - K.cy) / K.fy, np.ones(len(uv))])
+            d = rays @ T.rotation.T
+            down = d[:, 2] < -1e-6
+            s = -T.position[2] / d[down, 2]
+            pts = T.position + d[down] * s[:, None]
+            self._table = pts[np.hypot(pts[:, 0], pts[:, 1]) <= TABLE_REACH_M]
+        return self._table
+
+    def aside(self, q: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float, float] | None:
+        """Where to look from instead of ``q``: the configuration, the share of the table the arm at
+        ``q`` hides, and the share of that it still hides from there; None when no posture tried shows
+        ``ASIDE_GAIN`` of it (or the arm hides nothing). ``rng``: the draws about home."""
+        table = self.table()
+        if self.camera.on_hand or len(table) == 0:
+            return None
+        q = np.asarray(q, dtype=float)
+        hid = self.hidden(q, table)
+        if not hid.any():
+            return None
+        behind = table[hid]
+        turns = []
+        if self._first_joint_vertical(q):
+            for turn in ASIDE_TURNS_RAD:
+                cand = q.copy()
+                cand[0] += turn
+                turns.append(cand)
+        home = np.asarray(self.kin.robot.home_q, dtype=float)
+        draws = [home + rng.uniform(-ASIDE_SPREAD_RAD, ASIDE_SPREAD_RAD, len(home)) for _ in range(ASIDE_DRAWS)]
+        for group in (turns, draws):  # a turn, if one will do
+            best: tuple[np.ndarray, float, float] | None = None
+            for cand in group:
+                if not self.kin.within_limits(cand) or not self._clear_on_the_way(q, cand):
+                    continue
+                still = float(self.hidden(cand, behind).mean())
+                if still <= 1.0 - ASIDE_GAIN and (best is None or still < best[2] - 1e-9):
+                    best = (cand, float(hid.mean()), still)
+            if best is not None:
+                return best
+        return None
+
+    def _clear_on_the_way(self, q0: np.ndarray, q1: np.ndarray) -> bool:
+        """Every link ``ASIDE_CLEAR_M`` above the table (or as high as at ``q0``, the base's, if lower)
+        at ``q1`` and along the straight joint path to it."""
+        floor = [min(float(b.corners()[:, 2].min()), ASIDE_CLEAR_M) for b in self.body.boxes(q0, self.fingers)]
+        for s in np.linspace(0.25, 1.0, 4):
+            boxes = self.body.boxes(q0 + s * (q1 - q0), self.fingers)
+            if any(float(b.corners()[:, 2].min()) < f - 1e-9 for b, f in zip(boxes, floor, strict=True)):
+                return False
+        return True
+
+    def _first_joint_vertical(self, q: np.ndarray) -> bool:
+        """Whether turning the first joint turns the hand about the vertical through the base (its
+        height kept, its distance from the base axis kept)."""
+        a = self.kin.forward(np.asarray(q, dtype=float)).position
+        turned = np.asarray(q, dtype=float).copy()
+        turned[0] += 0.5
+        b = self.kin.forward(turned).position
+        return abs(a[2] - b[2]) < 1e-6 and abs(np.hypot(a[0], a[1]) - np.hypot(b[0], b[1])) < 1e-6

@@ -1,0 +1,34 @@
+"""Whether the arm stands between the fixed camera and the table, and where it could stand instead."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pickdemo.core.camera import Intrinsics, look_at_pose
+from pickdemo.robot import robot_named
+from pickdemo.robot.kinematics import kinematics_of
+from pickdemo.skills.pick.params import CameraModel
+from pickdemo.skills.pick.sightline import Sightline
+
+KIN = kinematics_of(robot_named())
+HOME = np.asarray(KIN.robot.home_q, dtype=float)
+K = Intrinsics.from_fov(640, 480, 57.0, 43.0)
+
+
+def _sight(position: tuple[float, float, float]) -> Sightline:
+    return Sightline(KIN, CameraModel(K, look_at_pose(np.array(position), np.array([0.5, 0.0, 0.0]))))
+
+
+def test_a_camera_over_the_shoulder_is_shown_the_table_from_aside() -> None:
+    sight = _sight((-0.35, 0.1, 0.85))
+    aside = sight.aside(HOME, np.random.default_rng(0))
+    assert aside is not None
+    q, hid, still = aside
+    assert hid > 0.5 and still <= 0.5  # most of what the arm hid at home, it shows from there
+    table = sight.table()
+    assert sight.hidden(q, table).mean() < sight.hidden(HOME, table).mean()
+    assert KIN.within_limits(q)
+
+
+def test_a_camera_in_front_of_the_robot_needs_no_move() -> None:
+    assert _sight((1.1, 0.0, 0.75)).aside(HOME, np.random.default_rng(0)) is None
