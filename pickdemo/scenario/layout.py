@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from pickdemo.core.geometry import OrientedBox, Pose
@@ -167,6 +168,15 @@ def _beside(obj: ObjectSpec, shape: Shape, other: Placement, rng: np.random.Gene
     return other.pose.position[:2] + d * u, yaw
 
 
+def _overlap(shape: Shape, xy: np.ndarray, yaw: float, other: Placement) -> bool:
+    """Whether a footprint at ``xy`` turned ``yaw`` overlaps another object's (their outlines, seen
+    from above; touching is not overlapping)."""
+    a = (shape.outline_xy(yaw) + xy).astype(np.float32)
+    b = (other.geometry.outline_xy(float(other.pose.rpy[2])) + other.pose.position[:2]).astype(np.float32)
+    area, _ = cv2.intersectConvexConvex(a * 1e3, b * 1e3)  # (mm: its area in mm^2)
+    return area > 1.0
+
+
 def _mesh(obj: ObjectSpec, rng: np.random.Generator) -> Shape:
     """A mesh object's file (one of its ``urdf_choice`` matches) and scale for this seed, drawn from
     the seed's ``objects`` stream (so that the layout's own draws stay as they were)."""
@@ -200,16 +210,16 @@ def sample_layout(
         r = shape.footprint_radius_m
         against = None if obj.beside is None else next(p for p in out if p.name == obj.beside.object)
         for _ in range(MAX_DRAWS):
-            if against is not None:  # against it, clear of the others
+            if against is not None:  # against it, its footprint overlapping no other's
                 xy, yaw = _beside(obj, shape, against, rng)
                 pitch = roll = 0.0
-                others = [(q, rq) for (q, rq), p in zip(placed, out, strict=True) if p is not against]
-            else:
-                xy, yaw, pitch, roll = _draw(obj, rng)
-                others = placed
+                if not any(_overlap(shape, xy, yaw, p) for p in out):
+                    break
+                continue
+            xy, yaw, pitch, roll = _draw(obj, rng)
             if obj.position is not None:  # a fixed spot: the scenario's author answers for the spacing
                 break
-            if all(np.linalg.norm(xy - q) >= r + rq + scenario.layout.clearance_m for q, rq in others):
+            if all(np.linalg.norm(xy - q) >= r + rq + scenario.layout.clearance_m for q, rq in placed):
                 break
         else:
             raise LayoutError(f"objects.{obj.name}: no free spot found in {MAX_DRAWS} draws")
