@@ -27,6 +27,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
+from pickdemo.core.camera import RGBDFrame
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import (
     EpisodeFailure,
@@ -45,6 +46,7 @@ from pickdemo.perception import (
     look_at_place,
     with_neighbours,
 )
+from pickdemo.perception.estimators import Estimator
 from pickdemo.perception.unknown import survey_objects
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
@@ -165,6 +167,22 @@ class _InFlight:
     result: PoseEstimate | PerceptionError | PlaceView
     error_mm: float | None  # against the truth when the frame was taken: for the referee only
     camera: str = "camera"  # which camera took the frame
+
+
+def _estimate(
+    estimator: Estimator, frame: RGBDFrame, model: TargetModel, params: PerceptionParams
+) -> PoseEstimate | PerceptionError:
+    """The estimator's estimate of the target in ``frame`` (or its word that it found none), with what
+    stands around a described target (:func:`~pickdemo.perception.with_neighbours`)."""
+    try:
+        result = estimator(frame, model)
+        if not isinstance(result, PoseEstimate):
+            raise TypeError(f"the perception method returned {type(result).__name__}, not a PoseEstimate")
+        if not isinstance(model.geometry, Unknown):  # (one nobody described: its cloud's obstacles)
+            result = with_neighbours(frame, result, model, params)
+        return result
+    except PerceptionError as exc:
+        return exc
 
 
 class Episode:
@@ -478,15 +496,7 @@ class Episode:
             self._notify("frame", now, frame, survey)
             return
         with self.timer("perceive wrist" if rig.on_hand else "perceive"):
-            try:
-                result: PoseEstimate | PerceptionError = self.estimator(frame, self.machine.model)
-                if not isinstance(result, PoseEstimate):
-                    raise TypeError(f"the perception method returned {type(result).__name__}, not a PoseEstimate")
-                model = self.machine.model
-                if not isinstance(model.geometry, Unknown):  # (one nobody described: its cloud's obstacles)
-                    result = with_neighbours(frame, result, model, self.options.perception)
-            except PerceptionError as exc:
-                result = exc
+            result = _estimate(self.estimator, frame, self.machine.model, self.options.perception)
         self.counts.frames += 1
         self.referee.first_estimate(result)  # truth: for scoring only
         if self.counts.frames == 1:  # the first look: disturbances are timed from here
