@@ -21,7 +21,7 @@ def _sight(position: tuple[float, float, float]) -> Sightline:
 
 def test_a_camera_over_the_shoulder_is_shown_the_table_from_aside() -> None:
     sight = _sight((-0.35, 0.1, 0.85))
-    aside = sight.aside(HOME, np.random.default_rng(0))
+    aside = sight.aside([HOME], np.random.default_rng(0))
     assert aside is not None
     q, hid, still = aside
     assert hid > 0.5 and still <= 0.5  # most of what the arm hid at home, it shows from there
@@ -31,4 +31,15 @@ def test_a_camera_over_the_shoulder_is_shown_the_table_from_aside() -> None:
 
 
 def test_a_camera_in_front_of_the_robot_needs_no_move() -> None:
-    assert _sight((1.1, 0.0, 0.75)).aside(HOME, np.random.default_rng(0)) is None
+    assert _sight((1.1, 0.0, 0.75)).aside([HOME], np.random.default_rng(0)) is None
+
+
+def test_a_second_look_aside_shows_what_the_first_still_hid() -> None:
+    sight = _sight((-0.35, 0.1, 0.85))
+    first = sight.aside([HOME], np.random.default_rng(0))
+    assert first is not None
+    second = sight.aside([HOME, first[0]], np.random.default_rng(1))
+    if second is not None:  # (what both hid, the second shows at least half of)
+        table = sight.table()
+        both = sight.hidden(HOME, table) & sight.hidden(first[0], table)
+        assert sight.hidden(second[0], table[both]).mean() <= 0.5

@@ -162,7 +162,10 @@ class PickMachine:
         self.hover_since: float | None = None  # above the target, waiting to be sure enough of it
         self.verify_asked = False
         self.relooks = 0
-        self.looked_aside = False  # this look has moved the arm aside (it hid the table from the camera)
+        #: this look's postures looked from without finding the target (the arm hid the table from the
+        #: fixed camera); no other posture would show more of it
+        self.looked_from: list[np.ndarray] = []
+        self.no_aside = False
         self.failing: Failure | None = None  # the last attempt failed: backing off before failing so
 
     # ================================================================================ interface

@@ -68,8 +68,10 @@ class MachineParams:
     max_grip_force_n: float = 70.0  # the Franka Hand's continuous grip force
     look_min_estimates: int = 2  # accepted estimates before the first plan (1 when open loop)
     look_max_frames: int = 10  # frames in LOOK without an accepted estimate: the episode fails
-    #: ... after this many, the arm moves aside if it hides the table from the fixed camera (once a look)
+    #: ... after this many, the arm moves aside if it hides the table from the fixed camera (at most
+    #: ``look_asides`` times a look, each to show what all the postures before it hid)
     look_aside_frames: int = 3
+    look_asides: int = 2
     max_relooks: int = 2  # the target lost while approaching: look again from home, at most this often
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
     moved_tolerance_rad: float = float(np.radians(8.0))

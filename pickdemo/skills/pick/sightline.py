@@ -71,24 +71,29 @@ class Sightline:
             self._table = pts[np.hypot(pts[:, 0], pts[:, 1]) <= TABLE_REACH_M]
         return self._table
 
-    def aside(self, q: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float, float] | None:
-        """Where to look from instead of ``q``: the configuration, the share of the table the arm at
-        ``q`` hides, and the share of that it still hides from there; None when no posture tried shows
-        ``ASIDE_GAIN`` of it (or the arm hides nothing). ``rng``: the draws about home."""
+    def aside(self, looked_from: list[np.ndarray], rng: np.random.Generator) -> tuple[np.ndarray, float, float] | None:
+        """Where to look from next, having looked from the postures ``looked_from`` (the last is where the
+        arm is) and not found the target: the configuration, the share of the table the arm hid from
+        all of them, and the share of that it still hides from there; None when no posture tried
+        shows ``ASIDE_GAIN`` of it (or the arm hides nothing). ``rng``: the draws about home."""
         table = self.table()
         if self.camera.on_hand or len(table) == 0:
             return None
-        q = np.asarray(q, dtype=float)
-        hid = self.hidden(q, table)
+        q = np.asarray(looked_from[-1], dtype=float)
+        hid = np.ones(len(table), dtype=bool)
+        for seen_from in looked_from:  # (the target is where none of them showed the table)
+            hid &= self.hidden(np.asarray(seen_from, dtype=float), table)
         if not hid.any():
             return None
         behind = table[hid]
         turns = []
-        if self._first_joint_vertical(q):
+        first = np.asarray(looked_from[0], dtype=float)
+        if self._first_joint_vertical(first):
             for turn in ASIDE_TURNS_RAD:
-                cand = q.copy()
+                cand = first.copy()
                 cand[0] += turn
-                turns.append(cand)
+                if not any(np.allclose(cand, seen_from) for seen_from in looked_from):
+                    turns.append(cand)
         home = np.asarray(self.kin.robot.home_q, dtype=float)
         draws = [home + rng.uniform(-ASIDE_SPREAD_RAD, ASIDE_SPREAD_RAD, len(home)) for _ in range(ASIDE_DRAWS)]
         for group in (turns, draws):  # a turn, if one will do

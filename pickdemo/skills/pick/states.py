@@ -84,7 +84,7 @@ def enter_look(m: PickMachine, obs: Observation) -> None:
     m.scale.start()
     m.weighed_force_n = 0.0
     m.look_frames = 0
-    m.looked_aside = False
+    m.looked_from, m.no_aside = [], False
     m.fresh_estimate = False
     if m.look_here:  # the first look, from where the arm is (at rest)
         m.look_here = False
@@ -139,9 +139,13 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
             f"from {m.belief.accepted} estimate(s); grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg"
             + (f" (attempt {m.attempt})" if m.attempt > 1 else "")
         )
-    if m.look_frames >= m.p.look_aside_frames and not m.looked_aside and m.belief.accepted == 0 and m.arm.finished:
-        m.looked_aside = True
-        aside = m.sight.aside(m.arm.q, m.rng)
+    if (
+        m.look_frames >= m.p.look_aside_frames and len(m.looked_from) < m.p.look_asides and not m.no_aside
+        and m.belief.accepted == 0 and m.arm.finished
+    ):  # fmt: skip
+        m.looked_from.append(m.arm.q.copy())  # (looked from here, and found nothing)
+        aside = m.sight.aside(m.looked_from, m.rng)
+        m.no_aside = aside is None
         if aside is not None:  # (the frames start again once it is there)
             q, hid, still = aside
             m.note(
@@ -313,7 +317,9 @@ def tick_close(m: PickMachine, obs: Observation) -> Transition:
                 f"fingers stopped at {obs.opening_m * 1e3:.1f} mm "
                 f"(expected {width * 1e3:.0f} mm): held askew, or not it alone"
             )
-            return m.retry(Stage.GRASP, "missed", reason)
+            if m.attempt < m.max_attempts:
+                return m.retry(Stage.GRASP, "missed", reason)
+            m.note(f"{reason}: no attempt left to grasp it better, carried as it is held")
         off_centre = m.watch.held_off_centre(obs, m.plan)
         if off_centre is False:
             return None  # (waiting for the hand's camera to see the hold)
