@@ -64,6 +64,8 @@ class GraspSelector(Protocol):
         ...
 
 
+#: Hand angles tried about a round target when something stands beside it (every 10 deg).
+FREE_STEPS_NEAR_NEIGHBOURS = 36
 #: A grasp the hand can make beside what stands around the target: its hand angle, across the wider
 #: side or not, and how much higher than where the pads would close.
 Clear = tuple[float, bool, float]
@@ -107,7 +109,9 @@ class TopDownFaceGrasps:
         obstacles = request.obstacles
         if obstacles is None or len(obstacles) == 0:
             return None
-        yaws = equivalent_hand_yaws(request.pose, request.model)
+        # (a shape the same from every side is tried every 10 deg: near a flat neighbour only an angle
+        # within a few degrees of its face keeps the fingers off it)
+        yaws = equivalent_hand_yaws(request.pose, request.model, free_steps=FREE_STEPS_NEAR_NEIGHBOURS)
         clear = [c for yaw in yaws if (c := self._lowest_clear(request, yaw, wide=False)) is not None]
         shape = request.model.geometry
         widest = request.gripper.max_opening_m - self.params.width_margin_m
@@ -129,13 +133,13 @@ class TopDownFaceGrasps:
         top = float(request.pose.position[2]) + request.model.height_m / 2.0
         tcp = plan.grasp.position.copy()
         gripper = request.gripper
-        raise_m = 0.0
-        while tcp[2] + raise_m <= top - FINGER_PAD_HALF_HEIGHT_M + 1e-9 or raise_m == 0.0:
+        highest = max(top - FINGER_PAD_HALF_HEIGHT_M - float(tcp[2]), 0.0)  # (the pads wholly on the target)
+        steps = np.arange(0.0, highest, p.raise_step_m)
+        for raise_m in (*steps, highest):  # up in steps, and the highest last
             at = tcp + [0.0, 0.0, raise_m]
             if not hand_hits(request.obstacles, at, plan.hand_yaw_rad, request.surface_z, gripper.palm_above_tcp_m,
                              p.neighbour_clearance_m, gripper.finger_max_m, p.neighbour_min_points):  # fmt: skip
-                return plan.hand_yaw_rad, wide, raise_m
-            raise_m += p.raise_step_m
+                return plan.hand_yaw_rad, wide, float(raise_m)
         return None
 
 

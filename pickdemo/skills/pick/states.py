@@ -301,9 +301,26 @@ def enter_close(m: PickMachine, obs: Observation) -> None:
     m.watch.start_hold()
 
 
+def _held_across_another_side(m: PickMachine, obs: Observation) -> None:
+    """Closed on a described box across its other side (its yaw was seen a quarter turn off): held all
+    the same. The plan takes the width held (the checks of the hold while carried go by it)."""
+    assert m.plan is not None
+    width = m.plan.object_width_m
+    if not m.plan.width_known or m.grip.holding(obs, width):
+        return
+    for other in m.model.geometry.top_extents_m:
+        if abs(other - width) > 1e-6 and m.grip.holding(obs, other) and not m.grip.too_wide(obs, other):
+            m.note(f"fingers at {obs.opening_m * 1e3:.1f} mm: held across its {other * 1e3:.0f} mm side, "
+                   f"not its {width * 1e3:.0f} mm one")  # fmt: skip
+            m.plan = dataclasses.replace(m.plan, object_width_m=float(other))
+            return
+
+
 def tick_close(m: PickMachine, obs: Observation) -> Transition:
     assert m.plan is not None
     stalled = m.grip.stopped(obs)
+    if stalled:
+        _held_across_another_side(m, obs)
     width = m.plan.object_width_m
     if not stalled and not m.grip.holding(obs, width):
         moved = _moved_under_hand(m)
