@@ -130,7 +130,8 @@ class MachineParams:
     place_shift_share: float = 0.5
     #: ... or where the fingers, opening only this far past the target (m, each), let go of it clear of it
     release_margin_m: float = 0.01
-    #: at the end, the target seen this far (m) above where it should rest: on something, not placed
+    #: at the end, the target seen this far (m) above where it should rest (on something), or below it
+    #: (fallen over): not placed
     verify_height_tolerance_m: float = 0.015
     #: the machine ends with the arm at rest: a last failed attempt backs off first (straight up, the
     #: fingers open), any other failure brakes the motion under way (a sequencer goes on from there)

@@ -490,11 +490,13 @@ def tick_verify(m: PickMachine, obs: Observation) -> Transition:
     if m.verify_estimate is None:
         return State.DONE, "the camera does not find the target at the end"
     seen = m.verify_estimate.pose.position
-    if m.rest_height_m is not None:  # on the table at the place, not on something there
+    if m.rest_height_m is not None:  # on the table at the place, not on something there, not fallen over
         high = float(seen[2]) - (m.place_z_m + m.rest_height_m)
-        if high > m.p.verify_height_tolerance_m:
-            m.fail(Stage.PLACE, f"the camera sees the target {high * 1e3:.0f} mm above where it should rest: "
-                                "put down on something at the place")  # fmt: skip
+        if abs(high) > m.p.verify_height_tolerance_m:
+            how = "put down on something at the place" if high > 0 else "fallen over"
+            where = "above" if high > 0 else "below"
+            m.fail(Stage.PLACE, f"the camera sees the target's centre {abs(high) * 1e3:.0f} mm {where} where it "
+                                f"should rest: {how}")  # fmt: skip
             return None
     err = float(np.hypot(seen[0] - m.place_xy[0], seen[1] - m.place_xy[1]))
     said = f"the camera sees the target {err * 1e3:.1f} mm from the place position"
