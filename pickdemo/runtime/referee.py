@@ -59,6 +59,7 @@ class Referee:
     off_table: bool | None = None  # the target ended off the table (fell, or was knocked off)
     #: the other objects that ended this far (mm) or more from where they started: {name: mm}
     others_moved_mm: dict[str, float] | None = None
+    _others_at_start: dict[str, np.ndarray] = field(default_factory=dict)  # where they stood once settled
 
     def _truth(self) -> Pose:
         return self.world.true_pose(self.target)
@@ -81,6 +82,9 @@ class Referee:
         """The objects are at rest and the robot is about to move: where the target starts."""
         self.start_pose = self._truth()
         self.max_z_m = float(self.start_pose.position[2])
+        self._others_at_start = {
+            p.name: self.world.true_pose(p.name).position.copy() for p in self.world.layout if p.name != self.target
+        }
 
     def first_estimate(self, result: PoseEstimate | PerceptionError) -> None:
         """A frame's result: the first estimate is scored in full."""
@@ -131,11 +135,10 @@ class Referee:
         self.off_table = bool(z < -0.005 or not self.scenario.table.holds(float(x), float(y)))
         belt = self.scenario.conveyor is not None  # (a belt moves them all)
         moved = {}
-        for p in self.world.layout:
-            if p.name != self.target and not belt:
-                d = float(np.linalg.norm(self.world.true_pose(p.name).position - p.pose.position)) * 1e3
-                if d >= OTHER_MOVED_MM:
-                    moved[p.name] = round(d, 1)
+        for name, start in ({} if belt else self._others_at_start).items():
+            d = float(np.linalg.norm(self.world.true_pose(name).position - start)) * 1e3
+            if d >= OTHER_MOVED_MM:
+                moved[name] = round(d, 1)
         self.others_moved_mm = moved
 
     def named_moves(self, failure: Failure | None) -> Failure | None:
