@@ -18,7 +18,6 @@ import cv2
 import numpy as np
 
 from pickdemo.core.camera import RGBDFrame, project
-from pickdemo.core.shapes import Box
 from pickdemo.perception.model import PerceptionParams, PoseEstimate, TargetModel
 from pickdemo.perception.segmentation import robot_pixels, world_points
 
@@ -69,22 +68,20 @@ def neighbour_points(
     frame: RGBDFrame, estimate: PoseEstimate, model: TargetModel, params: PerceptionParams
 ) -> np.ndarray | None:
     """World points (M, 3) of everything above the table within :data:`NEIGHBOURHOOD_M` of the target
-    but the target itself (its model at the estimated pose, :data:`OWN_MARGIN_M` wider) and the robot's
-    own body; specks of a pixel or two (depth noise) left out. None when the frame does not show the
-    whole neighbourhood."""
+    but the target itself and the robot's own body; specks of a pixel or two (depth noise) left out.
+    None when the frame does not show the whole neighbourhood. The target's own points are those
+    within its footprint's circle about the estimated centre, :data:`OWN_MARGIN_M` wider, up to its
+    top: whatever its yaw (an estimator's yaw may be a quarter turn off, and then a box's own corners
+    would stand beside it); a neighbour flush against a face reaches past that circle."""
     centre = estimate.pose.position
     top = float(centre[2]) + model.height_m / 2.0 + NEIGHBOURHOOD_ABOVE_M
     p = _standing(frame, centre, top, NEIGHBOURHOOD_M, params)
     if p is None:
         return None
-    local = (p - centre) @ estimate.pose.rotation  # in the target's own frame
     shape = model.geometry
-    half_h = shape.height_m / 2.0 + OWN_MARGIN_M
-    if isinstance(shape, Box):
-        across = np.all(np.abs(local[:, :2]) <= np.asarray(shape.size_m[:2]) / 2.0 + OWN_MARGIN_M, axis=1)
-    else:
-        across = np.hypot(local[:, 0], local[:, 1]) <= shape.footprint_radius_m + OWN_MARGIN_M
-    others = p[~(across & (np.abs(local[:, 2]) <= half_h))]
+    across = np.hypot(p[:, 0] - centre[0], p[:, 1] - centre[1]) <= shape.footprint_radius_m + OWN_MARGIN_M
+    own = across & (p[:, 2] <= float(centre[2]) + shape.height_m / 2.0 + OWN_MARGIN_M)
+    others = p[~own]
     if len(others) > MAX_POINTS:
         others = others[:: int(np.ceil(len(others) / MAX_POINTS))]
     return others
