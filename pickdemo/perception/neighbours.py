@@ -30,6 +30,11 @@ NEIGHBOURHOOD_ABOVE_M = 0.08
 NEIGHBOURHOOD_TOP_M = 0.5
 #: A point within this of the target's own surface, as estimated, is the target's (m).
 OWN_MARGIN_M = 0.006
+#: The table as a view sees it: points within this of its plane (m) ...
+TABLE_BAND_M = 0.003
+#: ... a plane at most this far from z = 0 (m) and this steep: a calibration's error, not a box top
+TABLE_OFF_MAX_M = 0.03
+TABLE_SLOPE_MAX = 0.1
 #: Neighbours' points kept at most (a regular thinning beyond).
 MAX_POINTS = 3000
 
@@ -118,11 +123,38 @@ def _standing(
     pts = world_points(window)
     with np.errstate(invalid="ignore"):
         near = (np.abs(pts[..., 0] - centre[0]) < r) & (np.abs(pts[..., 1] - centre[1]) < r)
-        cand = near & (pts[..., 2] > params.min_height_m) & (pts[..., 2] < NEIGHBOURHOOD_TOP_M)
+        height = _above_table(pts, near)
+        cand = near & (height > params.min_height_m) & (pts[..., 2] < NEIGHBOURHOOD_TOP_M)
     # (a speck of noise is no object: an opening keeps what is 3 px wide and more)
     cand = cv2.morphologyEx(cand.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)).astype(bool)
     cand &= ~robot_pixels(window, cand)
     return pts[cand]
+
+
+def _above_table(pts: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """(H, W) each point's height above the table as this view sees it: a plane fitted to the lower half
+    of the points ``near`` the spot, then to those within :data:`TABLE_BAND_M` of it. A camera whose pose
+    is known only to its calibration sees the table tilted and raised by some millimetres (the world's
+    z = 0 is not where it sees the table); a plane far from z = 0 (the spot covered by something) is
+    not the table, and the world's z is kept."""
+    ok = near & np.isfinite(pts[..., 2])
+    P = pts[ok]
+    if len(P) < 50:
+        return pts[..., 2]
+    sel = P[:, 2] <= np.quantile(P[:, 2], 0.5)
+    coef = np.zeros(3)
+    for _ in range(3):
+        A = np.column_stack([P[sel, 0], P[sel, 1], np.ones(int(sel.sum()))])
+        coef = np.linalg.lstsq(A, P[sel, 2], rcond=None)[0]
+        res = P[:, 2] - (P[:, :2] @ coef[:2] + coef[2])
+        inliers = np.abs(res) < TABLE_BAND_M
+        if inliers.sum() < 30:
+            break
+        sel = inliers
+    at_spot = float(np.mean(P[:, :2], axis=0) @ coef[:2] + coef[2])
+    if abs(at_spot) > TABLE_OFF_MAX_M or float(np.hypot(coef[0], coef[1])) > TABLE_SLOPE_MAX:
+        return pts[..., 2]
+    return pts[..., 2] - (pts[..., 0] * coef[0] + pts[..., 1] * coef[1] + coef[2])
 
 
 def with_neighbours(
