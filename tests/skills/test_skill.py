@@ -280,7 +280,7 @@ def test_the_hand_angle_is_chosen_by_ik_with_room_at_the_grasp_and_the_place(yaw
     cell = Cell(xy=(0.5, -0.1), yaw_deg=yaw_deg)
     m = cell.machine()
     pose = Pose.from_xyz_rpy(cell.obj, yaw=cell.yaw)
-    best = m.chooser.ranked_hand_yaws(pose, None, None)[0]
+    best = m.chooser.ranked_hand_yaws(pose, None, ())[0]
     plan = m.chooser.grasp(pose, best)
     feasible, carries, _ = m.chooser.hand_angle_score(plan, None)
     assert feasible and carries  # the carry to the place can be followed, every joint clear of its limits
