@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from pickdemo.core.shapes import Box, Cylinder
-from pickdemo.grasping.cloud import hand_hits
+from pickdemo.grasping.cloud import FINGER_THICKNESS_M, hand_hits
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.perception import PlaceView, TargetModel
 from pickdemo.perception.neighbours import OWN_MARGIN_M
@@ -26,8 +26,6 @@ from pickdemo.tracking.belief import TargetBelief
 
 #: An object nobody described: the place is looked at this far about (m; its size is known only once seen)
 UNKNOWN_PLACE_RADIUS_M = 0.1
-#: A finger's thickness beyond its pad (m): how far past the fingers' opening the hand reaches.
-FINGER_THICKNESS_M = 0.022
 #: Where to put it down, and how far each finger opens to let go there (None: wide).
 Spot = tuple[tuple[float, float], float | None]
 #: Spots tried about the place, this far apart (m).
