@@ -1,0 +1,252 @@
+"""The pick skill's states that carry the target and put it down: LIFT, TRANSPORT, LOWER, RELEASE,
+RETREAT, HOME, VERIFY and DONE, and BACK_OFF, which any of them may take to try again; each state's
+entry action and exit test, as functions of the machine (:mod:`~pickdemo.skills.pick.states` holds the
+table the machine dispatches from)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pickdemo.core.interfaces import Observation
+from pickdemo.core.result import Stage
+from pickdemo.skills.pick.params import State, Transition
+from pickdemo.skills.pick.plans import turned_plan
+from pickdemo.skills.pick.take import wrist_load
+
+if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
+    from pickdemo.skills.pick.machine import PickMachine
+
+
+def _weigh(m: PickMachine, obs: Observation) -> bool:
+    """Lifted, at rest: weigh what hangs in the fingers (a few ticks, :meth:`~pickdemo.skills.actions.Scale.weigh`),
+    and grip as hard as it needs; True once weighed."""
+    if m.scale.payload_kg is not None:
+        return True
+    weighed = m.scale.weigh(wrist_load(m, obs), m.grip_force_n, m.p.max_grip_force_n)
+    if weighed is None:
+        return False
+    payload, force = weighed
+    m.weighed_force_n = force
+    note = f"weighed {payload:.2f} kg at the wrist"
+    if force > m.grip.force_n:
+        m.grip.close(force)
+        note += f": gripping with {force:.0f} N"
+    m.note(note)
+    return True
+
+
+def _dropped(m: PickMachine, obs: Observation, stage: Stage, outcome: str) -> Transition:
+    """The fingers lost their hold (a retry), or None."""
+    assert m.plan is not None
+    if not m.grip.dropped(obs, m.plan.object_width_m):
+        return None
+    return m.retry(stage, outcome, f"fingers at {obs.opening_m * 1e3:.1f} mm")
+
+
+# ---- LIFT, TRANSPORT, LOWER: carry it, watching the hold.
+def enter_lift(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.grip.watch_hold()
+    motion = m.arm.motion
+    lift = m.arm.move.x4(m.plan.lift)
+    v = motion.velocity[:2]
+    m.lifted_off = np.any(v != 0.0)  # (a target held on the move is weighed at the top)
+    if m.lifted_off:  # held on the move: carry on along its way a little while rising
+        lift[:2] = motion.setpoint[:2] + v * m.p.lift_lead_s
+    else:  # first just off the table, to weigh it before it hangs long at the first grip force
+        lift[2] = m.plan.grasp.position[2] + m.p.payload.lift_off_m
+    motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
+    m.scale.start()
+
+
+def tick_lift(m: PickMachine, obs: Observation) -> Transition:
+    dropped = _dropped(m, obs, Stage.LIFT, "dropped while lifting")
+    if dropped is not None or m.finished:
+        return dropped
+    if not (m.arm.finished and _weigh(m, obs)):
+        return None
+    if not m.lifted_off:  # weighed just off the table: on up to the carry height
+        if m.plan.width_known and m.grasp_width_m is not None and m.grip.too_wide(obs, m.grasp_width_m):
+            # It turned between the pads as it came off the table (held off its centre of mass, or a
+            # light cube pivoting on the pads): carried so, it lands askew and off the place.
+            reason = f"fingers at {obs.opening_m * 1e3:.1f} mm, {m.grasp_width_m * 1e3:.1f} mm when it was grasped"
+            return m.retry(Stage.LIFT, "turned in the grip", reason)
+        m.lifted_off = True
+        lift = m.arm.move.x4(m.plan.lift)
+        m.arm.motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
+        return None
+    return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
+
+
+def enter_transport(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    p = m.p
+    straight = not (p.joint_transfers and p.carry_in_joint_space)
+    if straight and (not p.joint_transfers or m.arm.straight_carry_ok(m.plan, m.lift_scale)):
+        m.arm.move.to(m.plan.place_above, limits=p.free.scaled(m.lift_scale * m.scale.carry_share()))
+        return
+    # in joint space, to a goal from which the lowering can be tracked
+    if straight:
+        m.note("carried in joint space: the straight line would pass too near a singular posture")
+    other = turned_plan(m.plan, pick=False, place=True)
+    q, turned = m.arm.goal(m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place))
+    if q is None:
+        m.fail(Stage.IK, "place pose out of reach: no IK solution for either hand angle")
+        return
+    if turned:  # put down with the hand turned half a turn: the same for the place, not the grasp
+        m.plan = other
+    scale = p.carry_scale * m.lift_scale * m.scale.carry_share()
+    limits = p.free.scaled(m.lift_scale * m.scale.carry_share())
+    note = m.arm.over_the_top(q, scale, limits, rise=True, above=m.plan.place_above)
+    m.note(note)
+    if note is None:
+        m.arm.transfer_to(q, scale)
+
+
+def tick_transport(m: PickMachine, obs: Observation) -> Transition:
+    dropped = _dropped(m, obs, Stage.TRANSPORT, "dropped in transit")
+    if dropped is not None or m.finished:
+        return dropped
+    return (State.LOWER, "above the place position") if m.arm.finished else None
+
+
+def enter_lower(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.arm.cartesian()
+    m.arm.move.to(m.plan.place, limits=m.arm.line_limits(m.plan.place))
+
+
+def tick_lower(m: PickMachine, obs: Observation) -> Transition:
+    dropped = _dropped(m, obs, Stage.TRANSPORT, "dropped in transit")
+    if dropped is not None or m.finished:
+        return dropped
+    return (State.RELEASE, "lowered onto the table") if m.arm.finished else None
+
+
+# ---- RELEASE, RETREAT, HOME, VERIFY.
+def enter_release(m: PickMachine, obs: Observation) -> None:
+    m.released_at_s = obs.time_s
+    m.grip.open(to_m=m.release_m)
+    m.grip.watch()
+    m.forced_open = False
+
+
+def tick_release(m: PickMachine, obs: Observation) -> Transition:
+    assert m.plan is not None
+    opened = m.grip.opened(obs)
+    stopped = not opened and m.grip.stopped(obs)
+    if stopped and not m.forced_open and m.grip.holding(obs, m.plan.object_width_m):
+        # The fingers stopped on the object instead of opening (a simulated Panda's fingers jammed
+        # so after a held cube had turned half a turn in the carry, measured: the retreat then
+        # lifted it away). Open with the hand's full force before letting go of it for good.
+        m.forced_open = True
+        m.grip.open(m.p.max_grip_force_n)
+        m.grip.watch()
+        force = m.p.max_grip_force_n
+        m.note(f"the fingers stopped at {obs.opening_m * 1e3:.1f} mm, still on the target: opening with {force:.0f} N")
+        return None
+    if opened or stopped or obs.time_s - m.since_s > m.p.close_timeout_s:
+        m.end_attempt("placed", "")
+        p = m.plan.place.position
+        if m.p.drop_place:  # (let go from above: nothing to back away from)
+            nxt = State.HOME if m.p.home_after_place else State.DONE
+            return nxt, f"dropped at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})"
+        return State.RETREAT, f"released at ({p[0]:.3f}, {p[1]:.3f})"
+    return None
+
+
+def enter_retreat(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.arm.move.to(m.plan.retreat, limits=m.arm.line_limits(m.plan.retreat))
+
+
+def tick_retreat(m: PickMachine, obs: Observation) -> Transition:
+    return (State.HOME, "clear of the object") if m.arm.finished else None
+
+
+def enter_home(m: PickMachine, obs: Observation) -> None:
+    m.note(m.arm.home())
+
+
+def tick_home(m: PickMachine, obs: Observation) -> Transition:
+    if not m.arm.finished:
+        return None
+    return (State.VERIFY, "arm home") if m.p.verify_place else (State.DONE, "arm home")
+
+
+def enter_verify(m: PickMachine, obs: Observation) -> None:
+    m.verify_asked = False
+    m.verify_estimate = None
+
+
+def tick_verify(m: PickMachine, obs: Observation) -> Transition:
+    if not m.verify_asked:
+        return None
+    if m.verify_estimate is None:
+        return State.DONE, "the camera does not find the target at the end"
+    seen = m.verify_estimate.pose.position
+    if m.rest_height_m is not None:  # on the table at the place, not on something there, not fallen over
+        high = float(seen[2]) - (m.place_z_m + m.rest_height_m)
+        if abs(high) > m.p.verify_height_tolerance_m:
+            how = "put down on something at the place" if high > 0 else "fallen over"
+            where = "above" if high > 0 else "below"
+            m.fail(Stage.PLACE, f"the camera sees the target's centre {abs(high) * 1e3:.0f} mm {where} where it "
+                                f"should rest: {how}")  # fmt: skip
+            return None
+    err = float(np.hypot(seen[0] - m.place_xy[0], seen[1] - m.place_xy[1]))
+    said = f"the camera sees the target {err * 1e3:.1f} mm from the place position"
+    if m.place_tolerance_m is None or err <= m.place_tolerance_m:
+        return State.DONE, said
+    said += f" (tolerance {m.place_tolerance_m * 1e3:.0f} mm)"
+    if m.attempt >= m.max_attempts:
+        return State.DONE, f"{said}; no attempt left to place it again"
+    # Placed off: this attempt's record says so, and the next picks it up from where it lies.
+    m.attempts[-1] = dataclasses.replace(m.attempts[-1], outcome="placed off", reason=said)
+    m.attempt += 1
+    return State.LOOK, f"{said}: picking it up again; attempt {m.attempt} of {m.max_attempts} follows"
+
+
+def enter_done(m: PickMachine, obs: Observation) -> None:
+    pass
+
+
+def tick_done(m: PickMachine, obs: Observation) -> Transition:
+    return None
+
+
+# ---- BACK_OFF: open, straight up to a safe height, then look or approach again.
+def enter_back_off(m: PickMachine, obs: Observation) -> None:
+    if m.after_back_off in (State.LOOK, State.FAILED):
+        m.grip.open()
+    arm = m.arm
+    if arm.joint:  # in free space, mid-transfer: on to home from where it is
+        arm.joints.retarget(arm.home_q)
+        return
+    grasp_z = m.plan.grasp.position[2] if m.plan is not None else m.p.back_off_grasp_z_m
+    safe_z = m.p.grasp.pregrasp_height_m + grasp_z
+    x4 = arm.motion.setpoint.copy()
+    x4[2] = max(x4[2], safe_z)
+    # Limits change only at rest: lowered mid-motion, Ruckig may overshoot while braking.
+    limits = m.intercept.near_limits(m.now_s) if arm.motion.finished else None
+    if m.after_back_off is State.APPROACH and m.intercept.velocity(m.now_s) is not None:
+        m.go_to(x4, limits=limits)  # up, and along with it
+        return
+    arm.motion.set_target(x4, limits=limits)
+
+
+def tick_back_off(m: PickMachine, obs: Observation) -> Transition:
+    if m.after_back_off is State.APPROACH:
+        plan = m.track_plan()  # keep following the target while rising
+        if plan is not None:
+            m.plan = plan
+    if m.arm.finished:
+        nxt = m.after_back_off
+        if nxt is State.FAILED and m.failing is not None:
+            m.arm.braked = True  # (at rest already)
+            m.fail(m.failing.stage, m.failing.reason)
+            return None
+        return nxt, "clear above the table: " + ("look again" if nxt is State.LOOK else "approach again")
+    return None

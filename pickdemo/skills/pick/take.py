@@ -1,0 +1,306 @@
+"""The pick skill's states that take hold of the target: LOOK, APPROACH, DESCEND and CLOSE; each
+state's entry action (run once, when it is entered) and exit test (run every tick), as functions of
+the machine (:mod:`~pickdemo.skills.pick.states` holds the table the machine dispatches from)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pickdemo.core.interfaces import Observation
+from pickdemo.core.result import Stage
+from pickdemo.skills.pick.params import Event, State, Transition
+from pickdemo.skills.pick.plans import moved_place, turned_plan
+from pickdemo.skills.pick.views import unsure
+
+if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
+    from pickdemo.skills.pick.machine import PickMachine
+
+
+def wrist_load(m: PickMachine, obs: Observation) -> float:
+    """The wrist's load along world z (N)."""
+    return m.scale.vertical(obs, m.kin.forward(obs.arm_q).rotation)
+
+
+def _wrap(yaw_rad: float, period_rad: float) -> float:
+    """The yaw in [-period/2, period/2): how a symmetric shape's yaw is said (a cube's modulo 90 deg)."""
+    return float((yaw_rad + period_rad / 2.0) % period_rad - period_rad / 2.0)
+
+
+# ---- LOOK: from the home pose, full frames until the tracker holds the target.
+def enter_look(m: PickMachine, obs: Observation) -> None:
+    if not m.events:
+        m.events.append(Event(State.LOOK, obs.time_s, "looking for the target", note=True))
+    m.grip.open()
+    m.attempt_start_s = obs.time_s
+    m.belief.restart()
+    m.scale.start()
+    m.weighed_force_n = 0.0
+    m.look_frames = 0
+    m.looked_from, m.no_aside = [], False
+    m.fresh_estimate = False
+    if m.look_here:  # the first look, from where the arm is (at rest)
+        m.look_here = False
+        return
+    m.note(m.arm.home())
+
+
+def tick_look(m: PickMachine, obs: Observation) -> Transition:
+    if m.arm.finished:  # at rest with the hand empty: what the wrist reads is the hand
+        m.scale.tare(wrist_load(m, obs))
+    needed = 1 if m.open_loop else m.p.look_min_estimates
+    if m.belief.accepted >= needed:
+        plan = m.replan(first=True)
+        if plan is None:
+            return None
+        found = m.place_finder.spot(m.place_view, obs.time_s, plan)
+        tried = [plan.hand_yaw_rad]
+        while isinstance(found, str):  # the hand let go across other faces, if the target has them?
+            other = m.replan(first=True, avoid=tuple(tried))
+            if other is None:
+                return None
+            if any(abs(_wrap(other.hand_yaw_rad - yaw, np.pi)) < np.pi / 4 for yaw in tried):
+                break  # (no other faces)
+            tried.append(other.hand_yaw_rad)
+            plan, found = other, m.place_finder.spot(m.place_view, obs.time_s, other)
+        if isinstance(found, str):  # (put down there, it would stand on it, or be pressed into it)
+            m.fail(Stage.PLACE, f"{found}: the target was not picked")
+            return None
+        spot, m.release_m = found
+        if m.release_m is not None:
+            m.note(f"something stands near the place: letting go with the fingers {m.release_m * 1e3:.0f} mm open each")
+        if spot != m.place_xy:
+            task = m.place_finder.place_xy
+            off = float(np.hypot(spot[0] - task[0], spot[1] - task[1]))
+            m.note(f"something stands at the place: putting the target down at ({spot[0]:.3f}, {spot[1]:.3f}), "
+                   f"{off * 1e3:.0f} mm from it")  # fmt: skip
+            plan = moved_place(plan, (spot[0] - m.place_xy[0], spot[1] - m.place_xy[1]))
+            m.put_down_at(spot)
+        m.plan = plan
+        # (more frames cannot mend that)
+        unsafe = unsure(m.belief, plan, obs.time_s, m.p, m.grip.finger_max_m, calibration_only=True)
+        if unsafe and (not m.hand_cameras or m.open_loop):
+            m.fail(Stage.PERCEPTION, f"{unsafe}, and no camera can see it closer: not tried")
+            return None
+        tp = m.belief.predict(obs.time_s)
+        yaw = ""
+        if m.symmetry > 0:
+            said = np.degrees(_wrap(tp.yaw_rad, m.symmetry))
+            yaw = f", yaw {said:+.2f} deg (modulo {np.degrees(m.symmetry):.0f})"
+        return State.APPROACH, (
+            f"target at ({tp.position[0]:.4f}, {tp.position[1]:.4f}, {tp.position[2]:.4f}) m{yaw} "
+            f"from {m.belief.accepted} estimate(s); grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg"
+            + (f" (attempt {m.attempt})" if m.attempt > 1 else "")
+        )
+    if (
+        m.look_frames >= m.p.look_aside_frames and len(m.looked_from) < m.p.look_asides and not m.no_aside
+        and m.belief.accepted == 0 and m.arm.finished
+    ):  # fmt: skip
+        m.looked_from.append(m.arm.q.copy())  # (looked from here, and found nothing)
+        aside = m.sight.aside(m.looked_from, m.rng)
+        m.no_aside = aside is None
+        if aside is not None:  # (the frames start again once it is there)
+            q, hid, still = aside
+            m.note(
+                f"no estimate in {m.look_frames} frames, and the arm hides {hid:.0%} of the table from the camera: "
+                f"moving aside to look again (it still hides {still:.0%} of that)"
+            )
+            m.look_frames = 0
+            m.arm.transfer_to(q, m.p.transfer_scale)
+            return None
+    if m.look_frames >= m.p.look_max_frames:
+        m.fail(
+            Stage.PERCEPTION,
+            f"no estimate of the target in {m.look_frames} frames: {m.counters.last_error or 'rejected'}",
+        )
+    return None
+
+
+# ---- APPROACH: to above the target, re-targeted as estimates arrive.
+def enter_approach(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.hover_since = None
+    if not m.p.joint_transfers or m.intercept.velocity(m.now_s) is not None:
+        # Cartesian (a moving target is met so, moving with it)
+        m.arm.cartesian()
+        m.go_to(m.plan.pregrasp, limits=m.p.free)
+        return
+    q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp)
+    if q is None:
+        m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
+        return
+    if turned:
+        m.plan = turned_plan(m.plan, pick=True, place=True)
+    down = lambda: (m.arm.cartesian(), m.go_to(m.plan.pregrasp, limits=m.p.free))  # noqa: E731
+    note = m.arm.over_the_top(q, m.p.transfer_scale, m.p.free, rise=False, above=m.plan.pregrasp, down=down)
+    m.note(note)
+    if note is None:
+        m.arm.transfer_to(q, m.p.transfer_scale)
+
+
+def tick_approach(m: PickMachine, obs: Observation) -> Transition:
+    hidden = m.belief.initialised and m.sight.hidden(obs.arm_q, m.belief.predict(obs.time_s).position[None, :])[0]
+    if not m.open_loop and m.belief.lost(obs.time_s) and not hidden:  # (hidden by the arm: on, on its belief)
+        # Nothing it sees agrees with its belief any more: look again from home, a few times.
+        m.relooks += 1
+        if m.relooks > m.p.max_relooks:
+            m.fail(Stage.PERCEPTION, f"target lost: no estimate accepted for {m.p.tracker.lost_after_s} s")
+            return None
+        m.after_back_off = State.LOOK
+        return State.BACK_OFF, "target lost while approaching: looking again"
+    plan = m.track_plan()
+    if plan is not None:
+        m.plan = plan
+        if m.arm.legs:  # going over the top: its last leg goes down to where the plan is by then
+            pass
+        elif m.arm.joint:  # the transfer goes on to the new plan's goal, on the same branch
+            q, turned = m.arm.goal(plan.pregrasp, plan.grasp, seeded=m.arm.joints.target)
+            if q is None:
+                m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
+                return None
+            if turned:
+                m.plan = turned_plan(plan, pick=True, place=True)
+            m.arm.joints.retarget(q)
+        else:
+            m.go_to(plan.pregrasp)
+    arrived = m.arm.finished or m.intercept.with_target(m.plan.pregrasp, m.now_s, m.planned_at_s)
+    if arrived and not m.finished:
+        # (open loop: the plan of one look)
+        when = obs.time_s
+        last = m.belief.tracker.last_accept_s
+        if hidden and not m.hand_cameras and last is not None and m.intercept.velocity(m.now_s) is None:
+            when = last  # the arm hides it from the camera: as sure as when it was last seen (it stood still)
+        unsafe = "" if m.open_loop else unsure(m.belief, m.plan, when, m.p, m.grip.finger_max_m)
+        if unsafe:  # wait above it for more frames, or the hand's camera, to make it surer (a bounded wait)
+            m.hover_since = obs.time_s if m.hover_since is None else m.hover_since
+            if obs.time_s - m.hover_since >= m.p.hover_max_s:
+                m.fail(Stage.PERCEPTION, f"{unsafe} after {obs.time_s - m.hover_since:.1f} s above it")
+            return None
+        moving = m.intercept.velocity(m.now_s) is not None
+        return State.DESCEND, "above the target" + (", moving with it" if moving else "")
+    return None
+
+
+# ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
+def _moved_under_hand(m: PickMachine) -> Transition:
+    """Back off (and approach again) when views refused by the tracker say the target moved under the hand."""
+    moved = m.watch.moved()
+    if moved is None:
+        return None
+    off, camera, t = moved
+    m.grip.open()
+    m.after_back_off = State.APPROACH
+    by = "the hand's camera" if camera in m.hand_cameras else "the camera"
+    return State.BACK_OFF, (
+        f"{by} sees the target {off * 1e3:.0f} mm from where it was tracked (frame of t = {t:.2f} s) "
+        f"during the {m.state.value}: backing off to approach again"
+    )
+
+
+def _touched_early(m: PickMachine, obs: Observation) -> Transition:
+    """Back off and look again when a finger touches something on the way down (:meth:`~pickdemo.skills.pick.watch.MoveWatch.touched`)."""  # noqa: E501
+    assert m.plan is not None
+    touched = m.watch.touched(obs, m.plan)
+    if touched is None:
+        return None
+    m.avoid_yaws.append(m.plan.hand_yaw_rad)  # (the next look grasps it by other faces first)
+    m.grip.open()
+    m.after_back_off = State.LOOK
+    return State.BACK_OFF, f"{touched}: backing off to look again"
+
+
+def enter_descend(m: PickMachine, obs: Observation) -> None:
+    assert m.plan is not None
+    m.watch.forget_move()
+    m.descent_plan = m.plan
+    v = m.intercept.velocity(m.now_s)
+    m.descent_ref = (m.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, m.planned_at_s)
+    m.arm.cartesian()
+    m.go_to(m.plan.grasp, limits=m.intercept.near_limits(m.now_s))
+
+
+def tick_descend(m: PickMachine, obs: Observation) -> Transition:
+    moved = _moved_under_hand(m)
+    if moved is None:
+        moved = _touched_early(m, obs)
+    if moved is not None:
+        return moved
+    plan = m.track_plan()
+    if plan is not None:
+        assert m.descent_plan is not None and m.descent_ref is not None
+        xy, v, t = m.descent_ref  # where the descent expected the target now
+        off = float(np.linalg.norm(plan.grasp.position[:2] - (xy + v * (obs.time_s - t))))
+        turned = abs(plan.hand_yaw_rad - m.descent_plan.hand_yaw_rad)
+        m.plan = plan
+        if off > m.p.moved_tolerance_m or turned > m.p.moved_tolerance_rad:
+            m.after_back_off = State.APPROACH
+            return State.BACK_OFF, (
+                f"the target moved {off * 1e3:.0f} mm, {np.degrees(turned):.0f} deg during the descent: "
+                "backing off to approach again"
+            )
+        m.go_to(plan.grasp)
+    arrived = m.arm.finished or m.intercept.with_target(m.plan.grasp, m.now_s, m.planned_at_s)
+    if arrived and not m.finished:
+        return State.CLOSE, "at the grasp pose"
+    return None
+
+
+# ---- CLOSE: fingers close with this attempt's force; held or missed.
+def enter_close(m: PickMachine, obs: Observation) -> None:
+    tp = m.belief.predict(obs.time_s)  # how high its centre rests above what it stands on: so at the place
+    m.rest_height_m = float(tp.position[2]) - m.belief.surface_z(float(tp.position[0]), float(tp.position[1]))
+    m.grip.close(m.grip_force_n)
+    m.grip.watch()
+    m.watch.start_hold()
+
+
+def _held_across_another_side(m: PickMachine, obs: Observation) -> None:
+    """Closed on a described box across its other side (its yaw was seen a quarter turn off): held all
+    the same. The plan takes the width held (the checks of the hold while carried go by it)."""
+    assert m.plan is not None
+    width = m.plan.object_width_m
+    if not m.plan.width_known or m.grip.holding(obs, width):
+        return
+    for other in m.model.geometry.top_extents_m:
+        if abs(other - width) > 1e-6 and m.grip.holding(obs, other) and not m.grip.too_wide(obs, other):
+            m.note(f"fingers at {obs.opening_m * 1e3:.1f} mm: held across its {other * 1e3:.0f} mm side, "
+                   f"not its {width * 1e3:.0f} mm one")  # fmt: skip
+            m.plan = dataclasses.replace(m.plan, object_width_m=float(other))
+            return
+
+
+def tick_close(m: PickMachine, obs: Observation) -> Transition:
+    assert m.plan is not None
+    stalled = m.grip.stopped(obs)
+    if stalled:
+        _held_across_another_side(m, obs)
+    width = m.plan.object_width_m
+    if not stalled and not m.grip.holding(obs, width):
+        moved = _moved_under_hand(m)
+        if moved is not None:
+            return moved
+    if not stalled and obs.time_s - m.since_s < m.p.close_timeout_s:
+        return None
+    if m.grip.holding(obs, width):
+        if m.plan.width_known and m.grip.too_wide(obs, width):
+            reason = (
+                f"fingers stopped at {obs.opening_m * 1e3:.1f} mm "
+                f"(expected {width * 1e3:.0f} mm): held askew, or not it alone"
+            )
+            if m.attempt < m.max_attempts:
+                return m.retry(Stage.GRASP, "missed", reason)
+            m.note(f"{reason}: no attempt left to grasp it better, carried as it is held")
+        off_centre = m.watch.held_off_centre(obs, m.plan)
+        if off_centre is False:
+            return None  # (waiting for the hand's camera to see the hold)
+        if off_centre is not None:
+            return m.retry(Stage.GRASP, "held off centre", off_centre)
+        m.grasp_width_m = obs.opening_m
+        return State.LIFT, f"holding: fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {m.grip_force_n:.0f} N"
+    reason = f"fingers closed to {obs.opening_m * 1e3:.1f} mm (expected {width * 1e3:.0f} mm): nothing held"
+    return m.retry(Stage.GRASP, "missed", reason)
+
+
+# ---- LIFT, TRANSPORT, LOWER: carry it, watching the hold.
