@@ -37,6 +37,7 @@ import numpy as np
 from pickdemo.core.geometry import wrap_angle
 from pickdemo.grasping.top_down import (
     FINGER_PAD_HALF_HEIGHT_M,
+    PAD_HALF_WIDTH_M,
     GraspParams,
     GraspPlan,
     GraspPlanningError,
@@ -45,8 +46,6 @@ from pickdemo.grasping.top_down import (
 from pickdemo.perception import ObjectCloud
 from pickdemo.robot.description import Gripper
 
-#: The Franka hand's finger pads: half their width along the hand's x axis (m).
-PAD_HALF_WIDTH_M = 0.011
 #: The hand's body above the palm, seen from above: half its length along the closing axis, half its width (m).
 PALM_HALF_LENGTH_M = 0.105
 PALM_HALF_WIDTH_M = 0.035

@@ -16,10 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo.core.geometry import Pose, wrap_angle
+from pickdemo.core.shapes import Box
 from pickdemo.perception import TargetModel
 from pickdemo.robot.description import Gripper
 
 FINGER_PAD_HALF_HEIGHT_M = 0.00925  # the rubber tip is 18.5 mm tall, centred on the TCP
+#: The Franka hand's finger pads: half their width along the hand's x axis (m).
+PAD_HALF_WIDTH_M = 0.011
 
 
 class GraspPlanningError(RuntimeError):
@@ -70,6 +73,10 @@ class GraspPlan:
     #: the object's width between the fingers is known (a described shape): a close that stops wider
     #: than ``object_width_m`` by the grip's ``wide_margin_m`` held it askew, or held something else too
     width_known: bool = False
+    #: the share of a pad's area on the object's face (a box face smaller than the pad): the fingers
+    #: squeeze it with that share of the grip force, as hard per area as a whole pad would (measured:
+    #: a 15 mm, 10 g cube squeezed at the full 20 N turned between the pads in 25 of 50 first grasps)
+    pad_share: float = 1.0
 
 
 def top_down(position: np.ndarray, yaw_rad: float) -> Pose:
@@ -146,7 +153,14 @@ def plan_grasp(
 
     grasp_p = np.array([center[0], center[1], grasp_z])
     plan = poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params)
-    return dataclasses.replace(plan, width_known=True)
+    share = 1.0
+    if isinstance(model.geometry, Box):  # flat faces: the pads' area on them
+        along = sum(model.geometry.top_extents_m) - width  # the face's length along the pads
+        low, high = grasp_z - FINGER_PAD_HALF_HEIGHT_M, grasp_z + FINGER_PAD_HALF_HEIGHT_M
+        tall = max(0.0, min(high, top_z) - max(low, bottom_z))
+        share = min(1.0, along / (2.0 * PAD_HALF_WIDTH_M)) * min(1.0, tall / (2.0 * FINGER_PAD_HALF_HEIGHT_M))
+        share = 1.0 if share > 1.0 - 1e-6 else share  # (a whole pad, whatever the rounding)
+    return dataclasses.replace(plan, width_known=True, pad_share=share)
 
 
 def poses_of_pick(

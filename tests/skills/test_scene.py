@@ -92,3 +92,17 @@ def test_a_motion_that_fails_is_planned_again_within_the_attempts(monkeypatch) -
         assert r.success, describe(r)
         assert [a.outcome for a in r.attempts] == ["motion failed", "placed"], describe(r)
         assert r.peak_joint_limit_ratio is not None and max(r.peak_joint_limit_ratio.values()) <= 1.0
+
+
+def test_lowering_onto_something_the_camera_missed_stops_and_rises_with_the_target(monkeypatch) -> None:  # noqa: ANN001
+    """The place check made blind (as if the camera missed what stands there): lowering the cube onto
+    the carton stops at the touch (the wrist's load falls), the hand rises holding it, and the
+    episode fails in ``place``; the carton is not pushed, and no episode says done on top of it."""
+    monkeypatch.setattr(PlaceFinder, "spot", lambda self, view, t, plan: (self.place_xy, None))
+    results = episodes("pick_place_maybe_taken", (0, 1, 2, 3, 4, 5))
+    met = [r for r in results if not r.success]
+    for r in met:
+        assert r.failure.stage.value == "place" and "met something" in r.failure.reason, describe(r)  # type: ignore[union-attr]
+    assert met, "the layout takes the place in some of these seeds"
+    for r in results:
+        assert r.others_moved_mm == {}, describe(r)

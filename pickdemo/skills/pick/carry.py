@@ -11,7 +11,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pickdemo.core.interfaces import Observation
-from pickdemo.core.result import Stage
+from pickdemo.core.result import Failure, Stage
+from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.skills.pick.take import wrist_load
@@ -25,7 +26,7 @@ def _weigh(m: PickMachine, obs: Observation) -> bool:
     and grip as hard as it needs; True once weighed."""
     if m.scale.payload_kg is not None:
         return True
-    weighed = m.scale.weigh(wrist_load(m, obs), m.grip_force_n, m.p.max_grip_force_n)
+    weighed = m.scale.weigh(wrist_load(m, obs), m.close_force_n, m.p.max_grip_force_n)
     if weighed is None:
         return False
     payload, force = weighed
@@ -119,10 +120,32 @@ def enter_lower(m: PickMachine, obs: Observation) -> None:
     m.arm.move.to(m.plan.place, limits=m.arm.line_limits(m.plan.place))
 
 
+def _touched_down(m: PickMachine, obs: Observation) -> float | None:
+    """How far (m) above the planned height the hand is when what it holds meets something (the
+    wrist's vertical load falls ``touch_down_n`` below the weight of the hand and its load), or None."""
+    assert m.plan is not None
+    if m.scale.hand_kg is None:
+        return None
+    rest_n = (m.scale.hand_kg + (m.scale.payload_kg or 0.0)) * GRAVITY_M_S2
+    if wrist_load(m, obs) > rest_n - m.p.touch_down_n:
+        return None
+    return float(m.kin.forward(obs.arm_q).position[2] - m.plan.place.position[2])
+
+
 def tick_lower(m: PickMachine, obs: Observation) -> Transition:
     dropped = _dropped(m, obs, Stage.TRANSPORT, "dropped in transit")
     if dropped is not None or m.finished:
         return dropped
+    above = _touched_down(m, obs)
+    if above is not None and above >= m.p.touch_early_m:  # (pressed on, it would be crushed or slip out)
+        m.arm.motion.set_target(m.arm.motion.setpoint.copy())
+        m.failing = Failure(Stage.PLACE, f"the target met something {above * 1e3:.0f} mm above where it should "
+                                         "rest at the place: not put down on it")  # fmt: skip
+        m.after_back_off, m.keep_hold = State.FAILED, True
+        return State.BACK_OFF, f"met something {above * 1e3:.0f} mm above the place: stopping, rising with it"
+    if above is not None:  # on the table, about where it was planned: let go here
+        m.arm.motion.set_target(m.arm.motion.setpoint.copy())
+        return State.RELEASE, f"touched down {above * 1e3:.1f} mm above the planned height"
     return (State.RELEASE, "lowered onto the table") if m.arm.finished else None
 
 
@@ -219,7 +242,7 @@ def tick_done(m: PickMachine, obs: Observation) -> Transition:
 
 # ---- BACK_OFF: open, straight up to a safe height, then look or approach again.
 def enter_back_off(m: PickMachine, obs: Observation) -> None:
-    if m.after_back_off in (State.LOOK, State.FAILED):
+    if m.after_back_off is State.LOOK or (m.after_back_off is State.FAILED and not m.keep_hold):
         m.grip.open()
     arm = m.arm
     if arm.joint:  # in free space, mid-transfer: on to home from where it is

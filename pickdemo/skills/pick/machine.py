@@ -135,6 +135,7 @@ class PickMachine:
         self.place_z_m = place_z_m
         self.release_m: float | None = None  # letting go, each finger opens this far (None: wide)
         self.rest_height_m: float | None = None  # its centre above what it stood on, when grasped
+        self.keep_hold = False  # backing off to fail with the target in the hand (met something lowering it)
         self.released_at_s: float | None = None  # when it last began to let go of the target
         # Per attempt: what a retry may change.
         self.attempt = 1
@@ -320,6 +321,13 @@ class PickMachine:
         if message is not None:
             self.events.append(Event(self.state, self.now_s, message, note=True))
 
+    @property
+    def close_force_n(self) -> float:
+        """This attempt's grip force on the plan's faces: its share of the pads' area (a face smaller
+        than a pad is squeezed as hard per area as a whole pad would be)."""
+        share = 1.0 if self.plan is None else self.plan.pad_share
+        return self.grip_force_n * share
+
     def end_attempt(self, outcome: str, reason: str) -> None:
         self.attempts.append(
             AttemptRecord(
@@ -328,7 +336,7 @@ class PickMachine:
                 reason=reason,
                 start_s=self.attempt_start_s,
                 end_s=self.now_s,
-                grip_force_n=max(self.grip_force_n, self.weighed_force_n),
+                grip_force_n=max(self.close_force_n, self.weighed_force_n),
                 hand_yaw_deg=None if self.plan is None else float(np.degrees(self.plan.hand_yaw_rad)),
                 lift_speed_scale=self.lift_scale,
                 payload_kg=self.scale.payload_kg,

@@ -40,6 +40,7 @@ def enter_look(m: PickMachine, obs: Observation) -> None:
     m.weighed_force_n = 0.0
     m.look_frames = 0
     m.looked_from, m.no_aside = [], False
+    m.keep_hold = False
     m.fresh_estimate = False
     if m.look_here:  # the first look, from where the arm is (at rest)
         m.look_here = False
@@ -251,7 +252,7 @@ def tick_descend(m: PickMachine, obs: Observation) -> Transition:
 def enter_close(m: PickMachine, obs: Observation) -> None:
     tp = m.belief.predict(obs.time_s)  # how high its centre rests above what it stands on: so at the place
     m.rest_height_m = float(tp.position[2]) - m.belief.surface_z(float(tp.position[0]), float(tp.position[1]))
-    m.grip.close(m.grip_force_n)
+    m.grip.close(m.close_force_n)
     m.grip.watch()
     m.watch.start_hold()
 
@@ -298,7 +299,7 @@ def tick_close(m: PickMachine, obs: Observation) -> Transition:
         if off_centre is not None:
             return m.retry(Stage.GRASP, "held off centre", off_centre)
         m.grasp_width_m = obs.opening_m
-        return State.LIFT, f"holding: fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {m.grip_force_n:.0f} N"
+        return State.LIFT, f"holding: fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {m.close_force_n:.0f} N"
     reason = f"fingers closed to {obs.opening_m * 1e3:.1f} mm (expected {width * 1e3:.0f} mm): nothing held"
     return m.retry(Stage.GRASP, "missed", reason)
 
