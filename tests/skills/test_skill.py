@@ -378,3 +378,32 @@ def test_a_target_held_off_centre_is_let_go_and_grasped_again(with_wrist_camera:
     else:
         assert [a.outcome for a in m.attempts] == ["placed"] and states == FULL_PICK
         assert 14.0 < place_error_mm < 16.0
+
+
+@pytest.mark.parametrize("rolls", [3, 30])
+def test_a_target_still_moving_after_the_release_is_judged_where_it_comes_to_rest(rolls: int) -> None:
+    """Put down, it rolls 5 mm a frame for ``rolls`` frames: the last look watches it until two
+    frames agree, and judges it there; one that does not stop in time is judged where last seen, and
+    said to be moving."""
+    cell = Cell()
+    m = cell.machine()
+    seen = cell.estimate
+
+    def rolling() -> PoseEstimate | PerceptionError:
+        nonlocal rolls
+        at_place = np.linalg.norm(cell.obj[:2] - np.array(PLACE)) < 0.1
+        if cell.held_offset is None and at_place and rolls > 0:
+            cell.obj = cell.obj + np.array([0.005, 0.0, 0.0])
+            rolls -= 1
+        return seen()
+
+    cell.estimate = rolling  # type: ignore[method-assign]
+    start = rolls
+    assert run(cell, m)[-1] == "done"
+    judged = float(m.events[-1].message.split("target ")[1].split(" mm")[0])
+    off = np.linalg.norm(cell.obj[:2] - np.array(PLACE)) * 1e3
+    if start < m.p.verify_max_frames:
+        assert judged == pytest.approx(off, abs=0.1)  # where it came to rest
+        assert m.verify_settled
+    else:
+        assert not m.verify_settled and any("still moves" in e.message for e in m.events)

@@ -201,7 +201,7 @@ def tick_home(m: PickMachine, obs: Observation) -> Transition:
 
 
 def enter_verify(m: PickMachine, obs: Observation) -> None:
-    m.verify_asked = False
+    m.verify_asked, m.verify_frames, m.verify_settled = False, 0, True
     m.verify_estimate = None
 
 
@@ -210,6 +210,8 @@ def tick_verify(m: PickMachine, obs: Observation) -> Transition:
         return None
     if m.verify_estimate is None:
         return State.DONE, "the camera does not find the target at the end"
+    if not m.verify_settled:
+        m.note(f"the target still moves after {m.verify_frames} frames: judged where it was last seen")
     seen = m.verify_estimate.pose.position
     if m.rest_height_m is not None:  # on the table at the place, not on something there, not fallen over
         high = float(seen[2]) - (m.place_z_m + m.rest_height_m)

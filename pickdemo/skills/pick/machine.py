@@ -161,7 +161,9 @@ class PickMachine:
         self.planned_at_s = 0.0  # the plan is for the target where it was then
         self.descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
         self.hover_since: float | None = None  # above the target, waiting to be sure enough of it
-        self.verify_asked = False
+        self.verify_asked = False  # the last look is over (settled, or out of frames)
+        self.verify_frames = 0
+        self.verify_settled = True
         self.relooks = 0
         #: this look's postures looked from without finding the target (the arm hid the table from the
         #: fixed camera); no other posture would show more of it
@@ -218,9 +220,7 @@ class PickMachine:
             self.place_view = result
             return Verdict.UNUSED
         if self.state is State.VERIFY:
-            self.verify_asked = True
-            if isinstance(result, PoseEstimate):
-                self.verify_estimate = result
+            self._verify_frame(result if isinstance(result, PoseEstimate) else None)
             return Verdict.UNUSED
         looking = self.state is State.LOOK or (self.state in TRACKING_STATES and not self.open_loop)
         if not looking:
@@ -300,6 +300,18 @@ class PickMachine:
     def abort(self, stage: Stage, reason: str) -> None:
         """End the episode from outside (the step budget is spent)."""
         self.fail(stage, reason)
+
+    def _verify_frame(self, seen: PoseEstimate | None) -> None:
+        """A frame of the last look: over once two in a row agree (it lies still, or is nowhere twice)."""
+        last, self.verify_estimate = self.verify_estimate, seen
+        self.verify_frames += 1
+        if self.verify_frames < 2:
+            return
+        same = last is None and seen is None
+        if last is not None and seen is not None:
+            same = float(np.linalg.norm(seen.pose.position - last.pose.position)) <= self.p.verify_settled_m
+        if same or self.verify_frames >= self.p.verify_max_frames:
+            self.verify_asked, self.verify_settled = True, same
 
     # ============================================================================== transitions
     def go(self, state: State, message: str) -> None:

@@ -87,6 +87,11 @@ class MachineParams:
     hover_max_s: float = 2.0  # above a target not yet sure enough: wait this long for the hand's camera
     close_timeout_s: float = 2.0
     verify_wait_s: float = 0.3  # let the placed object come to rest before the last look
+    #: the last look: frames until two in a row see the target within this of each other (m), as
+    #: settled (a target still rolling or toppling is judged where it comes to rest) ...
+    verify_settled_m: float = 0.002
+    #: ... or this many frames, judged on the last, saying it was still moving
+    verify_max_frames: int = 10
     roi_margin_m: float = 0.03  # around the target's box, for the region of interest
     verify_roi_extra_m: float = 0.03  # the last look's region: this much wider (the object may lie off the place)
     roi_floor_z_m: float = -0.005  # a region of interest reaches this far below the table top
