@@ -59,7 +59,8 @@ def score_place(
 ) -> PlaceOutcome:
     """Success: rose at least ``lift_height_m``, ended within tolerance of the place position, upright
     (when ``upright_required``) and at rest. Upright: on the face it stood on, or one the same height
-    (a cube on any face) with that face within 10 deg of level; a cylinder on a cap; a mesh with its
+    (a cube on any face) with that face within 10 deg of level; a cylinder on a cap, or on its side if
+    it started so; a mesh with its
     body z within 10 deg of the vertical, resting on the table.
 
     ``shape``: the target's :class:`~pickdemo.core.shapes.Shape`."""
@@ -71,9 +72,13 @@ def score_place(
     tilt, extent = shape.resting_face(final.rotation)
     if isinstance(shape, Mesh):  # its centre of mass at the height it rests at, turned as it ended
         upright = tilt < 10.0 and abs(float(final.position[2]) - shape.resting_height_m(final.rotation)) < 0.01
-    else:
+    else:  # as it started: standing on a face as tall (a cylinder lying on its side, lying)
+        start_tilt, _ = shape.resting_face(start.rotation)
+        rest_z = height_m / 2.0 if start_tilt < 10.0 else shape.resting_height_m(start.rotation)
         upright = (
-            tilt < 10.0 and abs(extent - height_m) < 2e-3 and abs(float(final.position[2]) - height_m / 2.0) < 0.01
+            abs(tilt - start_tilt) < 10.0
+            and abs(extent - height_m) < 2e-3
+            and abs(float(final.position[2]) - rest_z) < 0.01
         )
     at_rest = final_speed_m_s < 0.01
     reason = ""

@@ -156,13 +156,24 @@ class ObjectSpec(Model):
             if rng is not None and rng[0] > rng[1]:
                 raise ValueError(f"{name}_range_deg must be [min, max]")
         tilted = any(v for v in (self.pitch_deg, self.roll_deg, self.pitch_range_deg, self.roll_range_deg))
-        if tilted and not self.static:
-            raise ValueError("a tilted object needs static = true (it would fall over)")
+        if tilted and not self.static and not self.lying:
+            raise ValueError(
+                "a tilted object needs static = true (it would fall over); a cylinder may lie on its side "
+                "(roll_deg or pitch_deg = 90)"
+            )
         if self.position_range is not None:
             for lo, hi in self.position_range:
                 if lo > hi:
                     raise ValueError("position_range bounds must be [min, max]")
         return self
+
+    @property
+    def lying(self) -> bool:
+        """A cylinder on its side (a roll or a pitch of a quarter turn, the other none): it rests stably."""
+        if self.shape != "cylinder" or self.pitch_range_deg is not None or self.roll_range_deg is not None:
+            return False
+        turns = sorted(abs(v or 0.0) for v in (self.pitch_deg, self.roll_deg))
+        return turns == [0.0, 90.0]
 
     def _check_mesh(self) -> None:
         if self.size is not None or self.size_range is not None:

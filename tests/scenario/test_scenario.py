@@ -243,3 +243,18 @@ def test_an_object_beside_another_touches_it_on_the_sides_drawn() -> None:
         assert abs(local[k]) == pytest.approx(touching, abs=1e-9) and abs(local[1 - k]) < 1e-9
         sides.add((k, bool(local[k] > 0)))
     assert len(sides) == 4
+
+
+def test_a_cylinder_may_lie_on_its_side_and_a_box_may_not_tilt(tmp_path: Path) -> None:
+    """A cylinder on its side rests stably (accepted, told to the robot by its rough size); a box
+    tilted, or a cylinder half lying, would fall over (refused)."""
+    f = tmp_path / "lying.toml"
+    cyl = GOOD.replace('shape = "box"', 'shape = "cylinder"').replace("size = [0.05, 0.05, 0.05]", "size = [0.05, 0.1]")
+    assert cyl != GOOD
+    f.write_text(cyl.replace("target = true", "target = true\nroll_deg = 90.0"))
+    assert load_scenario(f).target.lying
+    for bad in (cyl.replace("target = true", "target = true\nroll_deg = 45.0"),
+                GOOD.replace("target = true", "target = true\nroll_deg = 90.0")):  # fmt: skip
+        f.write_text(bad)
+        with pytest.raises(ScenarioError, match="may lie on its side"):
+            load_scenario(f)
