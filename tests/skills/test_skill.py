@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo.core.camera import Intrinsics, hand_camera_pose, look_at_pose
+from pickdemo.core.camera import Intrinsics, hand_camera_pose, look_at_pose, project
 from pickdemo.core.geometry import Pose
 from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import Stage
@@ -25,6 +25,7 @@ from pickdemo.scenario.layout import sample_layout
 from pickdemo.scenario.load import load_scenario
 from pickdemo.scenario.task import target_model
 from pickdemo.skills.pick import CameraModel, PickMachine, State
+from pickdemo.skills.pick.params import FrameRequest
 from pickdemo.tracking.belief import Verdict
 
 ROBOT = robot_named()
@@ -407,3 +408,41 @@ def test_a_target_still_moving_after_the_release_is_judged_where_it_comes_to_res
         assert m.verify_settled
     else:
         assert not m.verify_settled and any("still moves" in e.message for e in m.events)
+
+
+def test_a_look_after_a_drop_is_about_where_the_hand_dropped_it_first() -> None:
+    """The target's track goes on across attempts: the next look's first frames are a region about
+    where it was last known (under the hand that dropped it), so a look-alike elsewhere is not taken
+    for it; the first look of all is the whole view."""
+    cell = Cell()
+    m = cell.machine()
+    looks: list[tuple[int, tuple[int, int, int, int] | None]] = []
+    views = m.views
+
+    def recorded(t: float) -> list[FrameRequest]:
+        out = views(t)
+        if m.state is State.LOOK:
+            looks.extend((m.attempt, r.roi) for r in out)
+        return out
+
+    m.views = recorded  # type: ignore[method-assign]
+    slipped: dict = {"done": False}
+    apply = cell.apply
+
+    def apply_and_drop_once(cmd: Command, t: float) -> None:
+        apply(cmd, t)
+        if m.state is State.TRANSPORT and not slipped["done"]:
+            slipped["done"] = True
+            cell.drop()
+            cell.fingers = 0.0
+            slipped["at"] = cell.obj.copy()
+
+    cell.apply = apply_and_drop_once  # type: ignore[method-assign]
+    assert run(cell, m)[-1] == "done"
+    assert [a.outcome for a in m.attempts] == ["dropped in transit", "placed"]
+    first = [roi for attempt, roi in looks if attempt == 1]
+    again = [roi for attempt, roi in looks if attempt == 2]
+    assert first[0] is None and again and again[0] is not None  # a whole view, then a region
+    x0, y0, x1, y1 = again[0]
+    ((u, v),) = project(cell.camera.pose.inverse().transform_points(slipped["at"][None, :]), cell.camera.intrinsics)
+    assert x0 < u < x1 and y0 < v < y1  # about where it fell

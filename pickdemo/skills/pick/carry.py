@@ -231,6 +231,7 @@ def tick_verify(m: PickMachine, obs: Observation) -> Transition:
     # Placed off: this attempt's record says so, and the next picks it up from where it lies.
     m.attempts[-1] = dataclasses.replace(m.attempts[-1], outcome="placed off", reason=said)
     m.attempt += 1
+    m.last_at = seen.copy()  # (picked up again from where it was seen lying)
     return State.LOOK, f"{said}: picking it up again; attempt {m.attempt} of {m.max_attempts} follows"
 
 

@@ -37,6 +37,7 @@ from pickdemo.skills.pick.chooser import GraspChooser
 from pickdemo.skills.pick.intercept import Interceptor
 from pickdemo.skills.pick.params import (
     HAND_OVER_TARGET,
+    HELD_STATES,
     MAX_TRANSITIONS_PER_TICK,
     REPLANNABLE,
     RETRIES,
@@ -136,6 +137,8 @@ class PickMachine:
         self.release_m: float | None = None  # letting go, each finger opens this far (None: wide)
         self.rest_height_m: float | None = None  # its centre above what it stood on, when grasped
         self.keep_hold = False  # backing off to fail with the target in the hand (met something lowering it)
+        #: where the target was last known, for the next look (its track: under the hand that dropped it)
+        self.last_at: np.ndarray | None = None
         self.released_at_s: float | None = None  # when it last began to let go of the target
         # Per attempt: what a retry may change.
         self.attempt = 1
@@ -208,7 +211,7 @@ class PickMachine:
         ready = self.entered and self.arm.finished
         return self.view_planner.requests(
             now_s, self.state, ready=ready, since_s=self.since_s, verify_asked=self.verify_asked, plan=self.plan,
-            arm_q=self.arm_q,
+            arm_q=self.arm_q, near=self.last_at if self.look_frames < self.p.look_aside_frames else None,
         )  # fmt: skip
 
     def on_estimate(
@@ -366,6 +369,9 @@ class PickMachine:
             self.fail(stage, f"{reason} (attempt {self.attempt} of {self.max_attempts})")
             return None
         self.attempt += 1
+        if self.state in HELD_STATES and self.belief.initialised:  # it fell from the hand
+            z = self.belief.predict(self.now_s).position[2]
+            self.last_at = np.array([*self.kin.forward(self.arm_q).position[:2], z])
         change = RETRIES.get(outcome, SLIPPED)
         if change.other_faces:  # a square box may be taken by its other pair of faces
             self.turn_hand = 0.0 < self.symmetry < np.pi - 1e-9  # a square top (a cube)

@@ -43,6 +43,8 @@ class State(str, enum.Enum):
 
 #: States in which the closed loop keeps looking at the target (a region of interest around it).
 TRACKING_STATES = frozenset({State.APPROACH, State.DESCEND, State.CLOSE, State.BACK_OFF})
+#: The states with the target in the hand: a failure there drops it under the hand.
+HELD_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
 #: States whose motion, failed (IK, a trajectory), the next attempt may plan again: the hand empty, or
 #: the target just lifted (let go there, it falls back where it was)
 REPLANNABLE = frozenset({State.APPROACH, State.DESCEND, State.LIFT})
@@ -71,6 +73,10 @@ class MachineParams:
     #: ... after this many, the arm moves aside if it hides the table from the fixed camera (at most
     #: ``look_asides`` times a look, each to show what all the postures before it hid)
     look_aside_frames: int = 3
+    #: looking again (after a miss, a drop, a place judged off), the first ``look_aside_frames`` frames
+    #: are of the region about where the target was last known, this much wider (m): the object found
+    #: there is the target, not a look-alike elsewhere; then the whole view
+    relook_margin_m: float = 0.06
     look_asides: int = 2
     max_relooks: int = 2  # the target lost while approaching: look again from home, at most this often
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off

@@ -35,6 +35,8 @@ def enter_look(m: PickMachine, obs: Observation) -> None:
         m.events.append(Event(State.LOOK, obs.time_s, "looking for the target", note=True))
     m.grip.open()
     m.attempt_start_s = obs.time_s
+    if m.last_at is None and m.belief.initialised:  # looking again: about where it was tracked last
+        m.last_at = m.belief.predict(obs.time_s).position.copy()
     m.belief.restart()
     m.scale.start()
     m.weighed_force_n = 0.0
@@ -80,6 +82,7 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
             plan = moved_place(plan, (spot[0] - m.place_xy[0], spot[1] - m.place_xy[1]))
             m.put_down_at(spot)
         m.plan = plan
+        m.last_at = None  # (found: its track goes on from here)
         # (more frames cannot mend that)
         unsafe = unsure(m.belief, plan, obs.time_s, m.p, m.grip.finger_max_m, calibration_only=True)
         if unsafe and (not m.hand_cameras or m.open_loop):

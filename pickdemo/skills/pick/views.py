@@ -90,17 +90,19 @@ class ViewPlanner:
         verify_asked: bool,
         plan: GraspPlan | None,
         arm_q: np.ndarray,
+        near: np.ndarray | None = None,
     ) -> list[FrameRequest]:
         """The frames to take now (the loop applies the frame rate): ``ready``, the state's motion has
-        finished since it was entered; ``arm_q``: the joint states last observed (where the hand is)."""
-        fixed = self._fixed(now_s, state, ready=ready, since_s=since_s, verify_asked=verify_asked)
+        finished since it was entered; ``arm_q``: the joint states last observed (where the hand is);
+        ``near``: looking again, where the target was last known (its track)."""
+        fixed = self._fixed(now_s, state, ready=ready, since_s=since_s, verify_asked=verify_asked, near=near)
         hand = [r for c in self.on_hand if (r := self._from_the_hand(c, now_s, state, plan, arm_q)) is not None]
         if hand and state in HAND_OVER_TARGET:
             fixed = None  # the hand's camera sees the target whole; the fixed one, the hand over it
         return [r for r in (fixed, *hand) if r is not None]
 
     def _fixed(
-        self, now_s: float, state: State, *, ready: bool, since_s: float, verify_asked: bool
+        self, now_s: float, state: State, *, ready: bool, since_s: float, verify_asked: bool, near: np.ndarray | None
     ) -> FrameRequest | None:
         name = self.fixed.name
         if state is State.LOOK:  # the whole image, then around the first estimate
@@ -110,6 +112,8 @@ class ViewPlanner:
                 return FrameRequest(self._roi(now_s), camera=name)
             if self.look_at is not None:  # where a survey saw it: the region about it
                 return FrameRequest(self._roi_at(self.look_at, self.p.roi_margin_m), camera=name)
+            if near is not None:  # looking again: about where it was (a look-alike elsewhere is not it)
+                return FrameRequest(self._roi_at(near, self.p.roi_margin_m + self.p.relook_margin_m), camera=name)
             return FrameRequest(None, camera=name, place=self.place_look)
         if state is State.VERIFY:  # around where it was put down
             wait_over = now_s - since_s >= self.p.verify_wait_s
