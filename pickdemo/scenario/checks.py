@@ -17,6 +17,7 @@ from pickdemo.core.meshes import MeshFileError, expand, read_urdf
 from pickdemo.core.shapes import Mesh
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.grasping.top_down import GraspParams, top_down
+from pickdemo.perception.unknown import height_tolerance_m
 from pickdemo.robot import robot_named
 from pickdemo.robot.description import RobotDescription
 from pickdemo.robot.kinematics import IKParams, kinematics_of
@@ -40,6 +41,10 @@ PILE_LAYERS = 3
 #: ``TWIN_COLOUR`` (each channel, 0-1) look the same to the robot.
 TWIN_SIZE_M = 0.003
 TWIN_COLOUR = 0.08
+#: A target told only its rough size (a mesh, a cylinder lying) is told apart by its height
+#: (:func:`~pickdemo.perception.unknown.height_tolerance_m`), then by its footprint's sides: another
+#: object as tall, each side within this factor, looks the same.
+TWIN_FOOTPRINT_FACTOR = 1.5
 #: The reach checks try an object's region on this many points a side.
 REACH_GRID = 5
 #: Pixels the pick region keeps from the image's edges.
@@ -204,6 +209,41 @@ def _looks_the_same(a: ObjectSpec, b: ObjectSpec) -> bool:
     return max(abs(x - y) for x, y in zip(a.color, b.color, strict=True)) <= TWIN_COLOUR
 
 
+def _rough_sizes(obj: ObjectSpec) -> list[tuple[float, float, float]] | None:
+    """Its height and its footprint's longer and shorter side as it stands, at its smallest and its
+    largest (m); None for a mesh drawn from several files (not known before the seed)."""
+    if obj.shape == "mesh":
+        if obj.urdf is None:
+            return None
+        shapes = [obj.mesh_shape(obj.urdf, scale) for scale in obj.scales]
+    else:
+        ranges = obj.size_range or [(v, v) for v in obj.size or ()]
+        shapes = [obj.shape_of_size(tuple(r[i] for r in ranges)) for i in (0, 1)]
+    out = []
+    for g in shapes:
+        if obj.lying:  # (on its side: its diameter high, its length and its diameter across)
+            d, length = g.size
+            out.append((d, max(d, length), min(d, length)))
+        else:
+            wide, narrow = sorted(g.top_extents_m, reverse=True)
+            out.append((g.height_m, wide, narrow))
+    return out
+
+
+def _as_large(target: ObjectSpec, other: ObjectSpec) -> bool:
+    """Whether ``other`` may look like a target told only its rough size: as tall, within the height's
+    tolerance, and each side of its footprint within ``TWIN_FOOTPRINT_FACTOR``."""
+    a, b = _rough_sizes(target), _rough_sizes(other)
+    if a is None or b is None:
+        return False
+    tol = height_tolerance_m(min(s[0] for s in a))
+    near = lambda i, f, pad: (
+        min(s[i] for s in a) / f - pad <= max(s[i] for s in b)
+        and min(s[i] for s in b) <= max(s[i] for s in a) * f + pad
+    )  # noqa: E731,E501
+    return near(0, 1.0, tol) and near(1, TWIN_FOOTPRINT_FACTOR, 0.0) and near(2, TWIN_FOOTPRINT_FACTOR, 0.0)
+
+
 def _check_twins(sc: Scenario) -> None:
     """A pick whose target another object looks the same as is refused: the robot is told what its
     target looks like, not where it is, so it could carry the other (measured: 3 of 5 episodes did)."""
@@ -211,6 +251,12 @@ def _check_twins(sc: Scenario) -> None:
         return
     target = sc.target
     for obj in sc.objects:
+        by_size = target.shape == "mesh" or target.lying  # (told only its rough size)
+        if obj is not target and not obj.target and by_size and _as_large(target, obj):
+            raise ScenarioError(
+                f"objects.{obj.name}: about as large as the target objects.{target.name}, which the robot is told "
+                "only by its rough size: it cannot tell them apart; make one differ in height (15 % or 1 cm)"
+            )
         if obj is not target and not obj.target and _looks_the_same(target, obj):
             raise ScenarioError(
                 f"objects.{obj.name}: looks the same as the target objects.{target.name} (its shape, size and "

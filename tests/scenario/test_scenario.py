@@ -258,3 +258,16 @@ def test_a_cylinder_may_lie_on_its_side_and_a_box_may_not_tilt(tmp_path: Path) -
         f.write_text(bad)
         with pytest.raises(ScenarioError, match="may lie on its side"):
             load_scenario(f)
+
+
+def test_a_target_told_only_its_rough_size_is_refused_beside_an_object_as_large(tmp_path: Path) -> None:
+    """The mug (a mesh: the robot is told only its rough size) beside a can as tall: refused, naming
+    the can; a can 20 mm taller (the shipped scene) is told apart by its height."""
+    from pickdemo.scenario.load import builtin_scenario_dirs
+
+    assert load_scenario("pick_mug_among_lookalikes")
+    text = next(d / "pick_mug_among_lookalikes.toml" for d in builtin_scenario_dirs()).read_text()
+    f = tmp_path / "mug.toml"
+    f.write_text(text.replace("size = [0.066, 0.1]", "size = [0.066, 0.085]"))
+    with pytest.raises(ScenarioError, match="objects.can: about as large as the target objects.mug"):
+        load_scenario(f)
