@@ -17,7 +17,6 @@ from pickdemo.core.meshes import MeshFileError, expand, read_urdf
 from pickdemo.core.shapes import Mesh
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.grasping.top_down import GraspParams, top_down
-from pickdemo.perception.unknown import height_tolerance_m
 from pickdemo.robot import robot_named
 from pickdemo.robot.description import RobotDescription
 from pickdemo.robot.kinematics import IKParams, kinematics_of
@@ -27,24 +26,16 @@ from pickdemo.scenario.layout import LayoutError, Tray, sample_layout, sample_pl
 from pickdemo.scenario.objects import ObjectSpec, PlaceSpec
 from pickdemo.scenario.schema import Scenario
 from pickdemo.scenario.tasks import TASK_RULES
+from pickdemo.scenario.twins import check_twins
 
 #: The robot's base on the table: nothing may stand within this radius of the origin (m).
 ROBOT_BASE_RADIUS_M = 0.12
 #: Clearance the open gripper needs around the target's narrower side (m): the grasp planner's.
 GRIPPER_CLEARANCE_M = GraspParams().width_margin_m
-#: The Panda's payload (kg).
 #: Seeds whose layouts must be possible (a range that leaves no room fails on most seeds).
 LAYOUT_SEEDS = range(3)
 #: A clear round's pile is at most this many objects deep (their footprints over its region's).
 PILE_LAYERS = 3
-#: Two objects whose sizes differ by no more than this (m, each dimension) and colours by no more than
-#: ``TWIN_COLOUR`` (each channel, 0-1) look the same to the robot.
-TWIN_SIZE_M = 0.003
-TWIN_COLOUR = 0.08
-#: A target told only its rough size (a mesh, a cylinder lying) is told apart by its height
-#: (:func:`~pickdemo.perception.unknown.height_tolerance_m`), then by its footprint's sides: another
-#: object as tall, each side within this factor, looks the same.
-TWIN_FOOTPRINT_FACTOR = 1.5
 #: The reach checks try an object's region on this many points a side.
 REACH_GRID = 5
 #: Pixels the pick region keeps from the image's edges.
@@ -85,7 +76,7 @@ def check_scenario(sc: Scenario) -> None:
     _check_mesh_files(sc)
     _check_objects(sc)
     _check_place_free(sc)
-    _check_twins(sc)
+    check_twins(sc)
     _check_conveyor(sc)
     TASK_CHECKS[sc.task](sc)
     _check_camera(sc)
@@ -180,88 +171,6 @@ def _check_place_free(sc: Scenario) -> None:
             raise ScenarioError(
                 f"{sc.place.key}: ({px:.3f}, {py:.3f}) m is taken: objects.{obj.name} stands there (the target "
                 f"needs {r_mm:.0f} mm clear around it); put the place elsewhere or move the object"
-            )
-
-
-def _size_ranges(obj: ObjectSpec) -> list[tuple[float, float]]:
-    """Per dimension, the sizes it may have (m): a box's footprint sides sorted (a box turned a
-    quarter is the same box), then its height; a cylinder's diameter and height."""
-    ranges = list(obj.size_range) if obj.size_range is not None else [(s, s) for s in obj.size or ()]
-    if obj.shape == "box" and len(ranges) == 3:
-        ranges = sorted(ranges[:2]) + ranges[2:]
-    return ranges
-
-
-def _looks_the_same(a: ObjectSpec, b: ObjectSpec) -> bool:
-    """Whether two objects may look the same to the robot, told only what its target looks like: the
-    same shape, sizes within ``TWIN_SIZE_M`` (ranges that overlap), colours within ``TWIN_COLOUR``
-    each channel; meshes: the same file at the same scales."""
-    if a.shape != b.shape:
-        return False
-    if a.shape == "mesh":
-        return a.urdf is not None and a.urdf == b.urdf and a.scales == b.scales
-    sa, sb = _size_ranges(a), _size_ranges(b)
-    if len(sa) != len(sb) or any(lo1 > hi2 + TWIN_SIZE_M or lo2 > hi1 + TWIN_SIZE_M
-                                 for (lo1, hi1), (lo2, hi2) in zip(sa, sb, strict=True)):  # fmt: skip
-        return False
-    if a.color is None or b.color is None:
-        return False
-    return max(abs(x - y) for x, y in zip(a.color, b.color, strict=True)) <= TWIN_COLOUR
-
-
-def _rough_sizes(obj: ObjectSpec) -> list[tuple[float, float, float]] | None:
-    """Its height and its footprint's longer and shorter side as it stands, at its smallest and its
-    largest (m); None for a mesh drawn from several files (not known before the seed)."""
-    if obj.shape == "mesh":
-        if obj.urdf is None:
-            return None
-        shapes = [obj.mesh_shape(obj.urdf, scale) for scale in obj.scales]
-    else:
-        ranges = obj.size_range or [(v, v) for v in obj.size or ()]
-        shapes = [obj.shape_of_size(tuple(r[i] for r in ranges)) for i in (0, 1)]
-    out = []
-    for g in shapes:
-        if obj.lying:  # (on its side: its diameter high, its length and its diameter across)
-            d, length = g.size
-            out.append((d, max(d, length), min(d, length)))
-        else:
-            wide, narrow = sorted(g.top_extents_m, reverse=True)
-            out.append((g.height_m, wide, narrow))
-    return out
-
-
-def _as_large(target: ObjectSpec, other: ObjectSpec) -> bool:
-    """Whether ``other`` may look like a target told only its rough size: as tall, within the height's
-    tolerance, and each side of its footprint within ``TWIN_FOOTPRINT_FACTOR``."""
-    a, b = _rough_sizes(target), _rough_sizes(other)
-    if a is None or b is None:
-        return False
-    tol = height_tolerance_m(min(s[0] for s in a))
-    near = lambda i, f, pad: (
-        min(s[i] for s in a) / f - pad <= max(s[i] for s in b)
-        and min(s[i] for s in b) <= max(s[i] for s in a) * f + pad
-    )  # noqa: E731,E501
-    return near(0, 1.0, tol) and near(1, TWIN_FOOTPRINT_FACTOR, 0.0) and near(2, TWIN_FOOTPRINT_FACTOR, 0.0)
-
-
-def _check_twins(sc: Scenario) -> None:
-    """A pick whose target another object looks the same as is refused: the robot is told what its
-    target looks like, not where it is, so it could carry the other (measured: 3 of 5 episodes did)."""
-    if not TASK_RULES[sc.task].one_target:
-        return
-    target = sc.target
-    for obj in sc.objects:
-        by_size = target.shape == "mesh" or target.lying  # (told only its rough size)
-        if obj is not target and not obj.target and by_size and _as_large(target, obj):
-            raise ScenarioError(
-                f"objects.{obj.name}: about as large as the target objects.{target.name}, which the robot is told "
-                "only by its rough size: it cannot tell them apart; make one differ in height (15 % or 1 cm)"
-            )
-        if obj is not target and not obj.target and _looks_the_same(target, obj):
-            raise ScenarioError(
-                f"objects.{obj.name}: looks the same as the target objects.{target.name} (its shape, size and "
-                "colour): the robot, told only what its target looks like, cannot tell them apart; make one "
-                "differ in colour or size"
             )
 
 
