@@ -91,6 +91,41 @@ class RobotBody:
         return tuple(out)
 
 
+#: Samples along a line of sight (the links are some centimetres thick or more).
+RAY_SAMPLES = 48
+
+
+def hidden_by(boxes: tuple[OrientedBox, ...], eye: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Which of the world points (N, 3) these boxes hide from an eye at ``eye`` (a camera's centre)."""
+    t = np.linspace(0.02, 0.97, RAY_SAMPLES)[None, :, None]
+    samples = eye + (np.atleast_2d(points)[:, None, :] - eye) * t  # (N, S, 3)
+    flat = samples.reshape(-1, 3)
+    inside = np.zeros(len(flat), dtype=bool)
+    for box in boxes:
+        inside |= box.contains(flat)
+    return inside.reshape(samples.shape[:2]).any(axis=1)
+
+
+#: Turns of the first joint over its range tried for the base's links (they turn with nothing else).
+BASE_TURNS = 13
+
+
+def hidden_by_the_base(robot: RobotDescription, eye: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Which of the world points (N, 3) the robot's base hides from an eye whatever the arm does: its
+    links that no joint but the first moves, at every turn of the first joint."""
+    body = robot_body(robot)
+    fingers = np.full(len(robot.gripper.finger_joints), robot.gripper.finger_max_m)
+    home = robot.home_q.astype(float)
+    bent = home + np.r_[0.0, np.full(len(home) - 1, 0.3)]
+    pairs = zip(body.boxes(home, fingers), body.boxes(bent, fingers), strict=True)
+    still = [i for i, (a, b) in enumerate(pairs) if np.allclose(a.corners(), b.corners())]
+    hidden = np.ones(len(np.atleast_2d(points)), dtype=bool)
+    for q1 in np.linspace(robot.limits.min_position_rad[0], robot.limits.max_position_rad[0], BASE_TURNS):
+        boxes = body.boxes(np.r_[q1, home[1:]], fingers)
+        hidden &= hidden_by(tuple(boxes[i] for i in still), eye, points)
+    return hidden
+
+
 @functools.cache
 def robot_body(robot: RobotDescription) -> RobotBody:
     """One shared model per robot and process."""

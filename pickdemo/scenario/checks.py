@@ -20,6 +20,7 @@ from pickdemo.grasping.top_down import GraspParams, top_down
 from pickdemo.robot import robot_named
 from pickdemo.robot.description import RobotDescription
 from pickdemo.robot.kinematics import IKParams, kinematics_of
+from pickdemo.robot.self_geometry import hidden_by_the_base
 from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.belt import ConveyorSpec
 from pickdemo.scenario.layout import LayoutError, Tray, sample_layout, sample_place, sample_round
@@ -80,6 +81,7 @@ def check_scenario(sc: Scenario) -> None:
     _check_conveyor(sc)
     TASK_CHECKS[sc.task](sc)
     _check_camera(sc)
+    _check_behind_the_base(sc)
     _check_layout(sc)
 
 
@@ -299,6 +301,25 @@ def _check_camera(sc: Scenario) -> None:
                 f"camera: objects.{obj.name} can stand out of the camera's view (a corner of its region projects "
                 f"to pixel ({u:.0f}, {v:.0f}) of {K.width}x{K.height}); aim look_at at it or widen fov_deg"
             )
+
+
+def _check_behind_the_base(sc: Scenario) -> None:
+    """A target that may stand where the robot's base hides its top from a fixed camera whatever the
+    arm does is refused: the base's links (those no joint but the first moves) hide it at every turn
+    of the first joint: no posture can show it, so the task could not succeed in those seeds."""
+    cam = sc.camera
+    if cam.sampled or not TASK_RULES[sc.task].one_target:
+        return
+    target = sc.target
+    h = target.largest_shape.height_m
+    tops = np.array([[x, y, sc.surface_z(x, y) + h] for x, y in _reach_points(target)])
+    hidden = hidden_by_the_base(_robot(sc), np.array(cam.position, dtype=float), tops)
+    if hidden.any():
+        x, y, _ = tops[np.argmax(hidden)]
+        raise ScenarioError(
+            f"camera: objects.{target.name} may stand at ({x:.2f}, {y:.2f}) m, where the robot's base hides it "
+            "from the camera whatever the arm does; move the camera or the region"
+        )
 
 
 def _check_pick(sc: Scenario) -> None:

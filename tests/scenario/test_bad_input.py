@@ -153,6 +153,21 @@ FILE_CASES: list[tuple[str, str, str]] = [
     ("static target", _edit("target = true", "target = true\nstatic = true"), "the target of a pick cannot be static"),
     ("tilted, not static", _edit("target = true", "target = true\npitch_deg = 10.0"), "needs static = true"),
     (
+        "a camera low behind the base",
+        _edit("position = [1.1, 0.0, 0.75]", "position = [-0.5, 0.0, 0.3]"),
+        "camera: objects.cube may stand at (0.45, -0.05) m, where the robot's base hides it",
+    ),
+    (
+        "a mesh told by its size beside an object as large",
+        _edit(
+            'shape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.85, 0.1, 0.1]',
+            'shape = "mesh"\nurdf = "pybullet_data:objects/mug.urdf"\nscale = 0.8',
+        )
+        + SECOND.replace('shape = "box"\nsize = [0.05, 0.05, 0.05]', 'shape = "cylinder"\nsize = [0.066, 0.085]')
+        + "position = [0.5, -0.2]\n",
+        "objects.other: about as large as the target objects.cube",
+    ),
+    (
         "duplicate names",
         GOOD + SECOND.replace('"other"', '"cube"') + "position = [0.5, -0.2]\n",
         "object names must be unique",

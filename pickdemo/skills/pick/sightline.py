@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from pickdemo.robot.kinematics import Kinematics
-from pickdemo.robot.self_geometry import robot_body
+from pickdemo.robot.self_geometry import hidden_by, hidden_by_the_base, robot_body
 from pickdemo.skills.pick.params import CameraModel
 
 #: Turns of the first joint (rad) the arm may take to look from, nearest first.
@@ -24,16 +24,20 @@ ASIDE_TURNS_RAD = (0.6, -0.6, 1.0, -1.0, 1.4, -1.4)
 #: ... then postures drawn about home: this many, each joint within this of home's (rad)
 ASIDE_DRAWS = 24
 ASIDE_SPREAD_RAD = 1.2
+#: ... then, none of those showing enough, this many drawn over the joints' whole ranges (measured: a
+#: cube 0.41 m in front of the base, hidden from every posture within 1.2 rad of home, showed from
+#: postures with the elbow folded far back)
+ASIDE_WIDE_DRAWS = 48
 #: A posture to look from keeps every link this far above the table (m), on its way there too.
 ASIDE_CLEAR_M = 0.1
-#: Samples along a line of sight (the links are some centimetres thick or more).
-RAY_SAMPLES = 48
 #: The table the camera sees, sampled on this grid of its image (columns, rows).
 TABLE_GRID = (16, 12)
 #: ... within this of the robot's base (m): where it picks.
 TABLE_REACH_M = 0.85
 #: Moving aside is worth it when it shows at least this share of the table the arm hid.
 ASIDE_GAIN = 0.5
+#: ... and when the arm hides at least this share of it (a point or two is no hiding place for a target)
+ASIDE_MIN_HIDDEN = 0.02
 
 
 class Sightline:
@@ -44,17 +48,12 @@ class Sightline:
         self.body = robot_body(kin.robot)
         self.fingers = np.full(len(kin.robot.gripper.finger_joints), kin.robot.gripper.finger_max_m)
         self._table: np.ndarray | None = None
+        self._base: np.ndarray | None = None
 
     def hidden(self, q: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Which of the world points (N, 3) the arm at ``q`` hides from the camera."""
-        cam = self.camera.pose.position
-        t = np.linspace(0.02, 0.97, RAY_SAMPLES)[None, :, None]
-        samples = cam + (np.atleast_2d(points)[:, None, :] - cam) * t  # (N, S, 3)
-        flat = samples.reshape(-1, 3)
-        inside = np.zeros(len(flat), dtype=bool)
-        for box in self.body.boxes(np.asarray(q, dtype=float), self.fingers):
-            inside |= box.contains(flat)
-        return inside.reshape(samples.shape[:2]).any(axis=1)
+        boxes = self.body.boxes(np.asarray(q, dtype=float), self.fingers)
+        return hidden_by(boxes, self.camera.pose.position, points)
 
     def table(self) -> np.ndarray:
         """Points of the table top (z = 0) the camera sees, within reach of the robot's base."""
@@ -83,7 +82,8 @@ class Sightline:
         hid = np.ones(len(table), dtype=bool)
         for seen_from in looked_from:  # (the target is where none of them showed the table)
             hid &= self.hidden(np.asarray(seen_from, dtype=float), table)
-        if not hid.any():
+        hid &= ~self.base_hides()  # (what the base hides, no posture shows)
+        if hid.mean() < ASIDE_MIN_HIDDEN:
             return None
         behind = table[hid]
         turns = []
@@ -96,7 +96,10 @@ class Sightline:
                     turns.append(cand)
         home = np.asarray(self.kin.robot.home_q, dtype=float)
         draws = [home + rng.uniform(-ASIDE_SPREAD_RAD, ASIDE_SPREAD_RAD, len(home)) for _ in range(ASIDE_DRAWS)]
-        for group in (turns, draws):  # a turn, if one will do
+        limits = self.kin.robot.limits
+        wide = lambda: [rng.uniform(limits.min_position_rad, limits.max_position_rad) for _ in range(ASIDE_WIDE_DRAWS)]  # noqa: E731,E501
+        for group in (turns, draws, None):  # a turn, if one will do; the whole ranges last (drawn only then)
+            group = wide() if group is None else group
             best: tuple[np.ndarray, float, float] | None = None
             for cand in group:
                 if not self.kin.within_limits(cand) or not self._clear_on_the_way(q, cand):
@@ -107,6 +110,12 @@ class Sightline:
             if best is not None:
                 return best
         return None
+
+    def base_hides(self) -> np.ndarray:
+        """Which of :meth:`table`'s points the robot's base hides whatever the arm does."""
+        if self._base is None:
+            self._base = hidden_by_the_base(self.kin.robot, self.camera.pose.position, self.table())
+        return self._base
 
     def _clear_on_the_way(self, q0: np.ndarray, q1: np.ndarray) -> bool:
         """Every link ``ASIDE_CLEAR_M`` above the table (or as high as at ``q0``, the base's, if lower)
