@@ -144,12 +144,13 @@ class MachineParams:
     #: at the end, the target seen this far (m) above where it should rest (on something), or below it
     #: (fallen over): not placed
     verify_height_tolerance_m: float = 0.015
-    #: lowering, the wrist's vertical load this far (N) below what the hand and its load weigh at rest:
-    #: what it holds stands on something (the motors' share keeps the reading above it on the way
-    #: down, measured: 15.7 N moving, 8.4 at rest, -7.5 one frame after a cube met a carton)
+    #: lowering a described target, the wrist's vertical load this far (N) below what the hand and its
+    #: load weigh at rest: what it holds stands on something (the motors' share keeps the reading above
+    #: it on the way down, measured: 15.7 N moving, 8.4 at rest, -7.5 one frame after a cube met a carton)
     touch_down_n: float = 3.0
-    #: ... met this far (m) or more above the planned height: on something at the place (the lowering
-    #: stops, the hand rises holding it, and the episode fails in ``place``); nearer, put down there
+    #: ... met this far (m) or more above the planned height, a described target is on something at the
+    #: place (the lowering stops, the hand rises holding it, and the episode fails in ``place``); nearer,
+    #: it is put down there (an object nobody described is lowered to the planned height)
     touch_early_m: float = 0.01
     #: the machine ends with the arm at rest: a last failed attempt backs off first (straight up, the
     #: fingers open), any other failure brakes the motion under way (a sequencer goes on from there)
