@@ -71,7 +71,8 @@ def test_open_loop_looks_once() -> None:
     for r in rs:
         assert r.open_loop and r.perception_rate_hz == 0.0  # no frame while it moved
     for r in at_least(rs, 2):
-        assert r.perception_frames == len(r.attempts) + 1  # one look an attempt, and the check after placing
+        # one look an attempt, and the last look's frames until two agree (the target has settled)
+        assert len(r.attempts) + 2 <= r.perception_frames <= len(r.attempts) + 10
 
 
 PUSHED_SEEDS = (0, 1, 2, 3)
