@@ -36,8 +36,6 @@ import numpy as np
 
 from pickdemo.core.geometry import wrap_angle
 from pickdemo.grasping.top_down import (
-    FINGER_PAD_HALF_HEIGHT_M,
-    PAD_HALF_WIDTH_M,
     GraspParams,
     GraspPlan,
     GraspPlanningError,
@@ -46,11 +44,6 @@ from pickdemo.grasping.top_down import (
 from pickdemo.perception import ObjectCloud
 from pickdemo.robot.description import Gripper
 
-#: The hand's body above the palm, seen from above: half its length along the closing axis, half its width (m).
-PALM_HALF_LENGTH_M = 0.105
-PALM_HALF_WIDTH_M = 0.035
-#: A finger's thickness outside its pad (m): the open finger's outer face.
-FINGER_THICKNESS_M = 0.022
 #: An object nobody described is held at any opening the fingers touch it at above this, less the
 #: grip's hold margin (m): they have not closed on nothing.
 MIN_HELD_M = 0.012
@@ -123,13 +116,13 @@ def sample_grasps(
     found: list[np.ndarray] = []  # rows of psi, mid, cb, z, w, cost
     for psi in np.arange(p.yaw_steps) * (np.pi / p.yaw_steps):
         with np.errstate(invalid="ignore"):  # (a height with nothing above its pads: inf - inf, never kept)
-            found.extend(_at_angle(float(psi), pts, h, obs, oh, levels, z_pref, widest, palm, p, gripper.finger_max_m))
+            found.extend(_at_angle(float(psi), pts, h, obs, oh, levels, z_pref, widest, palm, p, gripper))
     if not found:
         return []
     c = np.vstack(found)
     # Where the open fingers go down, what the camera did not see free (behind the object's far side,
     # or behind something else) may be the object: a finger there may land on it.
-    c[:, 5] += _unseen_fraction(cloud, c, surface_z, top, gripper.finger_max_m) / p.unseen_scale
+    c[:, 5] += _unseen_fraction(cloud, c, surface_z, top, gripper) / p.unseen_scale
     out = [
         CloudGrasp(np.array([*(mid * _axis_a(psi) + cb * _axis_b(psi)), surface_z + z]), psi, w, z, cost)
         for psi, mid, cb, z, w, cost in c
@@ -149,12 +142,12 @@ def _at_angle(
     widest: float,
     palm: float,
     p: CloudGraspParams,
-    finger_max_m: float,
+    gripper: Gripper,
 ) -> Iterator[np.ndarray]:
     """The feasible grasps at one hand angle: for each place along the finger's width, rows of (psi, mid,
     cb, z, w, cost), one a height (every height at once)."""
-    pad_lows = levels - FINGER_PAD_HALF_HEIGHT_M  # (L,)
-    pad_highs = levels + FINGER_PAD_HALF_HEIGHT_M
+    pad_lows = levels - gripper.pad_half_height_m  # (L,)
+    pad_highs = levels + gripper.pad_half_height_m
     palm_tops = levels + palm
     a = np.array([np.sin(psi), -np.cos(psi)])  # the closing axis: the hand's y
     b = np.array([np.cos(psi), np.sin(psi)])  # along the finger's width: the hand's x
@@ -163,7 +156,7 @@ def _at_angle(
     centre_b = 0.5 * float(pb.min() + pb.max())  # the middle of its footprint across the fingers' width
     for db in p.offsets_m:
         cb = centre_b + db
-        in_slab = np.abs(pb - cb) < PAD_HALF_WIDTH_M + p.clearance_m
+        in_slab = np.abs(pb - cb) < gripper.pad_half_width_m + p.clearance_m
         if in_slab.sum() < 5:
             continue
         sa, sh, sb = pa[in_slab], h[in_slab], pb[in_slab] - cb
@@ -177,12 +170,12 @@ def _at_angle(
             continue
         mid = 0.5 * (s_min + s_max)
         # The palm above the object's top under it.
-        in_palm = np.abs(pb - cb) < PALM_HALF_WIDTH_M
+        in_palm = np.abs(pb - cb) < gripper.palm_half_width_m
         ha, hh = pa[in_palm], h[in_palm]
-        under_palm = np.abs(ha[None, :] - mid[:, None]) < PALM_HALF_LENGTH_M
+        under_palm = np.abs(ha[None, :] - mid[:, None]) < gripper.palm_half_length_m
         ok &= ~np.any(under_palm & (hh[None, :] > palm_tops[:, None]), axis=1)
         if len(obs):
-            ok &= ~_hits_obstacles(oa, ob, oh, mid, cb, palm_tops, pad_lows, p.clearance_m, finger_max_m)
+            ok &= ~_hits_obstacles(oa, ob, oh, mid, cb, palm_tops, pad_lows, p.clearance_m, gripper)
         if not ok.any():
             continue
         above, sa_l = above[ok], sa
@@ -217,9 +210,7 @@ def _axis_b(psi: float) -> np.ndarray:
     return np.array([np.cos(psi), np.sin(psi)])
 
 
-def _unseen_fraction(
-    cloud: ObjectCloud, c: np.ndarray, surface_z: float, top: float, finger_max_m: float
-) -> np.ndarray:
+def _unseen_fraction(cloud: ObjectCloud, c: np.ndarray, surface_z: float, top: float, gripper: Gripper) -> np.ndarray:
     """For each candidate (rows of psi, mid, cb, z, ...), the fraction of points in the volume its open
     fingers sweep on the way down (from the pads' lower edge to the object's top) that the camera did
     not see to be free."""
@@ -227,13 +218,13 @@ def _unseen_fraction(
     a = np.stack([np.sin(psi), -np.cos(psi)], axis=1)  # (C, 2)
     b = np.stack([np.cos(psi), np.sin(psi)], axis=1)
     side = np.array([-1.0, 1.0])[:, None, None, None]  # (2, 1, 1, 1): each finger
-    out_a = finger_max_m + np.array([0.002, 0.008])[None, :, None, None]  # into each finger's body
-    across_b = np.array([-0.8, 0.0, 0.8])[None, None, :, None] * PAD_HALF_WIDTH_M
+    out_a = gripper.finger_max_m + np.array([0.002, 0.008])[None, :, None, None]  # into each finger's body
+    across_b = np.array([-0.8, 0.0, 0.8])[None, None, :, None] * gripper.pad_half_width_m
     t = np.linspace(0.0, 1.0, 5)[None, None, None, :]
     n = len(c)
     pts = np.empty((n, 2, 2, 3, 5, 3))
     k = (slice(None), None, None, None, None)  # each candidate along the first axis
-    lo = surface_z + z - FINGER_PAD_HALF_HEIGHT_M  # (C,)
+    lo = surface_z + z - gripper.pad_half_height_m  # (C,)
     hi = np.maximum(surface_z + top, lo)
     along = mid[k] + side * out_a  # (C, 2, 2, 1, 1)
     xy = (
@@ -255,11 +246,11 @@ def _hits_obstacles(
     palm_tops: np.ndarray,
     pad_lows: np.ndarray,
     gap: float,
-    finger_max_m: float,
+    gripper: Gripper,
 ) -> np.ndarray:
     """For each height (rows of ``mid``, the palm's underside ``palm_tops`` and the pads' lower edge
     ``pad_lows``), whether another object's points lie where the open fingers go down or under the palm."""
-    return _hit_counts(oa, ob, oh, mid, cb, palm_tops, pad_lows, gap, finger_max_m) > 0
+    return _hit_counts(oa, ob, oh, mid, cb, palm_tops, pad_lows, gap, gripper, gripper.finger_max_m) > 0
 
 
 def _hit_counts(
@@ -271,27 +262,29 @@ def _hit_counts(
     palm_tops: np.ndarray,
     pad_lows: np.ndarray,
     gap: float,
-    finger_max_m: float,
+    gripper: Gripper,
+    finger_m: float,
 ) -> np.ndarray:
-    """For each height, how many of the points lie where the open fingers go down or under the palm."""
-    finger_reach = finger_max_m + FINGER_THICKNESS_M + gap
+    """For each height, how many of the points lie where the fingers, open ``finger_m`` each from the
+    middle, go down or under the palm."""
+    finger_reach = finger_m + gripper.finger_thickness_m + gap
     across = np.abs(ob - cb)
     da = np.abs(oa[None, :] - mid[:, None])  # (L, O)
-    f = across < PAD_HALF_WIDTH_M + gap
+    f = across < gripper.pad_half_width_m + gap
     in_fingers = f[None, :] & (da < finger_reach) & (oh[None, :] >= (pad_lows - gap)[:, None])
-    u = across < PALM_HALF_WIDTH_M
-    under_palm = u[None, :] & (da < PALM_HALF_LENGTH_M) & (oh[None, :] > palm_tops[:, None])
+    u = across < gripper.palm_half_width_m
+    under_palm = u[None, :] & (da < gripper.palm_half_length_m) & (oh[None, :] > palm_tops[:, None])
     return np.sum(in_fingers | under_palm, axis=1)
 
 
 def hand_hits(
     obstacles: np.ndarray, tcp: np.ndarray, hand_yaw_rad: float, surface_z: float, palm_m: float, gap_m: float,
-    finger_max_m: float, min_points: int = 1,
+    gripper: Gripper, min_points: int = 1, finger_m: float | None = None,
 ) -> bool:  # fmt: skip
-    """Whether ``min_points`` of the ``obstacles`` (M, 3) lie where the open fingers go down to a
-    top-down grasp with the TCP at ``tcp`` and the hand angle ``hand_yaw_rad``, or under the palm
-    (``palm_m`` above the TCP), ``gap_m`` to spare; what rests on the surface (within 2 mm of it) is
-    the surface."""
+    """Whether ``min_points`` of the ``obstacles`` (M, 3) lie where the open fingers (``finger_m`` each
+    from the middle; None: wide open) go down to a top-down grasp with the TCP at ``tcp`` and the hand
+    angle ``hand_yaw_rad``, or under the palm (``palm_m`` above the TCP), ``gap_m`` to spare; what
+    rests on the surface (within 2 mm of it) is the surface."""
     obs = obstacles[obstacles[:, 2] - surface_z > 0.002]
     if len(obs) == 0:
         return False
@@ -299,7 +292,8 @@ def hand_hits(
     level = float(tcp[2]) - surface_z
     hits = _hit_counts(
         obs[:, :2] @ a, obs[:, :2] @ b, obs[:, 2] - surface_z, np.array([float(tcp[:2] @ a)]), float(tcp[:2] @ b),
-        np.array([level + palm_m - gap_m]), np.array([level - FINGER_PAD_HALF_HEIGHT_M]), gap_m, finger_max_m,
+        np.array([level + palm_m - gap_m]), np.array([level - gripper.pad_half_height_m]), gap_m, gripper,
+        gripper.finger_max_m if finger_m is None else finger_m,
     )  # fmt: skip
     return bool(hits[0] >= min_points)
 

@@ -21,7 +21,6 @@ from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.core.shapes import Unknown
 from pickdemo.grasping.cloud import CloudGrasps, hand_hits
 from pickdemo.grasping.top_down import (
-    FINGER_PAD_HALF_HEIGHT_M,
     GraspParams,
     GraspPlan,
     GraspPlanningError,
@@ -133,12 +132,12 @@ class TopDownFaceGrasps:
         top = float(request.pose.position[2]) + request.model.height_m / 2.0
         tcp = plan.grasp.position.copy()
         gripper = request.gripper
-        highest = max(top - FINGER_PAD_HALF_HEIGHT_M - float(tcp[2]), 0.0)  # (the pads wholly on the target)
+        highest = max(top - gripper.pad_half_height_m - float(tcp[2]), 0.0)  # (the pads wholly on the target)
         steps = np.arange(0.0, highest, p.raise_step_m)
         for raise_m in (*steps, highest):  # up in steps, and the highest last
             at = tcp + [0.0, 0.0, raise_m]
             if not hand_hits(request.obstacles, at, plan.hand_yaw_rad, request.surface_z, gripper.palm_above_tcp_m,
-                             p.neighbour_clearance_m, gripper.finger_max_m, p.neighbour_min_points):  # fmt: skip
+                             p.neighbour_clearance_m, gripper, p.neighbour_min_points):  # fmt: skip
                 return plan.hand_yaw_rad, wide, float(raise_m)
         return None
 

@@ -20,10 +20,6 @@ from pickdemo.core.shapes import Box
 from pickdemo.perception import TargetModel
 from pickdemo.robot.description import Gripper
 
-FINGER_PAD_HALF_HEIGHT_M = 0.00925  # the rubber tip is 18.5 mm tall, centred on the TCP
-#: The Franka hand's finger pads: half their width along the hand's x axis (m).
-PAD_HALF_WIDTH_M = 0.011
-
 
 class GraspPlanningError(RuntimeError):
     """No feasible grasp for this estimate (for example an object wider than the open gripper)."""
@@ -156,9 +152,10 @@ def plan_grasp(
     share = 1.0
     if isinstance(model.geometry, Box):  # flat faces: the pads' area on them
         along = sum(model.geometry.top_extents_m) - width  # the face's length along the pads
-        low, high = grasp_z - FINGER_PAD_HALF_HEIGHT_M, grasp_z + FINGER_PAD_HALF_HEIGHT_M
+        half_h, half_w = gripper.pad_half_height_m, gripper.pad_half_width_m
+        low, high = grasp_z - half_h, grasp_z + half_h
         tall = max(0.0, min(high, top_z) - max(low, bottom_z))
-        share = min(1.0, along / (2.0 * PAD_HALF_WIDTH_M)) * min(1.0, tall / (2.0 * FINGER_PAD_HALF_HEIGHT_M))
+        share = min(1.0, along / (2.0 * half_w)) * min(1.0, tall / (2.0 * half_h))
         share = 1.0 if share > 1.0 - 1e-6 else share  # (a whole pad, whatever the rounding)
     return dataclasses.replace(plan, width_known=True, pad_share=share)
 

@@ -54,6 +54,15 @@ class Gripper:
     palm_above_tcp_m: float  # the palm (between the fingers) is this far above the TCP
     open_force_n: float  # the fingers' force when opening
     speed_m_s: float  # each finger's top speed
+    #: The pads and the hand's body as the grasp planners see them (m): each pad's half height (it is
+    #: centred on the TCP) and half width (along the hand's x), a finger's thickness outside its pad,
+    #: and the body above the palm seen from above (half its length along the closing axis, half its
+    #: width).
+    pad_half_height_m: float
+    pad_half_width_m: float
+    finger_thickness_m: float
+    palm_half_length_m: float
+    palm_half_width_m: float
 
     @property
     def max_opening_m(self) -> float:

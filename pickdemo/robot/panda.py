@@ -36,6 +36,14 @@ HOME_Q = np.array([0.0, -0.785398, 0.0, -2.356194, 0.0, 1.570796, 0.785398])
 #: Each finger travels 0 .. 0.04 m; the gripper opens to 0.08 m in all.
 FINGER_MAX_M = 0.04
 PALM_ABOVE_TCP_M = 0.034  # the hand's palm (between the fingers) is this far above the TCP
+#: The fingers' rubber tips: 18.5 mm tall, centred on the TCP, 22 mm wide (m, halves).
+PAD_HALF_HEIGHT_M = 0.00925
+PAD_HALF_WIDTH_M = 0.011
+#: A finger's thickness outside its pad (m): the open finger's outer face.
+FINGER_THICKNESS_M = 0.022
+#: The hand's body above the palm, seen from above: half its length along the closing axis, half its width (m).
+PALM_HALF_LENGTH_M = 0.105
+PALM_HALF_WIDTH_M = 0.035
 
 #: Datasheet limits of the seven arm joints (Franka Emika Panda).
 MIN_POSITION_RAD = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
@@ -139,6 +147,11 @@ PANDA = RobotDescription(
         palm_above_tcp_m=PALM_ABOVE_TCP_M,
         open_force_n=OPEN_FORCE_N,
         speed_m_s=FINGER_SPEED_M_S,
+        pad_half_height_m=PAD_HALF_HEIGHT_M,
+        pad_half_width_m=PAD_HALF_WIDTH_M,
+        finger_thickness_m=FINGER_THICKNESS_M,
+        palm_half_length_m=PALM_HALF_LENGTH_M,
+        palm_half_width_m=PALM_HALF_WIDTH_M,
     ),
     home_q=HOME_Q,
     limits=JointLimits(

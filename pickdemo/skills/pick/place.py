@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from pickdemo.core.shapes import Box, Cylinder
-from pickdemo.grasping.cloud import FINGER_THICKNESS_M, hand_hits
+from pickdemo.grasping.cloud import hand_hits
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.perception import PlaceView, TargetModel
 from pickdemo.perception.neighbours import OWN_MARGIN_M
@@ -65,7 +65,7 @@ class PlaceFinder:
         #: what the camera is asked to look at: the task's place and this far about it (None: not asked)
         self.look: tuple[tuple[float, float], float] | None = None
         if params.check_place and not params.drop_place:  # (the open fingers reach past the footprint)
-            reach = max(r, gripper.finger_max_m + FINGER_THICKNESS_M)
+            reach = max(r, gripper.finger_max_m + gripper.finger_thickness_m)
             self.look = (self.place_xy, reach + params.place_clearance_m + self.shift_m)
 
     def _footprint(self) -> np.ndarray | float:
@@ -107,7 +107,7 @@ class PlaceFinder:
             for off in free:
                 at = np.array([place[0] + off[0], place[1] + off[1], 0.0]) + tcp
                 if not hand_hits(others, at, plan.hand_yaw_rad, self.surface_z, g.palm_above_tcp_m,
-                                 self.p.place_clearance_m, fingers, self.p.grasp.neighbour_min_points):  # fmt: skip
+                                 self.p.place_clearance_m, g, self.p.grasp.neighbour_min_points, fingers):  # fmt: skip
                     xy = (float(place[0] + off[0]), float(place[1] + off[1]))
                     return xy, (None if fingers == g.finger_max_m else fingers)
         tall = float(others[:, 2].max()) if len(others) else 0.0
