@@ -53,6 +53,7 @@ class Gripper:
     finger_max_m: float  # each finger's travel: the hand opens to twice this
     palm_above_tcp_m: float  # the palm (between the fingers) is this far above the TCP
     open_force_n: float  # the fingers' force when opening
+    max_force_n: float  # the most the fingers may squeeze with (its datasheet's continuous force)
     speed_m_s: float  # each finger's top speed
     #: The pads and the hand's body as the grasp planners see them (m): each pad's half height (it is
     #: centred on the TCP) and half width (along the hand's x), a finger's thickness outside its pad,

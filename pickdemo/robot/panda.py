@@ -59,6 +59,7 @@ PAYLOAD_KG = 3.0  # the datasheet's payload
 EFFORT_NM = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])  # the datasheet's joint torque limits
 FINGER_SPEED_M_S = 0.1  # each finger's top speed in simulation
 OPEN_FORCE_N = 20.0  # the fingers' force when opening
+MAX_FORCE_N = 70.0  # the Franka Hand's continuous grip force
 
 
 class RobotModelError(RuntimeError):
@@ -146,6 +147,7 @@ PANDA = RobotDescription(
         finger_max_m=FINGER_MAX_M,
         palm_above_tcp_m=PALM_ABOVE_TCP_M,
         open_force_n=OPEN_FORCE_N,
+        max_force_n=MAX_FORCE_N,
         speed_m_s=FINGER_SPEED_M_S,
         pad_half_height_m=PAD_HALF_HEIGHT_M,
         pad_half_width_m=PAD_HALF_WIDTH_M,

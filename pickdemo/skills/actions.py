@@ -113,7 +113,7 @@ class Move:
 
 @dataclass(frozen=True)
 class GripParams:
-    """The Franka Hand as the skill uses it; SI units."""
+    """How the skill reads and drives a parallel hand's fingers; SI units."""
 
     open_force_n: float = 20.0
     #: fingers moving slower than this are still (2 um a 240 Hz physics step)
@@ -135,6 +135,7 @@ class Grip:
         self.p = params
         self.dt_s = dt_s
         self.finger_max_m = gripper.finger_max_m
+        self.max_force_n = gripper.max_force_n  # (a retry's harder grip goes up to it)
         self.target_m = self.finger_max_m
         self.force_n = params.open_force_n
         self._stall = 0

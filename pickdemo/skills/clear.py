@@ -325,7 +325,7 @@ class ClearSequencer:
         k = len([r for r in self.picks if r.outcome == "placed"])
         # where an object slipped out of the fingers, the next grip there is twice as hard (as a retry's)
         slipped = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in self._slipped)
-        force = min(2.0 * self.p.grip_force_n, self.p.max_grip_force_n) if slipped else self.p.grip_force_n
+        force = min(2.0 * self.p.grip_force_n, self.kin.robot.gripper.max_force_n) if slipped else self.p.grip_force_n
         self.current = self._machine(
             q0,
             TargetModel(Unknown(max_extent_m=_extent(seen), size_cue_m=seen.size_m, heap=True), color=None),

@@ -26,7 +26,7 @@ def _weigh(m: PickMachine, obs: Observation) -> bool:
     and grip as hard as it needs; True once weighed."""
     if m.scale.payload_kg is not None:
         return True
-    weighed = m.scale.weigh(wrist_load(m, obs), m.close_force_n, m.p.max_grip_force_n)
+    weighed = m.scale.weigh(wrist_load(m, obs), m.close_force_n, m.grip.max_force_n)
     if weighed is None:
         return False
     payload, force = weighed
@@ -170,9 +170,9 @@ def tick_release(m: PickMachine, obs: Observation) -> Transition:
         # so after a held cube had turned half a turn in the carry, measured: the retreat then
         # lifted it away). Open with the hand's full force before letting go of it for good.
         m.forced_open = True
-        m.grip.open(m.p.max_grip_force_n)
+        m.grip.open(m.grip.max_force_n)
         m.grip.watch()
-        force = m.p.max_grip_force_n
+        force = m.grip.max_force_n
         m.note(f"the fingers stopped at {obs.opening_m * 1e3:.1f} mm, still on the target: opening with {force:.0f} N")
         return None
     if opened or stopped or obs.time_s - m.since_s > m.p.close_timeout_s:

@@ -376,7 +376,7 @@ class PickMachine:
         if change.other_faces:  # a square box may be taken by its other pair of faces
             self.turn_hand = 0.0 < self.symmetry < np.pi - 1e-9  # a square top (a cube)
         if change.force_factor != 1.0:
-            self.grip_force_n = min(self.grip_force_n * change.force_factor, self.p.max_grip_force_n)
+            self.grip_force_n = min(self.grip_force_n * change.force_factor, self.grip.max_force_n)
         self.lift_scale *= change.lift_factor
         self.after_back_off = State.LOOK
         return State.BACK_OFF, f"{outcome}: {reason}; attempt {self.attempt} of {self.max_attempts} follows"

@@ -67,7 +67,6 @@ class MachineParams:
     gate: GateParams = GateParams()  # when an estimate is no use, whatever the tracker says
     grip_force_n: float = 20.0  # per finger; measured: holds a 5 cm cube with ~1 mm slip
     payload: PayloadParams = PayloadParams()  # weighed at the wrist while lifting: a heavier hold grips harder
-    max_grip_force_n: float = 70.0  # the Franka Hand's continuous grip force
     look_min_estimates: int = 2  # accepted estimates before the first plan (1 when open loop)
     look_max_frames: int = 10  # frames in LOOK without an accepted estimate: the episode fails
     #: ... after this many, the arm moves aside if it hides the table from the fixed camera (at most
