@@ -14,7 +14,7 @@ MAX_CLASS_LINES = 400
 #: The one import inside a function: the package's Episode, loaded on first use so that the pure
 #: layers (the skill, perception, the schema) import without the simulator.
 LAZY = {("pickdemo", "pickdemo.runtime.episode"), ("pickdemo", "pickdemo.runtime")}
-#: The Panda's constants (pickdemo/robot/panda.py): named nowhere else.
+#: The Panda's names and constants: in its robot file (pickdemo/robot/robots/panda.toml), no module.
 PANDA_NAMES = re.compile(r"\b(HOME_Q|FINGER_MAX_M|PALM_ABOVE_TCP_M|MAX_VELOCITY_RAD_S|MAX_ACCELERATION_RAD_S2|"
                          r"MAX_JERK_RAD_S3|MIN_POSITION_RAD|MAX_POSITION_RAD|panda_hand|panda_link\d|panda_joint\d|"
                          r"panda_finger|PANDA)\b")  # fmt: skip
@@ -109,7 +109,7 @@ def test_imports_form_no_circle_and_sit_at_the_top() -> None:
     assert not circles, circles
 
 
-def test_only_sim_imports_pybullet_and_only_robot_names_the_panda() -> None:
+def test_only_sim_imports_pybullet_and_no_module_names_the_panda() -> None:
     for name, (path, tree) in _modules().items():
         text = path.read_text()
         simulator = {"pybullet", "pybullet_utils"}  # (pybullet_data is a data folder, no simulator)
@@ -119,5 +119,4 @@ def test_only_sim_imports_pybullet_and_only_robot_names_the_panda() -> None:
             for n in ast.walk(tree)
         )
         assert not uses_bullet or name.startswith("pickdemo.sim"), name
-        if not name.startswith("pickdemo.robot"):
-            assert not PANDA_NAMES.search(text), (name, PANDA_NAMES.search(text).group(0))
+        assert not PANDA_NAMES.search(text), (name, PANDA_NAMES.search(text).group(0))

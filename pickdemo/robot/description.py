@@ -2,8 +2,9 @@
 
 Kinematics, motion, the rate limiter, the self-filter, the schema's checks and the simulator take
 the robot as this value; none of them names one robot's constants. Its files are found when first
-asked for (a description is cheap to import and to pass around). A robot's module builds its own
-(:mod:`pickdemo.robot.panda` is the first), and :func:`pickdemo.robot.robot_named` finds it by name.
+asked for (a description is cheap to import and to pass around). A robot file describes one
+(:mod:`pickdemo.robot.robot_file`; the Panda's ships first), and :func:`pickdemo.robot.robot_named`
+finds it by name or path.
 """
 
 from __future__ import annotations

@@ -1,0 +1,269 @@
+"""A robot described by a file (TOML): its URDF, joints, frames, home, datasheet limits and gripper,
+read into one :class:`~pickdemo.robot.description.RobotDescription`.
+
+The shipped robots are files in ``pickdemo/robot/robots/`` (the Panda first); a user's robot is a
+file anywhere. A bad file is one line naming the file and the key (:class:`RobotFileError`): a
+missing URDF, a joint or frame the URDF does not have, a limit that is not positive, a gripper whose
+stroke cannot hold anything. ``urdf`` is ``example-robot-data:<path under its robots/>`` (the
+installed package, never copied) or a file, relative to the robot file. Imports neither pybullet nor
+pinocchio: the URDF is read as XML.
+"""
+
+from __future__ import annotations
+
+import atexit
+import functools
+import re
+import shutil
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+from importlib import metadata
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+import tomllib
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from pickdemo.robot.description import Gripper, JointLimits, RobotDescription, RobotFiles
+
+#: Where the shipped robot files are.
+ROBOTS_DIR = Path(__file__).resolve().parent / "robots"
+#: A parallel gripper must open at least this wide in all to hold anything (m).
+MIN_STROKE_M = 0.01
+#: The prefix of a URDF in the installed example-robot-data.
+ERD_PREFIX = "example-robot-data:"
+
+Positive = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class RobotFileError(ValueError):
+    """A robot file that cannot describe a robot: ``file: key: what is wrong``, one line."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+
+
+class _Arm(_Model):
+    urdf: str
+    joints: list[str] = Field(min_length=1)
+    tcp_frame: str
+    hand_frame: str
+    wrist_joint: str
+    home: list[Finite]
+    payload_kg: Positive
+    camera_mounts: list[str] = []
+
+
+class _Limits(_Model):
+    position_min: list[Finite]
+    position_max: list[Finite]
+    velocity: list[Positive]
+    acceleration: list[Positive]
+    jerk: list[Positive]
+    effort: list[Positive]
+
+
+class _Gripper(_Model):
+    kind: Literal["parallel"]
+    finger_joints: list[str] = Field(min_length=1)
+    finger_links: list[str] = Field(min_length=1)
+    finger_max_m: Positive
+    palm_above_tcp_m: Positive
+    open_force_n: Positive
+    max_force_n: Positive
+    speed_m_s: Positive
+    pad_half_height_m: Positive
+    pad_half_width_m: Positive
+    finger_thickness_m: Positive
+    palm_half_length_m: Positive
+    palm_half_width_m: Positive
+
+
+class _RobotFile(_Model):
+    name: str = Field(pattern=r"^[A-Za-z0-9_.+-]+$")
+    label: str
+    arm: _Arm
+    limits: _Limits
+    gripper: _Gripper
+
+
+def load_robot_file(path: str | Path) -> RobotDescription:
+    """The robot a file describes (raises :class:`RobotFileError`, one line, for a bad one)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise RobotFileError(f"{path}: no such robot file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RobotFileError(f"{path}: cannot be read ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise RobotFileError(f"{path}: invalid TOML: {exc}") from None
+    try:
+        spec = _RobotFile.model_validate(data)
+    except ValidationError as exc:
+        errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")  # (a misspelt key first)
+        err = errors[0]
+        key = ".".join(str(p) for p in err["loc"]) or "(top level)"
+        msg = {"extra_forbidden": "unknown key", "missing": "missing"}.get(err["type"], err["msg"])
+        raise RobotFileError(f"{path}: {key}: {msg}") from None
+
+    def fail(key: str, msg: str) -> RobotFileError:
+        return RobotFileError(f"{path}: {key}: {msg}")
+
+    files = _locate(spec.arm.urdf, path.parent, fail)
+    _check(spec, files.urdf, fail)
+    a, g, lim = spec.arm, spec.gripper, spec.limits
+    return RobotDescription(
+        name=spec.name,
+        label=spec.label,
+        arm_joints=tuple(a.joints),
+        tcp_frame=a.tcp_frame,
+        hand_frame=a.hand_frame,
+        wrist_joint=a.wrist_joint,
+        gripper=Gripper(
+            kind=g.kind,
+            finger_joints=tuple(g.finger_joints),
+            finger_links=tuple(g.finger_links),
+            finger_max_m=g.finger_max_m,
+            palm_above_tcp_m=g.palm_above_tcp_m,
+            open_force_n=g.open_force_n,
+            max_force_n=g.max_force_n,
+            speed_m_s=g.speed_m_s,
+            pad_half_height_m=g.pad_half_height_m,
+            pad_half_width_m=g.pad_half_width_m,
+            finger_thickness_m=g.finger_thickness_m,
+            palm_half_length_m=g.palm_half_length_m,
+            palm_half_width_m=g.palm_half_width_m,
+        ),  # fmt: skip
+        home_q=np.array(a.home),
+        limits=JointLimits(
+            np.array(lim.position_min),
+            np.array(lim.position_max),
+            np.array(lim.velocity),
+            np.array(lim.acceleration),
+            np.array(lim.jerk),
+        ),  # fmt: skip
+        payload_kg=a.payload_kg,
+        effort_nm=np.array(lim.effort),
+        camera_mounts=tuple(a.camera_mounts),
+        locate=lambda: files,
+        render_urdf=functools.partial(_lean_urdf_path, files, spec.name),
+    )
+
+
+def _check(spec: _RobotFile, urdf: Path, fail) -> None:  # noqa: ANN001 - (key, message) -> error
+    """What the URDF must have, the limits' lengths and order, home within them, the stroke."""
+    try:
+        root = ET.fromstring(urdf.read_bytes())
+    except (OSError, ET.ParseError) as exc:
+        raise fail("arm.urdf", f"{urdf} is not a readable URDF ({exc})") from None
+    joints = {j.get("name"): j.get("type") for j in root.findall("joint")}
+    links = {lk.get("name") for lk in root.findall("link")}
+    a, g, lim = spec.arm, spec.gripper, spec.limits
+    for i, name in enumerate(a.joints):
+        if joints.get(name) not in ("revolute", "continuous", "prismatic"):
+            what = "is not a moving joint" if name in joints else "is not a joint"
+            raise fail(f"arm.joints[{i}]", f"{name!r} {what} of {urdf.name}")
+    for key, name in (("arm.wrist_joint", a.wrist_joint),):
+        if name not in joints:
+            raise fail(key, f"{name!r} is not a joint of {urdf.name}")
+    for key, name in (("arm.tcp_frame", a.tcp_frame), ("arm.hand_frame", a.hand_frame)):
+        if name not in links:
+            raise fail(key, f"{name!r} is not a link of {urdf.name}")
+    for i, name in enumerate(a.camera_mounts):
+        if name not in links:
+            raise fail(f"arm.camera_mounts[{i}]", f"{name!r} is not a link of {urdf.name}")
+    for i, name in enumerate(g.finger_joints):
+        if name not in joints:
+            raise fail(f"gripper.finger_joints[{i}]", f"{name!r} is not a joint of {urdf.name}")
+    for i, name in enumerate(g.finger_links):
+        if name not in links:
+            raise fail(f"gripper.finger_links[{i}]", f"{name!r} is not a link of {urdf.name}")
+    n = len(a.joints)
+    for key in ("home",):
+        if len(getattr(a, key)) != n:
+            raise fail(f"arm.{key}", f"{len(getattr(a, key))} values for {n} joints")
+    for key in ("position_min", "position_max", "velocity", "acceleration", "jerk", "effort"):
+        if len(getattr(lim, key)) != n:
+            raise fail(f"limits.{key}", f"{len(getattr(lim, key))} values for {n} joints")
+    for i, (lo, hi) in enumerate(zip(lim.position_min, lim.position_max, strict=True)):
+        if not lo < hi:
+            raise fail(f"limits.position_min[{i}]", f"{lo} is not below position_max's {hi}")
+        if not lo <= a.home[i] <= hi:
+            raise fail(f"arm.home[{i}]", f"{a.home[i]} is outside the joint's limits [{lo}, {hi}]")
+    if 2.0 * g.finger_max_m < MIN_STROKE_M:
+        raise fail("gripper.finger_max_m", f"the hand opens {2e3 * g.finger_max_m:.1f} mm in all: it cannot hold "
+                                           f"anything (at least {MIN_STROKE_M * 1e3:.0f} mm)")  # fmt: skip
+    if g.open_force_n > g.max_force_n:
+        raise fail("gripper.open_force_n", f"{g.open_force_n} N is more than max_force_n's {g.max_force_n} N")
+
+
+def _locate(spec: str, base: Path, fail) -> RobotFiles:  # noqa: ANN001 - (key, message) -> error
+    """The URDF and the directory its ``package://`` paths point to."""
+    if spec.startswith(ERD_PREFIX):
+        rel = spec[len(ERD_PREFIX) :]
+        for share in _erd_share_dirs():
+            urdf = share / "robots" / rel
+            if urdf.is_file():
+                return RobotFiles(urdf=urdf, package_root=share)
+        raise fail("arm.urdf", f"{rel} is not in the installed example-robot-data (`pip install example-robot-data`)")
+    urdf = (base / spec).resolve()
+    if not urdf.is_file():
+        raise fail("arm.urdf", f"no such file: {urdf}")
+    return RobotFiles(urdf=urdf, package_root=urdf.parent)
+
+
+@functools.cache
+def _erd_share_dirs() -> tuple[Path, ...]:
+    """Where the installed example-robot-data may keep its ``robots/`` (its version 6 layout)."""
+    dirs: list[Path] = []
+    try:
+        dist = metadata.distribution("example-robot-data")
+        for f in dist.files or ():
+            parts = Path(str(f)).parts
+            if str(f).endswith(".urdf") and "robots" in parts:
+                urdf = Path(str(dist.locate_file(f))).resolve()
+                dirs.append(urdf.parents[len(parts) - parts.index("robots") - 1])
+                break
+    except metadata.PackageNotFoundError:
+        pass
+    for base in {sys.prefix, sys.exec_prefix, *sys.path}:
+        for rel in ("cmeel.prefix/share/example-robot-data", "share/example-robot-data"):
+            dirs.append(Path(base) / rel)
+    return tuple(dict.fromkeys(dirs))
+
+
+_MESH_RE = re.compile(r'filename="package://[^/"]+/([^"]+)"')
+_VISUAL_RE = re.compile(r"<visual>(.*?)</visual>", re.DOTALL)
+#: Colours for the lean visuals (RGBA): the arm white, its hand dark.
+_LINK_RGBA = "0.92 0.92 0.92 1"
+_HAND_RGBA = "0.25 0.25 0.28 1"
+
+
+def lean_urdf_text(files: RobotFiles) -> str:
+    """The URDF with its collision meshes as visuals (example-robot-data keeps them beside the visual
+    ones: ~2k triangles instead of ~128k for the Panda) and package paths made absolute."""
+    text = files.urdf.read_text()
+
+    def visual(match: re.Match[str]) -> str:
+        body = match.group(1).replace("/meshes/visual/", "/meshes/collision/").replace(".dae", ".stl")
+        rgba = _HAND_RGBA if ("hand" in body or "finger" in body) else _LINK_RGBA
+        return f'<visual>{body}<material name="pd_{rgba.split()[0]}"><color rgba="{rgba}"/></material></visual>'
+
+    text = _VISUAL_RE.sub(visual, text)
+    return _MESH_RE.sub(lambda m: f'filename="{files.package_root / m.group(1)}"', text)
+
+
+@functools.cache
+def _lean_urdf_path(files: RobotFiles, name: str) -> Path:
+    """A lean URDF for rendering (:func:`lean_urdf_text`), written once per process into a temporary
+    directory; it refers to the installed meshes by absolute path (nothing copied or downloaded)."""
+    out_dir = Path(tempfile.mkdtemp(prefix="pickdemo_urdf_"))
+    atexit.register(shutil.rmtree, out_dir, ignore_errors=True)
+    out = out_dir / f"{name}_lean.urdf"
+    out.write_text(lean_urdf_text(files))
+    return out

@@ -1,0 +1,133 @@
+"""Robot files: the shipped Panda's reads as the robot it was, and a bad file is one line naming the
+file and the key (missing URDF, unknown joint or frame, a limit that is not positive, a gripper whose
+stroke cannot hold anything, ...)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pickdemo.robot import robot_named, shipped_robots
+from pickdemo.robot.robot_file import ROBOTS_DIR, RobotFileError, load_robot_file
+
+PANDA_FILE = (ROBOTS_DIR / "panda.toml").read_text()
+
+
+def test_the_panda_ships_as_a_file_and_is_the_default() -> None:
+    assert "panda" in shipped_robots()
+    r = robot_named()
+    assert r is robot_named("panda")  # (one description per name: kinematics are cached by identity)
+    assert r.dof == 7 and r.arm_joints[0] == "panda_joint1" and r.tcp_frame == "panda_hand_tcp"
+    assert r.gripper.max_opening_m == pytest.approx(0.08) and r.gripper.max_force_n == 70.0
+    assert np.allclose(r.limits.max_velocity_rad_s, [2.175] * 4 + [2.61] * 3)
+    assert r.files().urdf.is_file() and r.render_urdf().is_file()
+    assert "package://" not in r.render_urdf().read_text()  # (the meshes by absolute path)
+
+
+def test_a_robot_file_anywhere_is_a_robot_by_its_path(tmp_path: Path) -> None:
+    f = tmp_path / "my_panda.toml"
+    f.write_text(PANDA_FILE.replace('name = "panda"', 'name = "my_panda"'))
+    r = robot_named(str(f))
+    assert r.name == "my_panda" and r.dof == 7
+    with pytest.raises(KeyError, match="no robot named 'ur3'; known: panda"):
+        robot_named("ur3")
+
+
+def _edit(old: str, new: str) -> str:
+    assert old in PANDA_FILE, old
+    return PANDA_FILE.replace(old, new, 1)
+
+
+BAD = [
+    (
+        "missing URDF",
+        _edit('urdf = "example-robot-data:panda_description/urdf/panda.urdf"', 'urdf = "nowhere.urdf"'),
+        "arm.urdf: no such file",
+    ),
+    (
+        "URDF not in the package",
+        _edit("panda_description/urdf/panda.urdf", "panda_description/urdf/pandaX.urdf"),
+        "arm.urdf: panda_description/urdf/pandaX.urdf is not in the installed example-robot-data",
+    ),
+    ("unknown arm joint", _edit('"panda_joint7"]', '"panda_joint9"]'), "arm.joints[6]: 'panda_joint9' is not a joint"),
+    (
+        "a fixed joint in the arm",
+        _edit('"panda_joint7"]', '"panda_hand_joint"]'),
+        "arm.joints[6]: 'panda_hand_joint' is not a moving joint",
+    ),
+    (
+        "unknown TCP frame",
+        _edit('tcp_frame = "panda_hand_tcp"', 'tcp_frame = "tool0"'),
+        "arm.tcp_frame: 'tool0' is not a link",
+    ),
+    (
+        "unknown finger link",
+        _edit('"panda_rightfinger"]', '"right_pad"]'),
+        "gripper.finger_links[1]: 'right_pad' is not a link",
+    ),
+    (
+        "unknown finger joint",
+        _edit('"panda_finger_joint2"]', '"finger2"]'),
+        "gripper.finger_joints[1]: 'finger2' is not a joint",
+    ),
+    (
+        "velocity not positive",
+        _edit("velocity = [2.175,", "velocity = [0.0,"),
+        "limits.velocity.0: Input should be greater than 0",
+    ),
+    ("jerk negative", _edit("jerk = [7500.0,", "jerk = [-7500.0,"), "limits.jerk.0: Input should be greater than 0"),
+    (
+        "a limit short of a joint",
+        _edit("effort = [87.0, 87.0,", "effort = [87.0,"),
+        "limits.effort: 6 values for 7 joints",
+    ),
+    (
+        "min above max",
+        _edit("position_min = [-2.8973,", "position_min = [2.9,"),
+        "limits.position_min[0]: 2.9 is not below position_max's 2.8973",
+    ),
+    (
+        "home outside the limits",
+        _edit("home = [0.0,", "home = [3.0,"),
+        "arm.home[0]: 3.0 is outside the joint's limits",
+    ),
+    (
+        "a stroke that holds nothing",
+        _edit("finger_max_m = 0.04", "finger_max_m = 0.004"),
+        "gripper.finger_max_m: the hand opens 8.0 mm in all: it cannot hold anything",
+    ),
+    (
+        "a gripper kind not known",
+        _edit('kind = "parallel"', 'kind = "suction"'),
+        "gripper.kind: Input should be 'parallel'",
+    ),
+    ("a misspelt key", _edit("payload_kg = 3.0", "payload = 3.0"), "arm.payload: unknown key"),
+    (
+        "a number as text",
+        _edit("speed_m_s = 0.1", 'speed_m_s = "0.1"'),
+        "gripper.speed_m_s: Input should be a valid number",
+    ),
+    (
+        "opening harder than it may squeeze",
+        _edit("open_force_n = 20.0", "open_force_n = 90.0"),
+        "gripper.open_force_n: 90.0 N is more than max_force_n's 70.0 N",
+    ),
+    ("not TOML", "name = panda\n", "invalid TOML"),
+]
+
+
+@pytest.mark.parametrize(("text", "expected"), [(t, e) for _, t, e in BAD], ids=[n for n, _, _ in BAD])
+def test_a_bad_robot_file_is_one_line_naming_the_file_and_key(tmp_path: Path, text: str, expected: str) -> None:
+    f = tmp_path / "robot.toml"
+    f.write_text(text)
+    with pytest.raises(RobotFileError) as err:
+        load_robot_file(f)
+    message = str(err.value)
+    assert message.startswith(f"{f}: ") and "\n" not in message and expected in message, message
+
+
+def test_a_missing_robot_file_is_one_line(tmp_path: Path) -> None:
+    with pytest.raises(RobotFileError, match="no such robot file"):
+        load_robot_file(tmp_path / "none.toml")
