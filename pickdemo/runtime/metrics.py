@@ -60,8 +60,7 @@ def score_place(
     """Success: rose at least ``lift_height_m``, ended within tolerance of the place position, upright
     (when ``upright_required``) and at rest. Upright: on the face it stood on, or one the same height
     (a cube on any face) with that face within 10 deg of level; a cylinder on a cap, or on its side if
-    it started so; a mesh with its
-    body z within 10 deg of the vertical, resting on the table.
+    it started so; a mesh with its body z within 10 deg of the vertical, resting on the table.
 
     ``shape``: the target's :class:`~pickdemo.core.shapes.Shape`."""
     height_m = float(shape.height_m)

@@ -175,6 +175,16 @@ class ObjectSpec(Model):
         turns = sorted(abs(v or 0.0) for v in (self.pitch_deg, self.roll_deg))
         return turns == [0.0, 90.0]
 
+    def rough_size(self, shape: Shape) -> tuple[float, float, float]:
+        """Its height and its footprint's longer and shorter side as it stands, at this shape (m): what
+        a task that names only its rough size tells (a cylinder on its side: its diameter high, its
+        length and its diameter across)."""
+        if self.lying:
+            d, length = shape.size
+            return d, max(d, length), min(d, length)
+        wide, narrow = sorted(shape.top_extents_m, reverse=True)
+        return shape.height_m, wide, narrow
+
     def _check_mesh(self) -> None:
         if self.size is not None or self.size_range is not None:
             raise ValueError("a mesh's size is its file's: give scale or scale_range, not size")

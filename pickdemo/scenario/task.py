@@ -18,11 +18,8 @@ def target_model(scenario: Scenario, placement: Placement) -> TargetModel:
     placed) and colour; of a mesh, or a cylinder lying on its side, only its rough size as it lies (a
     cue to tell it from other objects): it is found and grasped by its geometry."""
     spec = next(o for o in scenario.objects if o.name == placement.name)
-    if isinstance(placement.geometry, Mesh):  # its rough size as a cue among other objects, no more
-        wide, narrow = placement.geometry.top_extents_m
-        return TargetModel(geometry=Unknown(size_cue_m=(placement.geometry.height_m, wide, narrow)), color=None)
-    if spec.lying:  # (the shapes' models stand upright): as it lies, its length, then its diameter twice
-        d, length = placement.geometry.diameter_m, placement.geometry.height_m
-        return TargetModel(geometry=Unknown(size_cue_m=(d, max(d, length), min(d, length))), color=None)
+    # its rough size as a cue among other objects, no more (the shapes' models stand upright)
+    if isinstance(placement.geometry, Mesh) or spec.lying:
+        return TargetModel(geometry=Unknown(size_cue_m=spec.rough_size(placement.geometry)), color=None)
     assert spec.color is not None  # the schema requires it of a box or cylinder
     return TargetModel(geometry=placement.geometry, color=tuple(spec.color))

@@ -56,15 +56,7 @@ def _rough_sizes(obj: ObjectSpec) -> list[tuple[float, float, float]] | None:
     else:
         ranges = obj.size_range or [(v, v) for v in obj.size or ()]
         shapes = [obj.shape_of_size(tuple(r[i] for r in ranges)) for i in (0, 1)]
-    out = []
-    for g in shapes:
-        if obj.lying:  # (on its side: its diameter high, its length and its diameter across)
-            d, length = g.size
-            out.append((d, max(d, length), min(d, length)))
-        else:
-            wide, narrow = sorted(g.top_extents_m, reverse=True)
-            out.append((g.height_m, wide, narrow))
-    return out
+    return [obj.rough_size(g) for g in shapes]
 
 
 def _as_large(target: ObjectSpec, other: ObjectSpec) -> bool:
