@@ -16,7 +16,6 @@ import numpy as np
 from pickdemo.core.camera import calibration_error, hand_camera_pose
 from pickdemo.core.geometry import Pose
 from pickdemo.core.streams import spawn_rngs
-from pickdemo.robot import robot_named
 from pickdemo.robot.description import RobotDescription
 from pickdemo.robot.kinematics import Kinematics, kinematics_of
 from pickdemo.scenario.layout import Placement, Tray, camera_position, sample_layout, sample_place, sample_round
@@ -44,7 +43,7 @@ class World:
         self.tray: Tray | None = Tray.of(scenario)
         #: where the target is to be put down (the scenario's spot, or drawn for this seed; the tray's middle)
         self.place_xy: tuple[float, float] = sample_place(scenario, self.layout, self.rngs["place"])
-        self.robot: RobotDescription = robot_named()  # (a scenario does not choose its robot yet)
+        self.robot: RobotDescription = scenario.robot_description
         self.scene: Scene | None = None
         self.camera: Camera | None = None
         self.wrist_camera: WristCamera | None = None  # a camera on the hand, if the scenario has one
@@ -104,5 +103,5 @@ def wrist_camera(
     spec: WristCameraSpec, rng: np.random.Generator, hand_eye_rng: np.random.Generator, kin: Kinematics
 ) -> WristCamera:
     """The hand's camera where the scenario mounts it, told its pose with the hand-eye error drawn for it."""
-    T_tcp_cam = hand_camera_pose(kin.tcp_to_frame(spec.mount), spec.position, spec.look_at)
+    T_tcp_cam = hand_camera_pose(kin.tcp_to_frame(spec.mount or kin.robot.hand_frame), spec.position, spec.look_at)
     return WristCamera(spec, rng, T_tcp_cam, calibration_error(*spec.hand_eye_error, hand_eye_rng))

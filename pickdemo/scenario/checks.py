@@ -17,7 +17,6 @@ from pickdemo.core.meshes import MeshFileError, expand, read_urdf
 from pickdemo.core.shapes import Mesh
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.grasping.top_down import GraspParams, top_down
-from pickdemo.robot import robot_named
 from pickdemo.robot.description import RobotDescription
 from pickdemo.robot.kinematics import IKParams, kinematics_of
 from pickdemo.robot.self_geometry import hidden_by_the_base
@@ -86,8 +85,8 @@ def check_scenario(sc: Scenario) -> None:
 
 
 def _robot(sc: Scenario) -> RobotDescription:
-    """The robot a scenario runs (the default robot: a scenario does not choose one yet)."""
-    return robot_named()
+    """The robot a scenario runs."""
+    return sc.robot_description
 
 
 def _check_mesh_files(sc: Scenario) -> None:

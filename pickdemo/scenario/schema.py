@@ -22,7 +22,8 @@ from typing import Annotated, Literal
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from pickdemo.core.meshes import usable
-from pickdemo.scenario.base import DRAWN_NAME, Angle, Model, Name, Scale, Vec2
+from pickdemo.robot import DEFAULT_ROBOT, RobotDescription, RobotFileError, robot_named
+from pickdemo.scenario.base import DRAWN_NAME, Angle, Model, Name, Scale, Vec2, printable
 from pickdemo.scenario.belt import ConveyorSpec
 from pickdemo.scenario.objects import ObjectSpec, PlaceSpec, TableSpec, resolve_path
 from pickdemo.scenario.sensors import CameraSpec, WristCameraSpec
@@ -144,6 +145,9 @@ class Scenario(Model):
     tags: tuple[Name, ...] = ()  # e.g. "suite": run by `pickdemo bench` when no scenario is named
     #: "perceive": for `pickdemo perceive` only (any number of targets); "clear": every object into the tray
     task: Literal["pick", "perceive", "clear"] = "pick"
+    #: the robot that works the scene: a shipped one by name, or a robot file (``.toml``, a path
+    #: relative to the scenario file)
+    robot: Annotated[str, Field(min_length=1, max_length=300)] = DEFAULT_ROBOT
     camera: CameraSpec = CameraSpec()
     wrist_camera: WristCameraSpec | None = None  # a second camera, on the hand
     table: TableSpec = TableSpec()
@@ -157,6 +161,24 @@ class Scenario(Model):
     disturbances: tuple[DisturbanceSpec, ...] = ()
     conveyor: ConveyorSpec | None = None
     clear: ClearSpec | None = None  # a clear round's objects (task = "clear")
+
+    @field_validator("robot")
+    @classmethod
+    def _known_robot(cls, name: str, info: ValidationInfo) -> str:
+        if name.endswith(".toml"):
+            name = resolve_path(name, info)  # type: ignore[assignment]
+        try:
+            robot_named(name)
+        except KeyError as exc:
+            raise ValueError(exc.args[0]) from None
+        except RobotFileError as exc:
+            raise ValueError(f"bad robot file: {exc}") from None
+        return name
+
+    @property
+    def robot_description(self) -> RobotDescription:
+        """The robot this scenario runs (:attr:`robot` read)."""
+        return robot_named(self.robot)
 
     @model_validator(mode="after")
     def _check(self) -> Scenario:
@@ -174,6 +196,13 @@ class Scenario(Model):
         if not self.description.isprintable():
             raise ValueError("description: control characters are not allowed")
         self._place_beside()
+        if self.wrist_camera is not None and self.wrist_camera.mount is not None:
+            mounts = self.robot_description.camera_mounts  # the hand's links: they move rigidly with it
+            if self.wrist_camera.mount not in mounts:
+                raise ValueError(
+                    f"wrist_camera.mount: {printable(self.wrist_camera.mount)!r} is not a link of the "
+                    f"{self.robot_description.label}'s hand; one of {', '.join(mounts)}"
+                )
         if rules.one_target:
             if len(targets) != 1:
                 names_t = ", ".join(o.name for o in targets)
