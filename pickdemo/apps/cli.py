@@ -34,6 +34,7 @@ from pickdemo.apps.profile import profile
 from pickdemo.apps.summary import summary_line, yaw_modulus_deg
 from pickdemo.core.result import EpisodeResult, PhaseRecord
 from pickdemo.perception.estimators import EstimatorError, resolve_estimator
+from pickdemo.robot.description import RobotDescription
 from pickdemo.runtime.episode import EpisodeOptions, run_episode
 from pickdemo.scenario.load import (
     Scenario,
@@ -218,13 +219,13 @@ def _save_result(result: EpisodeResult, out: Path) -> Path:
         return Path(fallback)
 
 
-def _run_pictures(result: EpisodeResult, out: Path, *, video: bool) -> list[Path]:
+def _run_pictures(result: EpisodeResult, out: Path, *, video: bool, robot: RobotDescription) -> list[Path]:
     """motion.png and report.html beside result.json (the plots extra); never fails the run."""
     images: list[Path] = []
     try:
         if result.trace is not None and len(result.trace.time_s) > 3:
             title = f"{result.scenario} seed {result.seed}: commanded arm motion"
-            images.append(report.write_motion_plot(result.trace, out / "motion.png", title))
+            images.append(report.write_motion_plot(result.trace, out / "motion.png", title, robot))
     except report.PlotsUnavailable as exc:
         print(f"pickdemo: note: no plots ({exc})", file=sys.stderr)
     except Exception as exc:  # noqa: BLE001 - a plot must never lose the episode's result
@@ -301,7 +302,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(summary_line(result, modulus), flush=True)
     if args.out is not None:
         path = _save_result(result, args.out)
-        written = [path] + _run_pictures(result, args.out, video=args.video)
+        written = [path] + _run_pictures(result, args.out, video=args.video, robot=scenario.robot_description)
         if not args.quiet:
             print("wrote " + ", ".join(str(p) for p in [*written, *([args.rerun] if args.rerun else [])]))
     if args.rerun is not None and args.out is None and not args.quiet:

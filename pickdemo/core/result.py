@@ -82,7 +82,7 @@ class EpisodeTrace:
     max_acceleration: np.ndarray  # (N, 4)
     max_jerk: np.ndarray  # (N, 4)
     retarget: np.ndarray  # (N,) bool: Ruckig recomputed (a re-target or new limits)
-    q: np.ndarray  # (N, 7) joint command
+    q: np.ndarray  # (N, dof) joint command
     tcp_true: np.ndarray  # (N, 3) the TCP's true position (truth: for scoring)
     tracked: np.ndarray  # (N, 4) the tracker's x, y, z, yaw now (nan before it has one)
 
@@ -186,6 +186,7 @@ class EpisodeResult:
     control_tick_wall_ms: dict[str, float] = field(default_factory=dict)  # wall time of a decision: median, p95
     diagnosis: str | None = None  # failed: perception_off | perception_ok | not_committed (from the truth)
     perception_method: str = "paper"
+    robot: str | None = None  # the robot that ran it (its file's ``name``); None: not known (the episode never started)
     estimates_off: int = 0  # estimates > 5 mm off the truth that reached the controller (scored on the truth)
     estimates_off_accepted: int = 0  # of those, the ones it fused into its belief instead of rejecting
     estimates_off_fit_rejected: int = 0  # of those, the ones perception's own fit check rejected
@@ -239,6 +240,7 @@ class EpisodeResult:
             {
                 "scenario": self.scenario,
                 "seed": self.seed,
+                "robot": self.robot,
                 "success": self.success,
                 "failure": None if self.failure is None else self.failure.to_dict(),
                 "perception": None if self.perception is None else self.perception.to_dict(),
@@ -288,7 +290,7 @@ RateLimits = dict[str, tuple[np.ndarray, str]]
 
 def joint_derivatives(time_s: np.ndarray, q: np.ndarray) -> dict[str, np.ndarray]:
     """The commanded joints' position, velocity, acceleration and jerk per tick: finite differences
-    (``np.gradient``, second order inside, one-sided at the ends) of the joint command ``q`` (N, 7)."""
+    (``np.gradient``, second order inside, one-sided at the ends) of the joint command ``q`` (N, dof)."""
     t = np.asarray(time_s, dtype=float)
     q = np.asarray(q, dtype=float)
     if len(t) < 4:

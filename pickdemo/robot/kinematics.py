@@ -15,6 +15,7 @@ dependency (evidence: docs/decisions.md#motion-and-ik).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -38,9 +39,19 @@ class IKParams:
     restarts: int = 8
     limit_margin_rad: float = 0.02  # stay this far inside the joint limits
     stall_iterations: int = 40  # a start whose error has not halved in this many steps is given up
+    #: rad: the most a joint moves in one step (inf: a full Gauss-Newton step). A full step from far away
+    #: may overshoot into a fold of the workspace (an arm with offset wrists, the UR5's, from its home to
+    #: a spot low beside it); :meth:`Kinematics.solve` retries its starts with :data:`TRUST_STEP_RAD`.
+    max_step_rad: float = math.inf
 
     def __post_init__(self) -> None:
-        if self.max_iterations < 1 or self.restarts < 0 or self.damping <= 0 or not 0 < self.step <= 1:
+        if (
+            self.max_iterations < 1
+            or self.restarts < 0
+            or self.damping <= 0
+            or not 0 < self.step <= 1
+            or not self.max_step_rad > 0
+        ):
             raise ValueError("invalid IK parameters")
 
 
@@ -85,7 +96,7 @@ class Kinematics:
         self.model = pin.buildReducedModel(full, lock, q_ref)
         self.data = self.model.createData()
         self.tcp_id = self.model.getFrameId(robot.tcp_frame)
-        revolute = ("JointModelRZ", "JointModelRevoluteUnaligned")
+        revolute = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
         if self.model.nq != robot.dof or any(j.shortname() not in revolute for j in self.model.joints[1:]):
             raise RuntimeError(
                 f"expected {robot.dof} revolute arm joints after locking the fingers (the solver steps q + v)"
@@ -178,7 +189,9 @@ class Kinematics:
                 v = -J.T @ y[:, 0] + (g - J.T @ y[:, 1])
             else:
                 v = -J.T @ np.linalg.solve(J @ J.T + reg, err)
-            # pin.integrate(model, q, v) is q + v for the Panda's revolute joints (bit for bit)
+            if params.max_step_rad != math.inf:
+                v *= min(1.0, params.max_step_rad / max(float(np.max(np.abs(step * v))), 1e-12))
+            # pin.integrate(model, q, v) is q + v for revolute joints (bit for bit)
             q = np.minimum(np.maximum(q + step * v, lo), hi)
         return q, e_pos, e_rot, params.max_iterations
 
@@ -210,15 +223,20 @@ class Kinematics:
     def solve(
         self, target: Pose, q_seed: np.ndarray, rng: np.random.Generator, params: IKParams | None = None
     ) -> IKResult:
-        """Joint angles that put the TCP at ``target``; restarts from random configurations if needed."""
+        """Joint angles that put the TCP at ``target``; restarts from random configurations if needed,
+        and when none converges, the same starts again with steps of at most :data:`TRUST_STEP_RAD`
+        (a trust region: slower, but it does not overshoot)."""
         params = params or IKParams()
         goal = target.to_se3()
         best: tuple[np.ndarray, float, float, int] | None = None
         starts = [np.asarray(q_seed, dtype=float)]
-        for attempt in range(params.restarts + 1):
-            if attempt >= len(starts):
+        trusted = dataclasses.replace(params, max_step_rad=min(params.max_step_rad, TRUST_STEP_RAD))
+        passes = [params] if params.max_step_rad <= TRUST_STEP_RAD else [params, trusted]
+        for attempt in range(len(passes) * (params.restarts + 1)):
+            pass_params, i = passes[attempt // (params.restarts + 1)], attempt % (params.restarts + 1)
+            if i >= len(starts):
                 starts.append(rng.uniform(self.lower, self.upper))
-            q, e_pos, e_rot, its = self._solve_from(goal, starts[attempt], params)
+            q, e_pos, e_rot, its = self._solve_from(goal, starts[i], pass_params)
             if best is None or e_pos + e_rot < best[1] + best[2]:
                 best = (q, e_pos, e_rot, its)
             if e_pos < params.tolerance_m and e_rot < params.tolerance_rad:
@@ -232,12 +250,14 @@ class Kinematics:
             e_rot,
             its,
             params.restarts,
-            reason=f"no solution within tolerance after {params.restarts + 1} starts "
+            reason=f"no solution within tolerance after {len(passes) * (params.restarts + 1)} starts "
             f"(best: {e_pos * 1e3:.1f} mm, {np.degrees(e_rot):.2f} deg)",
         )
 
 
 _TRACK_PARAMS = IKParams(restarts=0, max_iterations=4)
+#: rad: a step's largest joint motion when :meth:`Kinematics.solve` tries its starts again.
+TRUST_STEP_RAD = 0.2
 
 
 @functools.cache

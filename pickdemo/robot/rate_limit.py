@@ -59,7 +59,8 @@ class RateLimiter:
         inner = self.lim.velocity - self.lim.acceleration * self.dt
         self._short = bool(np.all(self.lim.jerk * self.dt >= self.lim.acceleration) and np.all(inner > 0))
         self._bounds = np.concatenate([inner, self.lim.acceleration, self.lim.jerk])
-        self._buf = np.empty(21)
+        self._n = n = len(self.q)
+        self._buf = np.empty(3 * n)
 
     def __call__(self, q_cmd: np.ndarray) -> tuple[np.ndarray, bool]:
         """The position to send for the commanded ``q_cmd``; True when it had to be changed."""
@@ -70,7 +71,8 @@ class RateLimiter:
         jerk_cmd = (acc_cmd - self.ddq) / dt
         if self._short:
             buf = self._buf
-            buf[:7], buf[7:14], buf[14:] = self.dq, acc_cmd, jerk_cmd
+            n = self._n
+            buf[:n], buf[n : 2 * n], buf[2 * n :] = self.dq, acc_cmd, jerk_cmd
             if np.all(np.abs(buf) <= self._bounds):
                 self.q, self.dq, self.ddq = q_cmd.copy(), v_cmd, acc_cmd  # within every limit: as commanded
                 return q_cmd.copy(), False

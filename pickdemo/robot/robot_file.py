@@ -27,6 +27,7 @@ import tomllib
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from pickdemo.robot.description import Gripper, JointLimits, RobotDescription, RobotFiles
+from pickdemo.robot.stl import has_normals, write_obj_with_normals
 
 #: Where the shipped robot files are.
 ROBOTS_DIR = Path(__file__).resolve().parent / "robots"
@@ -83,10 +84,23 @@ class _Gripper(_Model):
     palm_half_width_m: Positive
 
 
+class _Hand(_Model):
+    """A tool from another URDF joined to the arm's flange by a fixed joint (an arm and a hand, as
+    real cells are built)."""
+
+    urdf: str
+    root_link: str  # the hand's first link: it and everything below it are taken
+    flange_link: str  # the arm's link the hand is bolted to
+    joint: str  # the fixed joint made between them (a name the arm's URDF does not use)
+    xyz: list[Finite] = Field([0.0, 0.0, 0.0], min_length=3, max_length=3)  # m: the hand's root in the flange's frame
+    rpy: list[Finite] = Field([0.0, 0.0, 0.0], min_length=3, max_length=3)  # rad
+
+
 class _RobotFile(_Model):
     name: str = Field(pattern=r"^[A-Za-z0-9_.+-]+$")
     label: str
     arm: _Arm
+    hand: _Hand | None = None
     limits: _Limits
     gripper: _Gripper
 
@@ -114,7 +128,9 @@ def load_robot_file(path: str | Path) -> RobotDescription:
     def fail(key: str, msg: str) -> RobotFileError:
         return RobotFileError(f"{path}: {key}: {msg}")
 
-    files = _locate(spec.arm.urdf, path.parent, fail)
+    files = _locate(spec.arm.urdf, path.parent, fail, "arm.urdf")
+    if spec.hand is not None:
+        files = _joined(files, _locate(spec.hand.urdf, path.parent, fail, "hand.urdf"), spec.hand, spec.name, fail)
     _check(spec, files.urdf, fail)
     a, g, lim = spec.arm, spec.gripper, spec.limits
     return RobotDescription(
@@ -202,7 +218,7 @@ def _check(spec: _RobotFile, urdf: Path, fail) -> None:  # noqa: ANN001 - (key, 
         raise fail("gripper.open_force_n", f"{g.open_force_n} N is more than max_force_n's {g.max_force_n} N")
 
 
-def _locate(spec: str, base: Path, fail) -> RobotFiles:  # noqa: ANN001 - (key, message) -> error
+def _locate(spec: str, base: Path, fail, key: str) -> RobotFiles:  # noqa: ANN001 - (key, message) -> error
     """The URDF and the directory its ``package://`` paths point to."""
     if spec.startswith(ERD_PREFIX):
         rel = spec[len(ERD_PREFIX) :]
@@ -210,11 +226,71 @@ def _locate(spec: str, base: Path, fail) -> RobotFiles:  # noqa: ANN001 - (key, 
             urdf = share / "robots" / rel
             if urdf.is_file():
                 return RobotFiles(urdf=urdf, package_root=share)
-        raise fail("arm.urdf", f"{rel} is not in the installed example-robot-data (`pip install example-robot-data`)")
+        raise fail(key, f"{rel} is not in the installed example-robot-data (`pip install example-robot-data`)")
     urdf = (base / spec).resolve()
     if not urdf.is_file():
-        raise fail("arm.urdf", f"no such file: {urdf}")
+        raise fail(key, f"no such file: {urdf}")
     return RobotFiles(urdf=urdf, package_root=urdf.parent)
+
+
+def _read_urdf(files: RobotFiles, key: str, fail) -> ET.Element:  # noqa: ANN001 - (key, message) -> error
+    """A URDF's XML with its meshes' ``package://`` paths made absolute (a joined URDF mixes two packages)."""
+    try:
+        root = ET.fromstring(files.urdf.read_bytes())
+    except (OSError, ET.ParseError) as exc:
+        raise fail(key, f"{files.urdf} is not a readable URDF ({exc})") from None
+    for mesh in root.iter("mesh"):
+        name = mesh.get("filename", "")
+        if name.startswith("package://"):
+            mesh.set("filename", str(files.package_root / re.sub(r"^package://[^/]+/", "", name)))
+    return root
+
+
+def _joined(arm: RobotFiles, hand: RobotFiles, spec: _Hand, name: str, fail) -> RobotFiles:  # noqa: ANN001
+    """One URDF: the arm's, and the hand's links from ``root_link`` down joined to the arm's
+    ``flange_link`` by a fixed joint. Written once per process into a temporary directory (meshes
+    referred to where they are installed; nothing copied)."""
+    arm_root, hand_root = _read_urdf(arm, "arm.urdf", fail), _read_urdf(hand, "hand.urdf", fail)
+    arm_links = {lk.get("name") for lk in arm_root.findall("link")}
+    arm_joints = {j.get("name") for j in arm_root.findall("joint")}
+    if spec.flange_link not in arm_links:
+        raise fail("hand.flange_link", f"{spec.flange_link!r} is not a link of {arm.urdf.name}")
+    hand_links = {lk.get("name"): lk for lk in hand_root.findall("link")}
+    if spec.root_link not in hand_links:
+        raise fail("hand.root_link", f"{spec.root_link!r} is not a link of {hand.urdf.name}")
+    if spec.joint in arm_joints:
+        raise fail("hand.joint", f"{spec.joint!r} is a joint of {arm.urdf.name} already: name the new joint anew")
+    taken, joints, grew = {spec.root_link}, [], True
+    while grew:  # the hand's subtree: every joint whose parent is taken, and its child
+        grew = False
+        for j in hand_root.findall("joint"):
+            parent, child = j.find("parent").get("link"), j.find("child").get("link")  # type: ignore[union-attr]
+            if parent in taken and child not in taken:
+                taken.add(child)
+                joints.append(j)
+                grew = True
+    clash = sorted((taken & arm_links) | ({j.get("name") for j in joints} & arm_joints))
+    if clash:
+        raise fail("hand.urdf", f"{', '.join(clash)}: named in both URDFs")
+    for link in taken:
+        arm_root.append(hand_links[link])
+    arm_root.extend(joints)
+    join = ET.SubElement(arm_root, "joint", name=spec.joint, type="fixed")
+    ET.SubElement(join, "parent", link=spec.flange_link)
+    ET.SubElement(join, "child", link=spec.root_link)
+    ET.SubElement(join, "origin", xyz=" ".join(map(str, spec.xyz)), rpy=" ".join(map(str, spec.rpy)))
+    return RobotFiles(
+        urdf=_write_joined(ET.tostring(arm_root, encoding="unicode"), name), package_root=arm.package_root
+    )
+
+
+@functools.cache
+def _write_joined(text: str, name: str) -> Path:
+    out_dir = Path(tempfile.mkdtemp(prefix="pickdemo_urdf_"))
+    atexit.register(shutil.rmtree, out_dir, ignore_errors=True)
+    out = out_dir / f"{name}_joined.urdf"
+    out.write_text(text)
+    return out
 
 
 @functools.cache
@@ -244,18 +320,29 @@ _LINK_RGBA = "0.92 0.92 0.92 1"
 _HAND_RGBA = "0.25 0.25 0.28 1"
 
 
-def lean_urdf_text(files: RobotFiles) -> str:
+def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None) -> str:
     """The URDF with its collision meshes as visuals (example-robot-data keeps them beside the visual
-    ones: ~2k triangles instead of ~128k for the Panda) and package paths made absolute."""
-    text = files.urdf.read_text()
+    ones: ~2k triangles instead of ~128k for the Panda; a visual whose collision twin is not there is
+    kept) and package paths made absolute. ``mesh_dir``: where an STL without normals is written as an
+    OBJ with them (None: used as it is)."""
+    text = _MESH_RE.sub(lambda m: f'filename="{files.package_root / m.group(1)}"', files.urdf.read_text())
+
+    def shaded(match: re.Match[str]) -> str:
+        path = Path(match.group(1))
+        if mesh_dir is None or path.suffix.lower() != ".stl" or has_normals(path):
+            return match.group(0)
+        out = mesh_dir / f"{len(list(mesh_dir.iterdir()))}_{path.stem}.obj"
+        return f'filename="{write_obj_with_normals(path, out)}"'
 
     def visual(match: re.Match[str]) -> str:
-        body = match.group(1).replace("/meshes/visual/", "/meshes/collision/").replace(".dae", ".stl")
+        body = match.group(1)
+        lean = body.replace("/visual/", "/collision/").replace(".dae", ".stl")
+        if all(Path(f).is_file() for f in re.findall(r'filename="([^"]+)"', lean)):
+            body = re.sub(r'filename="([^"]+)"', shaded, lean)
         rgba = _HAND_RGBA if ("hand" in body or "finger" in body) else _LINK_RGBA
         return f'<visual>{body}<material name="pd_{rgba.split()[0]}"><color rgba="{rgba}"/></material></visual>'
 
-    text = _VISUAL_RE.sub(visual, text)
-    return _MESH_RE.sub(lambda m: f'filename="{files.package_root / m.group(1)}"', text)
+    return _VISUAL_RE.sub(visual, text)
 
 
 @functools.cache
@@ -264,6 +351,8 @@ def _lean_urdf_path(files: RobotFiles, name: str) -> Path:
     directory; it refers to the installed meshes by absolute path (nothing copied or downloaded)."""
     out_dir = Path(tempfile.mkdtemp(prefix="pickdemo_urdf_"))
     atexit.register(shutil.rmtree, out_dir, ignore_errors=True)
+    mesh_dir = out_dir / "meshes"
+    mesh_dir.mkdir()
     out = out_dir / f"{name}_lean.urdf"
-    out.write_text(lean_urdf_text(files))
+    out.write_text(lean_urdf_text(files, mesh_dir))
     return out

@@ -19,21 +19,10 @@ import pinocchio as pin
 
 from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.robot.description import RobotDescription
+from pickdemo.robot.stl import stl_vertices
 
 #: A point this close to a link's bounding box counts as the link (depth noise, encoders).
 PAD_M = 0.005
-
-
-def stl_vertices(data: bytes) -> np.ndarray:
-    """The vertices (N, 3) of a binary STL file (its triangles' corners)."""
-    if len(data) < 84:
-        raise ValueError("not a binary STL file (too short)")
-    n = int(np.frombuffer(data, dtype="<u4", count=1, offset=80)[0])
-    if len(data) < 84 + 50 * n:
-        raise ValueError("not a binary STL file (fewer triangles than its header says)")
-    rec = np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    tri = np.frombuffer(data, dtype=rec, count=n, offset=84)
-    return tri["v"].reshape(-1, 3).astype(float)
 
 
 @functools.cache

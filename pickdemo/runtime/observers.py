@@ -126,7 +126,7 @@ class TraceRecorder(Observer):
             max_acceleration=arr("max_acceleration", 4),
             max_jerk=arr("max_jerk", 4),
             retarget=np.array([t.retarget for t in ts], dtype=bool),
-            q=arr("q", 7),
+            q=arr("q", len(ts[0].q) if ts else 0),
             tcp_true=arr("tcp_true", 3),
             tracked=np.array([nan4 if t.tracked is None else t.tracked for t in ts], dtype=float).reshape(-1, 4),
         )

@@ -62,6 +62,7 @@ def episode_result(
     return EpisodeResult(
         scenario=scenario.name,
         seed=seed,
+        robot=scenario.robot_description.name,
         success=failure is None,
         failure=failure,
         perception=ref.perception if ref is not None else None,

@@ -10,7 +10,8 @@ import pytest
 
 from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.robot import robot_named
-from pickdemo.robot.self_geometry import link_bounds, robot_body, stl_vertices
+from pickdemo.robot.self_geometry import link_bounds, robot_body
+from pickdemo.robot.stl import stl_vertices
 
 ROBOT = robot_named()
 
