@@ -13,6 +13,7 @@ from pickdemo.robot import robot_named, shipped_robots
 from pickdemo.robot.robot_file import ROBOTS_DIR, RobotFileError, load_robot_file
 
 PANDA_FILE = (ROBOTS_DIR / "panda.toml").read_text()
+UR5_FILE = (ROBOTS_DIR / "ur5_franka_hand.toml").read_text()
 
 
 def test_the_panda_ships_as_a_file_and_is_the_default() -> None:
@@ -35,9 +36,19 @@ def test_a_robot_file_anywhere_is_a_robot_by_its_path(tmp_path: Path) -> None:
         robot_named("ur3")
 
 
-def _edit(old: str, new: str) -> str:
-    assert old in PANDA_FILE, old
-    return PANDA_FILE.replace(old, new, 1)
+def test_the_ur5_is_an_arm_and_a_hand_joined_at_its_flange() -> None:
+    r = robot_named("ur5_franka_hand")
+    assert r.dof == 6 and r.label == "UR5" and r.tcp_frame == "panda_hand_tcp"
+    text = r.files().urdf.read_text()
+    for name in ("shoulder_pan_joint", "wrist_3_joint", "flange_to_hand", "panda_finger_joint2", "panda_hand_tcp"):
+        assert f'name="{name}"' in text, name
+    assert "panda_joint1" not in text  # (only the hand is taken from the Panda's URDF)
+    assert "package://" not in text and "package://" not in r.render_urdf().read_text()
+
+
+def _edit(old: str, new: str, text: str = PANDA_FILE) -> str:
+    assert old in text, old
+    return text.replace(old, new, 1)
 
 
 BAD = [
@@ -115,6 +126,27 @@ BAD = [
         "gripper.open_force_n: 90.0 N is more than max_force_n's 70.0 N",
     ),
     ("not TOML", "name = panda\n", "invalid TOML"),
+    (
+        "a hand bolted to a link the arm does not have",
+        _edit('flange_link = "tool0"', 'flange_link = "tool9"', UR5_FILE),
+        "hand.flange_link: 'tool9' is not a link of ur5_robot.urdf",
+    ),
+    (
+        "a hand whose first link is not in its URDF",
+        _edit('root_link = "panda_hand"', 'root_link = "robotiq_base"', UR5_FILE),
+        "hand.root_link: 'robotiq_base' is not a link of panda.urdf",
+    ),
+    (
+        "a hand joined by a joint the arm has already",
+        _edit('\njoint = "flange_to_hand"', '\njoint = "wrist_3_joint"', UR5_FILE),
+        "hand.joint: 'wrist_3_joint' is a joint of ur5_robot.urdf already",
+    ),
+    (
+        "a hand's URDF that is missing",
+        _edit('urdf = "example-robot-data:panda_description/urdf/panda.urdf"', 'urdf = "hand.urdf"', UR5_FILE),
+        "hand.urdf: no such file",
+    ),
+    ("a flange offset of two numbers", _edit("xyz = [0.0, 0.0, 0.0]", "xyz = [0.0, 0.0]", UR5_FILE), "hand.xyz"),
 ]
 
 

@@ -1,0 +1,32 @@
+"""Another robot from its file: the UR5 with a Franka Hand picks, places and clears what it sees,
+within its own joint limits, from a scenario that names it (properties over several seeds)."""
+
+from __future__ import annotations
+
+from episodes import at_least, describe, episodes, none_fails_in
+
+from pickdemo import load_scenario
+from pickdemo.robot import robot_named
+
+
+def test_a_scenario_names_its_robot_and_the_checks_use_it() -> None:
+    sc = load_scenario("ur5_pick_anywhere")
+    assert sc.robot == "ur5_franka_hand" and sc.robot_description is robot_named("ur5_franka_hand")
+    assert load_scenario("pick_cube").robot_description is robot_named("panda")
+
+
+def test_the_ur5_picks_anywhere_within_its_own_limits() -> None:
+    results = episodes("ur5_pick_anywhere", (0, 1, 2, 3, 4))
+    at_least(results, 4)
+    none_fails_in(results, "ik", "trajectory", "reflex", "error")
+    for r in results:
+        assert r.robot == "ur5_franka_hand", describe(r)
+        if r.peak_joint_limit_ratio is not None:
+            assert max(r.peak_joint_limit_ratio.values()) <= 1.0, describe(r)
+
+
+def test_the_ur5_clears_a_pile() -> None:
+    results = episodes("ur5_clear_pile", (0, 1))
+    none_fails_in(results, "ik", "trajectory", "reflex", "error")
+    cleared = sum(r.clear["cleared"] for r in results if r.clear)  # type: ignore[index]
+    assert cleared >= 8, "; ".join(describe(r) for r in results)
