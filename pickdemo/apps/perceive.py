@@ -72,7 +72,7 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
         frame = camera.capture(world.scene)
         # the robot stands at home: the self-filter is told so (what its joint states would say)
         robot = world.robot
-        fingers = [robot.gripper.finger_max_m] * len(robot.gripper.finger_joints)
+        fingers = [robot.gripper.finger_max_m] * 2
         frame = dataclasses.replace(frame, robot_boxes=robot_body(robot).boxes(robot.home_q, fingers))
         truths = {t.name: _seen_truth(world, t.name) for t in scenario.targets}  # truth: scoring only
     distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))

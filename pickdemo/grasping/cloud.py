@@ -40,6 +40,7 @@ from pickdemo.grasping.top_down import (
     GraspPlan,
     GraspPlanningError,
     poses_of_pick,
+    tcp_shift,
 )
 from pickdemo.perception import ObjectCloud
 from pickdemo.robot.description import Gripper
@@ -369,4 +370,9 @@ class CloudGrasps:
         grasp_p = np.array([xy[0], xy[1], request.surface_z + z])
         for near in request.hand_yaws:
             hand = float(wrap_angle(yaw + psi)) if near is None else float(near + wrap_angle(yaw + psi - near, np.pi))
-            yield poses_of_pick(grasp_p, hand, z, width, request.place_xy, self.params, (held[0], held[1]))
+            shift = tcp_shift(request.gripper, width, hand)
+            if shift is None:
+                yield poses_of_pick(grasp_p, hand, z, width, request.place_xy, self.params, (held[0], held[1]))
+            else:  # a jaw: its fixed face beside the object
+                at = (held[0] + shift[0], held[1] + shift[1])
+                yield poses_of_pick(grasp_p + shift, hand, z, width, request.place_xy, self.params, at)

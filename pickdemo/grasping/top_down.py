@@ -148,7 +148,12 @@ def plan_grasp(
     grasp_above_bottom = grasp_z - bottom_z
 
     grasp_p = np.array([center[0], center[1], grasp_z])
-    plan = poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params)
+    shift = tcp_shift(gripper, float(width), psi)
+    if shift is None:
+        plan = poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params)
+    else:  # a jaw: the TCP (the fixed jaw's face) beside the object; the object's centre goes to the place
+        grasp_p = grasp_p + shift
+        plan = poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params, (shift[0], shift[1]))
     share = 1.0
     if isinstance(model.geometry, Box):  # flat faces: the pads' area on them
         along = sum(model.geometry.top_extents_m) - width  # the face's length along the pads
@@ -158,6 +163,15 @@ def plan_grasp(
         share = min(1.0, along / (2.0 * half_w)) * min(1.0, tall / (2.0 * half_h))
         share = 1.0 if share > 1.0 - 1e-6 else share  # (a whole pad, whatever the rounding)
     return dataclasses.replace(plan, width_known=True, pad_share=share)
+
+
+def tcp_shift(gripper: Gripper, width_m: float, psi: float) -> np.ndarray | None:
+    """Where the TCP goes from the grasp's centre (world, m) with the hand at angle ``psi``: None for
+    fingers closing about the middle; a jaw's fixed face beside the object (:meth:`Gripper.tcp_offset_m`)."""
+    off = gripper.tcp_offset_m(width_m)
+    if off == 0.0:
+        return None
+    return top_down(np.zeros(3), psi).rotation[:, 1] * off
 
 
 def poses_of_pick(

@@ -46,9 +46,17 @@ class JointLimits:
 
 @dataclass(frozen=True)
 class Gripper:
-    """The hand: its kind, its finger joints and links, how far it opens, and where its palm is."""
+    """The hand: its kind, its finger joints and links, how far it opens, and where its palm is.
 
-    kind: str  # "parallel": two fingers that close symmetrically
+    What the rest of pickdemo knows of the fingers is each finger's opening from the middle (m) and a
+    force (N); the kind turns them into the finger joints' positions and forces and back: "parallel",
+    two prismatic fingers closing symmetrically (the joints' positions are the openings); "jaw", one
+    revolute jaw closing against a fixed one (the opening between them, by the angle, from
+    ``jaw_table``; the force at the jaw's pad, ``jaw_lever_m`` from its axis). A jaw moves what it
+    holds to the fixed jaw: the TCP is the fixed jaw's face, and a grasp puts it ``jaw_clearance_m``
+    beside the object (:meth:`tcp_offset_m`)."""
+
+    kind: str  # "parallel" | "jaw"
     finger_joints: tuple[str, ...]
     finger_links: tuple[str, ...]
     finger_max_m: float  # each finger's travel: the hand opens to twice this
@@ -65,10 +73,56 @@ class Gripper:
     finger_thickness_m: float
     palm_half_length_m: float
     palm_half_width_m: float
+    #: a jaw's opening (m) at its joint's angles (rad), both rising: [(rad, m), ...]
+    jaw_table: tuple[tuple[float, float], ...] = ()
+    jaw_lever_m: float = 0.0  # a jaw's axis to where it presses (m)
+    jaw_clearance_m: float = 0.0  # the fixed jaw's face lowered this far beside the object (m)
+    #: the force a grasp squeezes with where this hand's own differs from the skill's (N; None: the skill's)
+    grip_force_n: float | None = None
 
     @property
     def max_opening_m(self) -> float:
         return 2.0 * self.finger_max_m
+
+    @property
+    def coupled(self) -> bool:
+        """Two fingers that the mechanism moves together (the simulator couples them)."""
+        return self.kind == "parallel"
+
+    def joint_targets(self, finger_m: float) -> list[float]:
+        """The finger joints' positions for each finger ``finger_m`` from the middle."""
+        if self.kind == "parallel":
+            return [finger_m] * len(self.finger_joints)
+        rad, gap = zip(*self.jaw_table, strict=True)
+        return [float(np.interp(2.0 * finger_m, gap, rad))]
+
+    def joint_positions(self, fingers_m: np.ndarray) -> np.ndarray:
+        """The finger joints' positions for these openings (each finger's, from the middle)."""
+        if self.kind == "parallel":
+            return np.asarray(fingers_m, dtype=float)
+        return np.array(self.joint_targets(float(np.sum(fingers_m)) / 2.0))
+
+    def fingers_of(self, joint_q: list[float]) -> np.ndarray:
+        """Each finger's opening from the middle (m) at these finger joints' positions."""
+        if self.kind == "parallel":
+            return np.array(joint_q)
+        rad, gap = zip(*self.jaw_table, strict=True)
+        half = float(np.interp(joint_q[0], rad, gap)) / 2.0
+        return np.array([half, half])
+
+    def joint_force(self, force_n: float) -> float:
+        """The finger joints' force (N) or torque (N m) that squeezes with ``force_n``."""
+        return force_n if self.kind == "parallel" else force_n * self.jaw_lever_m
+
+    def joint_speed(self) -> float:
+        """The finger joints' top speed (m/s, or rad/s for a jaw)."""
+        return self.speed_m_s if self.kind == "parallel" else self.speed_m_s / self.jaw_lever_m
+
+    def tcp_offset_m(self, width_m: float) -> float:
+        """Where the TCP is from a ``width_m``-wide object's centre along the hand's y (its closing
+        axis) as the hand comes down on it: 0 for fingers closing about the middle; for a jaw, the
+        fixed jaw's face beside the object (the jaw then presses it there)."""
+        return 0.0 if self.kind == "parallel" else -(width_m / 2.0 + self.jaw_clearance_m)
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,8 +141,12 @@ class RobotDescription:
     payload_kg: float  # the most it carries (its datasheet's)
     effort_nm: np.ndarray  # each arm joint's torque limit (N m): what its simulated motors may exert
     camera_mounts: tuple[str, ...]  # the links a camera on the hand may be mounted on (rigid with it)
+    base_radius_m: float  # its base on the table: nothing may stand within this of the origin (m)
     locate: Callable[[], RobotFiles]  # its URDF on this machine
     render_urdf: Callable[[], Path]  # a URDF for rendering (may be lighter than ``locate``'s)
+    #: the heights of a pick where the robot's own differ from the skill's (m, by the names of
+    #: :class:`~pickdemo.grasping.top_down.GraspParams`: pregrasp, transport, retreat)
+    grasp_heights: tuple[tuple[str, float], ...] = ()
 
     @property
     def dof(self) -> int:

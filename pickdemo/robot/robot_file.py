@@ -48,6 +48,15 @@ class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
 
 
+class _Frame(_Model):
+    """A frame the URDF does not have, fixed to one of its links (a TCP where the planners want it)."""
+
+    name: str
+    parent: str
+    xyz: list[Finite] = Field([0.0, 0.0, 0.0], min_length=3, max_length=3)  # m, in the parent's frame
+    rpy: list[Finite] = Field([0.0, 0.0, 0.0], min_length=3, max_length=3)  # rad
+
+
 class _Arm(_Model):
     urdf: str
     joints: list[str] = Field(min_length=1)
@@ -56,7 +65,12 @@ class _Arm(_Model):
     wrist_joint: str
     home: list[Finite]
     payload_kg: Positive
+    base_radius_m: Positive  # its base on the table: nothing may stand within this of the origin (m)
     camera_mounts: list[str] = []
+    frames: list[_Frame] = []
+    #: a collision mesh the simulator takes instead of one of the URDF's (by its file name): a convex
+    #: decomposition of a concave part, whose single convex hull a simulator would otherwise collide with
+    collision_meshes: dict[str, str] = {}
 
 
 class _Limits(_Model):
@@ -69,7 +83,7 @@ class _Limits(_Model):
 
 
 class _Gripper(_Model):
-    kind: Literal["parallel"]
+    kind: Literal["parallel", "jaw"]
     finger_joints: list[str] = Field(min_length=1)
     finger_links: list[str] = Field(min_length=1)
     finger_max_m: Positive
@@ -82,6 +96,10 @@ class _Gripper(_Model):
     finger_thickness_m: Positive
     palm_half_length_m: Positive
     palm_half_width_m: Positive
+    jaw_table: list[list[Finite]] = []  # a jaw's [[rad, opening m], ...], both rising
+    jaw_lever_m: Positive | None = None
+    jaw_clearance_m: Annotated[float, Field(ge=0.0, le=0.02)] = 0.0
+    grip_force_n: Positive | None = None  # a grasp's force where this hand asks for its own (N)
 
 
 class _Hand(_Model):
@@ -96,6 +114,14 @@ class _Hand(_Model):
     rpy: list[Finite] = Field([0.0, 0.0, 0.0], min_length=3, max_length=3)  # rad
 
 
+class _Grasp(_Model):
+    """A pick's heights where the robot's reach asks for others than the skill's (m)."""
+
+    pregrasp_height_m: Annotated[float, Field(gt=0.0, le=0.5)] | None = None
+    transport_height_m: Annotated[float, Field(gt=0.0, le=0.5)] | None = None
+    retreat_height_m: Annotated[float, Field(gt=0.0, le=0.5)] | None = None
+
+
 class _RobotFile(_Model):
     name: str = Field(pattern=r"^[A-Za-z0-9_.+-]+$")
     label: str
@@ -103,6 +129,7 @@ class _RobotFile(_Model):
     hand: _Hand | None = None
     limits: _Limits
     gripper: _Gripper
+    grasp: _Grasp = _Grasp()
 
 
 def load_robot_file(path: str | Path) -> RobotDescription:
@@ -129,9 +156,16 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         return RobotFileError(f"{path}: {key}: {msg}")
 
     files = _locate(spec.arm.urdf, path.parent, fail, "arm.urdf")
-    if spec.hand is not None:
-        files = _joined(files, _locate(spec.hand.urdf, path.parent, fail, "hand.urdf"), spec.hand, spec.name, fail)
+    if spec.hand is not None or spec.arm.frames:
+        hand = None if spec.hand is None else _locate(spec.hand.urdf, path.parent, fail, "hand.urdf")
+        files = _joined(files, hand, spec, fail)
     _check(spec, files.urdf, fail)
+    meshes = []
+    for name, rel in sorted(spec.arm.collision_meshes.items()):
+        mesh = (path.parent / rel).resolve()
+        if not mesh.is_file():
+            raise fail(f"arm.collision_meshes.{name}", f"no such file: {mesh}")
+        meshes.append((name, str(mesh)))
     a, g, lim = spec.arm, spec.gripper, spec.limits
     return RobotDescription(
         name=spec.name,
@@ -154,6 +188,10 @@ def load_robot_file(path: str | Path) -> RobotDescription:
             finger_thickness_m=g.finger_thickness_m,
             palm_half_length_m=g.palm_half_length_m,
             palm_half_width_m=g.palm_half_width_m,
+            jaw_table=tuple((float(a), float(b)) for a, b in g.jaw_table),
+            jaw_lever_m=g.jaw_lever_m or 0.0,
+            jaw_clearance_m=g.jaw_clearance_m,
+            grip_force_n=g.grip_force_n,
         ),  # fmt: skip
         home_q=np.array(a.home),
         limits=JointLimits(
@@ -166,8 +204,10 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         payload_kg=a.payload_kg,
         effort_nm=np.array(lim.effort),
         camera_mounts=tuple(a.camera_mounts),
+        base_radius_m=a.base_radius_m,
         locate=lambda: files,
-        render_urdf=functools.partial(_lean_urdf_path, files, spec.name),
+        render_urdf=functools.partial(_lean_urdf_path, files, spec.name, tuple(meshes)),
+        grasp_heights=tuple((k, v) for k, v in spec.grasp.model_dump().items() if v is not None),
     )
 
 
@@ -214,8 +254,34 @@ def _check(spec: _RobotFile, urdf: Path, fail) -> None:  # noqa: ANN001 - (key, 
     if 2.0 * g.finger_max_m < MIN_STROKE_M:
         raise fail("gripper.finger_max_m", f"the hand opens {2e3 * g.finger_max_m:.1f} mm in all: it cannot hold "
                                            f"anything (at least {MIN_STROKE_M * 1e3:.0f} mm)")  # fmt: skip
+    if g.grip_force_n is not None and g.grip_force_n > g.max_force_n:
+        raise fail("gripper.grip_force_n", f"{g.grip_force_n} N is more than max_force_n's {g.max_force_n} N")
     if g.open_force_n > g.max_force_n:
         raise fail("gripper.open_force_n", f"{g.open_force_n} N is more than max_force_n's {g.max_force_n} N")
+    if g.kind == "parallel" and len(g.finger_joints) != 2:
+        raise fail("gripper.finger_joints", f"a parallel gripper has two finger joints, not {len(g.finger_joints)}")
+    if g.kind == "jaw":
+        _check_jaw(g, joints, fail)
+
+
+def _check_jaw(g: _Gripper, joints: dict, fail) -> None:  # noqa: ANN001 - (key, message) -> error
+    """One revolute jaw, its links (the moving jaw's, then the fixed one's), its table and lever."""
+    if len(g.finger_joints) != 1 or joints.get(g.finger_joints[0]) != "revolute":
+        raise fail("gripper.finger_joints", "a jaw gripper has one revolute finger joint (the moving jaw's)")
+    if len(g.finger_links) != 2:
+        raise fail("gripper.finger_links", "a jaw gripper names two links: the moving jaw's, then the fixed jaw's")
+    if g.jaw_lever_m is None:
+        raise fail("gripper.jaw_lever_m", "missing (a jaw gripper's axis to where it presses, m)")
+    table = g.jaw_table
+    if len(table) < 2 or any(len(row) != 2 for row in table):
+        raise fail("gripper.jaw_table", "at least two [rad, opening m] rows")
+    rad, gap = np.array(table).T
+    if not (np.all(np.diff(rad) > 0) and np.all(np.diff(gap) > 0)):
+        raise fail("gripper.jaw_table", "its angles and openings must both rise, row by row")
+    if gap[-1] < 2.0 * g.finger_max_m - 1e-9:
+        raise fail(
+            "gripper.jaw_table", f"it reaches {gap[-1] * 1e3:.1f} mm; the gripper opens {2e3 * g.finger_max_m:.1f}"
+        )
 
 
 def _locate(spec: str, base: Path, fail, key: str) -> RobotFiles:  # noqa: ANN001 - (key, message) -> error
@@ -246,13 +312,41 @@ def _read_urdf(files: RobotFiles, key: str, fail) -> ET.Element:  # noqa: ANN001
     return root
 
 
-def _joined(arm: RobotFiles, hand: RobotFiles, spec: _Hand, name: str, fail) -> RobotFiles:  # noqa: ANN001
-    """One URDF: the arm's, and the hand's links from ``root_link`` down joined to the arm's
-    ``flange_link`` by a fixed joint. Written once per process into a temporary directory (meshes
-    referred to where they are installed; nothing copied)."""
-    arm_root, hand_root = _read_urdf(arm, "arm.urdf", fail), _read_urdf(hand, "hand.urdf", fail)
+def _joined(arm: RobotFiles, hand: RobotFiles | None, spec: _RobotFile, fail) -> RobotFiles:  # noqa: ANN001
+    """One URDF: the arm's; the hand's links from ``root_link`` down joined to the arm's
+    ``flange_link`` by a fixed joint (a ``[hand]``); and the file's own frames. Written once per
+    process into a temporary directory (meshes referred to where they are installed; nothing copied)."""
+    arm_root = _read_urdf(arm, "arm.urdf", fail)
     arm_links = {lk.get("name") for lk in arm_root.findall("link")}
     arm_joints = {j.get("name") for j in arm_root.findall("joint")}
+    if hand is not None and spec.hand is not None:
+        _take_hand(arm_root, arm, hand, spec.hand, arm_links, arm_joints, fail)
+    for i, frame in enumerate(spec.arm.frames):
+        links = {lk.get("name") for lk in arm_root.findall("link")}
+        if frame.parent not in links:
+            raise fail(f"arm.frames[{i}].parent", f"{frame.parent!r} is not a link of {arm.urdf.name}")
+        if frame.name in links:
+            raise fail(f"arm.frames[{i}].name", f"{frame.name!r} is a link of {arm.urdf.name} already")
+        link = ET.SubElement(arm_root, "link", name=frame.name)
+        inertial = ET.SubElement(link, "inertial")  # (none: a simulator would give the frame a mass of 1 kg)
+        ET.SubElement(inertial, "mass", value="1e-9")
+        ET.SubElement(inertial, "inertia", ixx="1e-9", ixy="0", ixz="0", iyy="1e-9", iyz="0", izz="1e-9")
+        _fixed_joint(arm_root, f"{frame.name}_joint", frame.parent, frame.name, frame.xyz, frame.rpy)
+    joined = _write_joined(ET.tostring(arm_root, encoding="unicode"), spec.name)
+    return RobotFiles(urdf=joined, package_root=arm.package_root)
+
+
+def _fixed_joint(root: ET.Element, name: str, parent: str, child: str, xyz: list, rpy: list) -> None:
+    join = ET.SubElement(root, "joint", name=name, type="fixed")
+    ET.SubElement(join, "parent", link=parent)
+    ET.SubElement(join, "child", link=child)
+    ET.SubElement(join, "origin", xyz=" ".join(map(str, xyz)), rpy=" ".join(map(str, rpy)))
+
+
+def _take_hand(arm_root: ET.Element, arm: RobotFiles, hand: RobotFiles, spec: _Hand, arm_links: set,
+               arm_joints: set, fail) -> None:  # noqa: ANN001  # fmt: skip
+    """The hand's links from its root down, and their joints, into the arm's URDF at its flange."""
+    hand_root = _read_urdf(hand, "hand.urdf", fail)
     if spec.flange_link not in arm_links:
         raise fail("hand.flange_link", f"{spec.flange_link!r} is not a link of {arm.urdf.name}")
     hand_links = {lk.get("name"): lk for lk in hand_root.findall("link")}
@@ -275,13 +369,7 @@ def _joined(arm: RobotFiles, hand: RobotFiles, spec: _Hand, name: str, fail) -> 
     for link in taken:
         arm_root.append(hand_links[link])
     arm_root.extend(joints)
-    join = ET.SubElement(arm_root, "joint", name=spec.joint, type="fixed")
-    ET.SubElement(join, "parent", link=spec.flange_link)
-    ET.SubElement(join, "child", link=spec.root_link)
-    ET.SubElement(join, "origin", xyz=" ".join(map(str, spec.xyz)), rpy=" ".join(map(str, spec.rpy)))
-    return RobotFiles(
-        urdf=_write_joined(ET.tostring(arm_root, encoding="unicode"), name), package_root=arm.package_root
-    )
+    _fixed_joint(arm_root, spec.joint, spec.flange_link, spec.root_link, spec.xyz, spec.rpy)
 
 
 @functools.cache
@@ -320,12 +408,22 @@ _LINK_RGBA = "0.92 0.92 0.92 1"
 _HAND_RGBA = "0.25 0.25 0.28 1"
 
 
-def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None) -> str:
+def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None, collision: tuple = ()) -> str:
     """The URDF with its collision meshes as visuals (example-robot-data keeps them beside the visual
     ones: ~2k triangles instead of ~128k for the Panda; a visual whose collision twin is not there is
     kept) and package paths made absolute. ``mesh_dir``: where an STL without normals is written as an
-    OBJ with them (None: used as it is)."""
+    OBJ with them (None: used as it is). ``collision``: (file name, path) pairs, a collision mesh to
+    take instead of the URDF's of that name (the robot file's ``collision_meshes``)."""
     text = _MESH_RE.sub(lambda m: f'filename="{files.package_root / m.group(1)}"', files.urdf.read_text())
+    swap = dict(collision)
+
+    def collided(match: re.Match[str]) -> str:
+        body = re.sub(r'filename="([^"]+)"', lambda f: f'filename="{swap.get(Path(f.group(1)).name, f.group(1))}"',
+                      match.group(0))  # fmt: skip
+        return body
+
+    if swap:
+        text = re.sub(r"<collision>.*?</collision>", collided, text, flags=re.DOTALL)
 
     def shaded(match: re.Match[str]) -> str:
         path = Path(match.group(1))
@@ -346,7 +444,7 @@ def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None) -> str:
 
 
 @functools.cache
-def _lean_urdf_path(files: RobotFiles, name: str) -> Path:
+def _lean_urdf_path(files: RobotFiles, name: str, collision: tuple = ()) -> Path:
     """A lean URDF for rendering (:func:`lean_urdf_text`), written once per process into a temporary
     directory; it refers to the installed meshes by absolute path (nothing copied or downloaded)."""
     out_dir = Path(tempfile.mkdtemp(prefix="pickdemo_urdf_"))
@@ -354,5 +452,5 @@ def _lean_urdf_path(files: RobotFiles, name: str) -> Path:
     mesh_dir = out_dir / "meshes"
     mesh_dir.mkdir()
     out = out_dir / f"{name}_lean.urdf"
-    out.write_text(lean_urdf_text(files, mesh_dir))
+    out.write_text(lean_urdf_text(files, mesh_dir, collision))
     return out

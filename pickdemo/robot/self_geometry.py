@@ -66,12 +66,13 @@ class RobotBody:
         self.bounds = [(self.model.getFrameId(name), lo, hi) for name, (lo, hi) in link_bounds(robot).items()]
         self._arm = [self.model.joints[self.model.getJointId(n)].idx_q for n in robot.arm_joints]
         self._fingers = [self.model.joints[self.model.getJointId(n)].idx_q for n in robot.gripper.finger_joints]
+        self.gripper = robot.gripper
 
     def boxes(self, arm_q: np.ndarray, fingers_m: np.ndarray, pad_m: float = PAD_M) -> tuple[OrientedBox, ...]:
         """Every link's bounding box in the world, padded by ``pad_m``, at these joint states."""
         q = pin.neutral(self.model)
         q[self._arm] = np.asarray(arm_q, dtype=float)
-        q[self._fingers] = np.asarray(fingers_m, dtype=float)
+        q[self._fingers] = self.gripper.joint_positions(fingers_m)
         pin.framesForwardKinematics(self.model, self.data, q)
         out = []
         for fid, lo, hi in self.bounds:
@@ -103,7 +104,7 @@ def hidden_by_the_base(robot: RobotDescription, eye: np.ndarray, points: np.ndar
     """Which of the world points (N, 3) the robot's base hides from an eye whatever the arm does: its
     links that no joint but the first moves, at every turn of the first joint."""
     body = robot_body(robot)
-    fingers = np.full(len(robot.gripper.finger_joints), robot.gripper.finger_max_m)
+    fingers = np.full(2, robot.gripper.finger_max_m)
     home = robot.home_q.astype(float)
     bent = home + np.r_[0.0, np.full(len(home) - 1, 0.3)]
     pairs = zip(body.boxes(home, fingers), body.boxes(bent, fingers), strict=True)

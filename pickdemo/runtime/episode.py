@@ -127,7 +127,13 @@ def run_episode(
 
 
 def machine_params(sc: Scenario, params: MachineParams) -> MachineParams:
-    """The skill's parameters for this scenario's cell: a belt's, the motion's scales, its transfers."""
+    """The skill's parameters for this scenario's cell: its robot's heights of a pick, a belt's, the
+    motion's scales, its transfers."""
+    robot = sc.robot_description
+    if robot.grasp_heights:  # (a small arm reaches only so high with its hand pointing down)
+        params = dataclasses.replace(params, grasp=dataclasses.replace(params.grasp, **dict(robot.grasp_heights)))
+    if robot.gripper.grip_force_n is not None:
+        params = dataclasses.replace(params, grip_force_n=robot.gripper.grip_force_n)
     if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
         params = params.on_a_belt()
     m = sc.motion

@@ -7,6 +7,7 @@ could never succeed is refused before any simulation starts (exit 2), not failed
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import cv2
@@ -18,7 +19,7 @@ from pickdemo.core.shapes import Mesh
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.grasping.top_down import GraspParams, top_down
 from pickdemo.robot.description import RobotDescription
-from pickdemo.robot.kinematics import IKParams, kinematics_of
+from pickdemo.robot.kinematics import IKParams, Kinematics, kinematics_of
 from pickdemo.robot.self_geometry import hidden_by_the_base
 from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.belt import ConveyorSpec
@@ -28,8 +29,6 @@ from pickdemo.scenario.schema import Scenario
 from pickdemo.scenario.tasks import TASK_RULES
 from pickdemo.scenario.twins import check_twins
 
-#: The robot's base on the table: nothing may stand within this radius of the origin (m).
-ROBOT_BASE_RADIUS_M = 0.12
 #: Clearance the open gripper needs around the target's narrower side (m): the grasp planner's.
 GRIPPER_CLEARANCE_M = GraspParams().width_margin_m
 #: Seeds whose layouts must be possible (a range that leaves no room fails on most seeds).
@@ -134,10 +133,10 @@ def _check_objects(sc: Scenario) -> None:
                     f"y {table.center[1] - table.size[1] / 2:.2f}..{table.center[1] + table.size[1] / 2:.2f} m)"
                 )
         for x, y in _reach_points(obj):  # (a region's corners may clear the base while its middle does not)
-            if np.hypot(x, y) < ROBOT_BASE_RADIUS_M + r:
+            if np.hypot(x, y) < _robot(sc).base_radius_m + r:
                 raise ScenarioError(
                     f"{key}: at ({x:.3f}, {y:.3f}) m it stands inside the robot's base "
-                    f"(keep {(ROBOT_BASE_RADIUS_M + r) * 1e3:.0f} mm from the origin)"
+                    f"(keep {(_robot(sc).base_radius_m + r) * 1e3:.0f} mm from the origin)"
                 )
         if obj.position is not None and len(obj.position) == 3:
             h = obj.largest_shape.height_m
@@ -224,7 +223,7 @@ def _check_conveyor(sc: Scenario) -> None:
     for x, y in ((x0, y0), (x1, y1)):
         if not sc.table.holds(x, y, margin=-1e-9):
             raise ScenarioError(f"conveyor: its strip x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f} m runs off the table")
-    if np.hypot(max(0.0, x0, -x1), max(0.0, y0, -y1)) < ROBOT_BASE_RADIUS_M:
+    if np.hypot(max(0.0, x0, -x1), max(0.0, y0, -y1)) < _robot(sc).base_radius_m:
         raise ScenarioError("conveyor: its strip runs through the robot's base")
     sweep = belt_sweep_mm(belt)
     slab = belt.slab()
@@ -234,7 +233,7 @@ def _check_conveyor(sc: Scenario) -> None:
         + ("and slides along it, over " if moves else "(it stands still), over ")
         + _sweep_text(sweep)
     )
-    if _sweep_distance_mm(sweep, 0.0, 0.0) < ROBOT_BASE_RADIUS_M * 1e3:
+    if _sweep_distance_mm(sweep, 0.0, 0.0) < _robot(sc).base_radius_m * 1e3:
         raise ScenarioError(f"conveyor: the belt runs through the robot's base ({overhang})")
     for obj in sc.objects:
         r = obj.largest_shape.footprint_radius_m
@@ -337,7 +336,7 @@ def _check_pick(sc: Scenario) -> None:
     if target.mass > robot.payload_kg:
         carries = f"the {robot.label} carries ({robot.payload_kg} kg)"
         raise ScenarioError(f"{key}.mass: {target.mass} kg is more than {carries}")
-    grasp = GraspParams()
+    grasp = _grasp_params(robot)
     carried = grasp.transport_height_m
     if sc.success.lift_height >= carried - 0.005:
         raise ScenarioError(
@@ -352,9 +351,28 @@ def _check_pick(sc: Scenario) -> None:
     for what, x, y in spots:
         z = max(target.largest_shape.height_m / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y)
         for dz in (0.0, grasp.pregrasp_height_m):
-            res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), robot.home_q, rng, IKParams())
-            if not res.success:
-                raise ScenarioError(f"{what}: out of the arm's reach from above ({res.reason})")
+            _reach_from_above(kin, np.array([x, y, z + dz]), rng, what)
+
+
+def _grasp_params(robot: RobotDescription) -> GraspParams:
+    """The heights of a pick as the robot's skill will use them (the robot's own where it has them)."""
+    return dataclasses.replace(GraspParams(), **dict(robot.grasp_heights))
+
+
+#: Hand angles tried for reach from above, the first that solves wins (an arm of five joints turns its
+#: hand through a range short of a whole turn: some spots it reaches at some angles only).
+REACH_YAWS = (0.0, np.pi / 2.0, np.pi, -np.pi / 2.0)
+
+
+def _reach_from_above(kin: Kinematics, at: np.ndarray, rng: np.random.Generator, what: str) -> None:
+    """The hand pointing down at ``at`` at one of :data:`REACH_YAWS`, else the spot is out of reach."""
+    reasons = []
+    for yaw in REACH_YAWS:
+        res = kin.solve(top_down(at, yaw), kin.robot.home_q, rng, IKParams())
+        if res.success:
+            return
+        reasons.append(res.reason)
+    raise ScenarioError(f"{what}: out of the arm's reach from above ({reasons[0]})")
 
 
 def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float, robot: RobotDescription) -> None:
@@ -413,7 +431,7 @@ def _check_clear(sc: Scenario) -> None:
     for x, y in _corners(region):
         if not table.holds(x, y):
             raise ScenarioError(f"clear.region: its corner ({x:.3f}, {y:.3f}) m is off the table")
-        if np.hypot(x, y) < ROBOT_BASE_RADIUS_M:
+        if np.hypot(x, y) < _robot(sc).base_radius_m:
             raise ScenarioError(f"clear.region: its corner ({x:.3f}, {y:.3f}) m is inside the robot's base")
     radii = np.array([Mesh(f, 1.0, read_urdf(f).vertices).footprint_radius_m for f in files])
     r_min = float(radii.min()) * spec.scale_range[0]
@@ -467,7 +485,7 @@ def _check_clear(sc: Scenario) -> None:
             raise ScenarioError(f"{key}.mass: {obj.mass} kg is more than {carries}")
     kin = kinematics_of(robot)
     rng = np.random.default_rng(0)
-    grasp = GraspParams()
+    grasp = _grasp_params(robot)
     spots = [(f"clear.region's corner ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m) for x, y in _corners(region)]
     spots += [(f"objects.{o.name} at ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m)
               for o in sc.objects for x, y in _reach_points(o)]  # fmt: skip
@@ -475,9 +493,7 @@ def _check_clear(sc: Scenario) -> None:
               for x, y in (tray.spot(k) for k in range(len(Tray.SPOTS)))]  # fmt: skip
     for what, x, y, z in spots:
         for dz in (0.0, grasp.pregrasp_height_m):
-            res = kin.solve(top_down(np.array([x, y, z + dz]), 0.0), robot.home_q, rng, IKParams())
-            if not res.success:
-                raise ScenarioError(f"{what}: out of the arm's reach from above ({res.reason})")
+            _reach_from_above(kin, np.array([x, y, z + dz]), rng, what)
     _check_region_in_view(sc, region)
 
 

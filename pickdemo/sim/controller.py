@@ -32,8 +32,9 @@ class RobotInterface:
         self._fingers: tuple[float, float] | None = None
         robot = scene.robot
         self.reflex = Reflex(scene.joint_state().arm_q, dt_s, robot.limits)
+        self.gripper = robot.gripper
         self.finger_max_m = robot.gripper.finger_max_m
-        self.finger_speed_m_s = robot.gripper.speed_m_s
+        self.finger_speed = robot.gripper.joint_speed()
         # The motor call's constant arguments, built once (it runs every control tick).
         self._forces = [float(v) for v in robot.effort_nm]
         self._position_gains = [POSITION_GAIN] * robot.dof
@@ -65,13 +66,14 @@ class RobotInterface:
         )
         fingers = (min(max(float(cmd.finger_opening_m), 0.0), self.finger_max_m), float(cmd.finger_force_n))
         if fingers != self._fingers:  # motors keep their last command: send only changes
-            for j in s.finger_joints:
+            force = self.gripper.joint_force(fingers[1])
+            for j, q in zip(s.finger_joints, self.gripper.joint_targets(fingers[0]), strict=True):
                 s.client.setJointMotorControl2(
                     s.bodies["robot"],
                     j,
                     p.POSITION_CONTROL,
-                    targetPosition=fingers[0],
-                    force=fingers[1],
-                    maxVelocity=self.finger_speed_m_s,
+                    targetPosition=q,
+                    force=force,
+                    maxVelocity=self.finger_speed,
                 )
             self._fingers = fingers

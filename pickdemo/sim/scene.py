@@ -77,7 +77,7 @@ class JointState:
 
     arm_q: np.ndarray  # (7,) rad
     arm_dq: np.ndarray  # (7,) rad/s
-    fingers_m: np.ndarray  # (2,) m, each finger's opening from the centre
+    fingers_m: np.ndarray  # (2,) m, each finger's opening from the centre (a jaw's: half the gap, each)
 
 
 class Scene:
@@ -176,16 +176,24 @@ class Scene:
         c.enableJointForceTorqueSensor(robot, self.wrist_joint, True)
         for j, q in zip(self.arm_joints, desc.home_q, strict=True):
             c.resetJointState(robot, j, float(q))
-        for j in self.finger_joints:
-            c.resetJointState(robot, j, gripper.finger_max_m)
+        for j, q in zip(self.finger_joints, gripper.joint_targets(gripper.finger_max_m), strict=True):
+            c.resetJointState(robot, j, q)
         for link in self.finger_links:
             c.changeDynamics(robot, link, lateralFriction=FINGER_FRICTION, spinningFriction=PAD_TORSIONAL_FRICTION_M)
-        # The real gripper couples its fingers mechanically (the URDF's <mimic>, which PyBullet
-        # ignores). Without the coupling a held object drifts sideways with both fingers in transit.
-        gear = c.createConstraint(
-            robot, self.finger_joints[0], robot, self.finger_joints[1], p.JOINT_GEAR, [0, 1, 0], [0, 0, 0], [0, 0, 0]
-        )
-        c.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=50)
+        if gripper.coupled:
+            # The real gripper couples its fingers mechanically (the URDF's <mimic>, which PyBullet
+            # ignores). Without the coupling a held object drifts sideways with both fingers in transit.
+            gear = c.createConstraint(
+                robot,
+                self.finger_joints[0],
+                robot,
+                self.finger_joints[1],
+                p.JOINT_GEAR,
+                [0, 1, 0],
+                [0, 0, 0],
+                [0, 0, 0],
+            )
+            c.changeConstraint(gear, gearRatio=-1, erp=0.1, maxForce=50)
         # Hold the home pose until the controller takes over.
         c.setJointMotorControlArray(robot, self.arm_joints, p.POSITION_CONTROL, targetPositions=list(desc.home_q))
         n = len(self.finger_joints)
@@ -193,8 +201,8 @@ class Scene:
             robot,
             self.finger_joints,
             p.POSITION_CONTROL,
-            targetPositions=[gripper.finger_max_m] * n,
-            forces=[gripper.open_force_n] * n,
+            targetPositions=gripper.joint_targets(gripper.finger_max_m),
+            forces=[gripper.joint_force(gripper.open_force_n)] * n,
         )
 
     def _build_object(self, spec: ObjectSpec, placement: Placement) -> None:
@@ -276,7 +284,7 @@ class Scene:
         return JointState(
             arm_q=np.array([s[0] for s in arm]),
             arm_dq=np.array([s[1] for s in arm]),
-            fingers_m=np.array([s[0] for s in fingers]),
+            fingers_m=self.robot.gripper.fingers_of([s[0] for s in fingers]),
         )
 
     def wrist_force(self) -> np.ndarray:

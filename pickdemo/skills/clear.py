@@ -443,7 +443,7 @@ class ClearSequencer:
         p_cam = T_cam_world.transform_points(pts)
         uv = project(p_cam[p_cam[:, 2] > 1e-3], K).astype(np.float32)
         robot = self.kin.robot
-        fingers = np.full(len(robot.gripper.finger_joints), robot.gripper.finger_max_m)
+        fingers = np.full(2, robot.gripper.finger_max_m)
         for box in robot_body(robot).boxes(q, fingers, pad_m=ARM_VIEW_PAD_M):
             c = T_cam_world.transform_points(box.corners())
             if np.any(c[:, 2] <= 1e-3):

@@ -46,7 +46,7 @@ class Sightline:
     def __init__(self, kin: Kinematics, camera: CameraModel) -> None:
         self.kin, self.camera = kin, camera
         self.body = robot_body(kin.robot)
-        self.fingers = np.full(len(kin.robot.gripper.finger_joints), kin.robot.gripper.finger_max_m)
+        self.fingers = np.full(2, kin.robot.gripper.finger_max_m)
         self._table: np.ndarray | None = None
         self._base: np.ndarray | None = None
 
