@@ -145,7 +145,7 @@ class RobotDescription:
     locate: Callable[[], RobotFiles]  # its URDF on this machine
     render_urdf: Callable[[], Path]  # a URDF for rendering (may be lighter than ``locate``'s)
     #: the heights of a pick where the robot's own differ from the skill's (m, by the names of
-    #: :class:`~pickdemo.grasping.top_down.GraspParams`: pregrasp, transport, retreat)
+    #: :class:`~pickdemo.grasping.top_down.GraspParams`: pregrasp, transport, retreat, the TCP's lowest)
     grasp_heights: tuple[tuple[str, float], ...] = ()
 
     @property

@@ -120,6 +120,7 @@ class _Grasp(_Model):
     pregrasp_height_m: Annotated[float, Field(gt=0.0, le=0.5)] | None = None
     transport_height_m: Annotated[float, Field(gt=0.0, le=0.5)] | None = None
     retreat_height_m: Annotated[float, Field(gt=0.0, le=0.5)] | None = None
+    min_tcp_height_m: Annotated[float, Field(gt=0.0, le=0.1)] | None = None  # the TCP's lowest: the tips off the table
 
 
 class _RobotFile(_Model):
