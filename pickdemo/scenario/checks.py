@@ -351,7 +351,7 @@ def _check_pick(sc: Scenario) -> None:
     for what, x, y in spots:
         z = max(target.largest_shape.height_m / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y)
         for dz in (0.0, grasp.pregrasp_height_m):
-            _reach_from_above(kin, np.array([x, y, z + dz]), rng, what)
+            _reach_from_above(kin, np.array([x, y, z + dz]), rng, what, narrow)
 
 
 def _grasp_params(robot: RobotDescription) -> GraspParams:
@@ -364,11 +364,17 @@ def _grasp_params(robot: RobotDescription) -> GraspParams:
 REACH_YAWS = (0.0, np.pi / 2.0, np.pi, -np.pi / 2.0)
 
 
-def _reach_from_above(kin: Kinematics, at: np.ndarray, rng: np.random.Generator, what: str) -> None:
-    """The hand pointing down at ``at`` at one of :data:`REACH_YAWS`, else the spot is out of reach."""
+def _reach_from_above(
+    kin: Kinematics, at: np.ndarray, rng: np.random.Generator, what: str, width_m: float = 0.0
+) -> None:
+    """The hand pointing down at one of :data:`REACH_YAWS` to grasp what is ``width_m`` wide at ``at``
+    (a jaw's TCP beside it: :meth:`~pickdemo.robot.description.Gripper.tcp_offset_m`), else the spot
+    is out of reach."""
     reasons = []
+    offset = kin.robot.gripper.tcp_offset_m(width_m)
     for yaw in REACH_YAWS:
-        res = kin.solve(top_down(at, yaw), kin.robot.home_q, rng, IKParams())
+        tcp = at if offset == 0.0 else at + top_down(np.zeros(3), yaw).rotation[:, 1] * offset
+        res = kin.solve(top_down(tcp, yaw), kin.robot.home_q, rng, IKParams())
         if res.success:
             return
         reasons.append(res.reason)

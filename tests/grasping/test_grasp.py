@@ -90,3 +90,21 @@ def test_a_grip_wider_than_a_known_object_is_no_hold_of_it_alone() -> None:
     assert grip.holding(at(0.050), plan.object_width_m) and not grip.too_wide(at(0.050), plan.object_width_m)
     assert grip.too_wide(at(0.060), plan.object_width_m)  # the issue's 60 mm grip of a 50 mm cube
     assert not grip.too_wide(at(0.057), plan.object_width_m)  # turned a few degrees in the pads: held
+
+
+def test_a_jaw_lowers_its_fixed_face_beside_the_object_and_puts_the_centre_on_the_place() -> None:
+    """One jaw against a fixed one (the SO-101's): the TCP, on the fixed jaw's face, comes down
+    ``jaw_clearance_m`` beside the object along the closing axis (the jaw then presses the object to
+    it); the object's centre, not the TCP, goes to the place."""
+    jaw = robot_named("so101").gripper
+    model = TargetModel(Box((0.025, 0.025, 0.025)), (1.0, 0.0, 0.0))
+    pose = Pose.from_xyz_rpy([0.18, 0.02, 0.0125], yaw=np.radians(20.0))
+    plan = plan_grasp(pose, model, (0.16, 0.14), gripper=jaw)
+    shift = plan.grasp.position[:2] - pose.position[:2]
+    y_axis = plan.grasp.rotation[:2, 1]  # the hand's closing axis: from the fixed jaw to the moving one
+    assert np.linalg.norm(shift) == pytest.approx(0.0125 + jaw.jaw_clearance_m)
+    assert shift @ y_axis == pytest.approx(-(0.0125 + jaw.jaw_clearance_m))
+    assert plan.place_offset_xy == pytest.approx(tuple(shift))
+    assert plan.place.position[:2] - np.asarray(plan.place_offset_xy) == pytest.approx([0.16, 0.14])
+    parallel = plan_grasp(pose, model, (0.16, 0.14), gripper=ROBOT.gripper)
+    assert parallel.grasp.position[:2] == pytest.approx(pose.position[:2]) and parallel.place_offset_xy == (0.0, 0.0)

@@ -1,5 +1,6 @@
-"""Another robot from its file: the UR5 with a Franka Hand picks, places and clears what it sees,
-within its own joint limits, from a scenario that names it (properties over several seeds)."""
+"""Other robots from their files: the UR5 with a Franka Hand and the SO-101 pick, place and clear
+what they see, within their own joint limits, from a scenario that names them (properties over
+several seeds)."""
 
 from __future__ import annotations
 
@@ -30,3 +31,14 @@ def test_the_ur5_clears_a_pile() -> None:
     none_fails_in(results, "ik", "trajectory", "reflex", "error")
     cleared = sum(r.clear["cleared"] for r in results if r.clear)  # type: ignore[index]
     assert cleared >= 8, "; ".join(describe(r) for r in results)
+
+
+def test_the_so101_picks_a_small_cube_by_friction_within_its_own_limits() -> None:
+    """One jaw against a fixed one, no weld: it holds what it lifts by friction alone."""
+    results = episodes("so101_pick_cube", (0, 1, 2))
+    at_least(results, 2)
+    none_fails_in(results, "ik", "trajectory", "reflex", "error")
+    for r in results:
+        assert r.robot == "so101", describe(r)
+        if r.peak_joint_limit_ratio is not None:
+            assert max(r.peak_joint_limit_ratio.values()) <= 1.0, describe(r)

@@ -14,6 +14,7 @@ from pickdemo.robot.robot_file import ROBOTS_DIR, RobotFileError, load_robot_fil
 
 PANDA_FILE = (ROBOTS_DIR / "panda.toml").read_text()
 UR5_FILE = (ROBOTS_DIR / "ur5_franka_hand.toml").read_text()
+SO101_FILE = (ROBOTS_DIR / "so101.toml").read_text()
 
 
 def test_the_panda_ships_as_a_file_and_is_the_default() -> None:
@@ -44,6 +45,23 @@ def test_the_ur5_is_an_arm_and_a_hand_joined_at_its_flange() -> None:
         assert f'name="{name}"' in text, name
     assert "panda_joint1" not in text  # (only the hand is taken from the Panda's URDF)
     assert "package://" not in text and "package://" not in r.render_urdf().read_text()
+
+
+def test_the_so101_has_a_jaw_and_a_tcp_of_its_own() -> None:
+    r = robot_named("so101")
+    g = r.gripper
+    assert r.dof == 5 and g.kind == "jaw" and not g.coupled and g.finger_joints == ("gripper",)
+    assert 'name="so101_tcp"' in r.files().urdf.read_text()
+    render = r.render_urdf().read_text()
+    assert "moving_jaw_vhacd.obj" in render and "wrist_roll_follower_vhacd.obj" in render  # (the sim's jaws)
+    # the jaw's angle and its opening, both ways; its force at the lever
+    for finger in (0.0, 0.005, 0.0125, 0.02, g.finger_max_m):
+        (angle,) = g.joint_targets(finger)
+        assert g.fingers_of([angle]) == pytest.approx([finger, finger], abs=1e-9)
+    assert g.joint_force(10.0) == pytest.approx(10.0 * g.jaw_lever_m)
+    # the TCP (the fixed jaw's face) beside the object, towards its own side
+    assert g.tcp_offset_m(0.025) == pytest.approx(-(0.0125 + g.jaw_clearance_m))
+    assert robot_named("panda").gripper.tcp_offset_m(0.025) == 0.0
 
 
 def _edit(old: str, new: str, text: str = PANDA_FILE) -> str:
@@ -147,6 +165,41 @@ BAD = [
         "hand.urdf: no such file",
     ),
     ("a flange offset of two numbers", _edit("xyz = [0.0, 0.0, 0.0]", "xyz = [0.0, 0.0]", UR5_FILE), "hand.xyz"),
+    (
+        "a jaw of two joints",
+        _edit('finger_joints = ["gripper"]', 'finger_joints = ["gripper", "wrist_roll"]', SO101_FILE),
+        "gripper.finger_joints: a jaw gripper has one revolute finger joint",
+    ),
+    (
+        "a jaw's table that does not rise",
+        _edit("[0.0907, 0.020]", "[0.0907, 0.012]", SO101_FILE),
+        "gripper.jaw_table: its angles and openings must both rise",
+    ),
+    (
+        "a jaw that opens less than the gripper says",
+        _edit("finger_max_m = 0.0225", "finger_max_m = 0.03", SO101_FILE),
+        "gripper.jaw_table: it reaches 55.0 mm; the gripper opens 60.0",
+    ),
+    (
+        "a jaw without its lever",
+        _edit("jaw_lever_m = 0.065\n", "", SO101_FILE),
+        "gripper.jaw_lever_m: missing",
+    ),
+    (
+        "a frame on a link the URDF does not have",
+        _edit('parent = "gripper_frame_link"', 'parent = "jaw_link"', SO101_FILE),
+        "arm.frames[0].parent: 'jaw_link' is not a link of so101.urdf",
+    ),
+    (
+        "a collision mesh that is not there",
+        _edit('"so101/moving_jaw_vhacd.obj"', '"so101/missing.obj"', SO101_FILE),
+        "arm.collision_meshes.moving_jaw_so101_v1.stl: no such file",
+    ),
+    (
+        "a grasp harder than the gripper can squeeze",
+        _edit("grip_force_n = 5.0", "grip_force_n = 50.0", SO101_FILE),
+        "gripper.grip_force_n: 50.0 N is more than max_force_n's 40.0 N",
+    ),
 ]
 
 

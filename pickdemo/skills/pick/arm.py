@@ -284,7 +284,10 @@ class ArmDriver:
         g = self.p.goals
         found = goal_candidates(self.kin, [pose], self.q, self.rng, g, lines_to=[line_to])
         goal = choose_goal(found, g)
-        if goal is None or not goal.line_ok or goal.dip_m > g.max_dip_m:
+        # (a jaw's hand turned half a turn about its TCP, the fixed jaw's face, would close away from
+        # the object: its other angles are the grasp chooser's, each planned anew)
+        equivalent = self.kin.robot.gripper.coupled or half_turned is not None
+        if equivalent and (goal is None or not goal.line_ok or goal.dip_m > g.max_dip_m):
             half = half_turned if half_turned is not None else (half_turn(pose), half_turn(line_to))
             poses, ends = [pose, half[0]], [line_to, half[1]]
             turned = goal_candidates(self.kin, poses[1:], self.q, self.rng, g, lines_to=ends[1:])
