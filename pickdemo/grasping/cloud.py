@@ -373,6 +373,7 @@ class CloudGrasps:
             shift = tcp_shift(request.gripper, width, hand)
             if shift is None:
                 yield poses_of_pick(grasp_p, hand, z, width, request.place_xy, self.params, (held[0], held[1]))
-            else:  # a jaw: its fixed face beside the object
-                at = (held[0] + shift[0], held[1] + shift[1])
+            else:  # a jaw: its fixed face beside the object; closed, the object is pressed to it
+                pressed = tcp_shift(request.gripper, width, hand, held=True)
+                at = (held[0] + pressed[0], held[1] + pressed[1])
                 yield poses_of_pick(grasp_p + shift, hand, z, width, request.place_xy, self.params, at)

@@ -131,7 +131,7 @@ class TopDownFaceGrasps:
                           hand_yaw_near_rad=yaw, wide=wide)  # fmt: skip
         top = float(request.pose.position[2]) + request.model.height_m / 2.0
         tcp = plan.grasp.position.copy()
-        tcp[:2] -= np.asarray(plan.place_offset_xy)  # (the grasp's centre: a jaw's TCP is beside it)
+        tcp[:2] = request.pose.position[:2]  # (the grasp's centre: a jaw's TCP is beside it)
         gripper = request.gripper
         highest = max(top - gripper.pad_half_height_m - float(tcp[2]), 0.0)  # (the pads wholly on the target)
         steps = np.arange(0.0, highest, p.raise_step_m)

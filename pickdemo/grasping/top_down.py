@@ -153,7 +153,8 @@ def plan_grasp(
         plan = poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params)
     else:  # a jaw: the TCP (the fixed jaw's face) beside the object; the object's centre goes to the place
         grasp_p = grasp_p + shift
-        plan = poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params, (shift[0], shift[1]))
+        held = tcp_shift(gripper, float(width), psi, held=True)
+        plan = poses_of_pick(grasp_p, psi, grasp_above_bottom, float(width), place_xy, params, (held[0], held[1]))
     share = 1.0
     if isinstance(model.geometry, Box):  # flat faces: the pads' area on them
         along = sum(model.geometry.top_extents_m) - width  # the face's length along the pads
@@ -165,10 +166,11 @@ def plan_grasp(
     return dataclasses.replace(plan, width_known=True, pad_share=share)
 
 
-def tcp_shift(gripper: Gripper, width_m: float, psi: float) -> np.ndarray | None:
+def tcp_shift(gripper: Gripper, width_m: float, psi: float, *, held: bool = False) -> np.ndarray | None:
     """Where the TCP goes from the grasp's centre (world, m) with the hand at angle ``psi``: None for
-    fingers closing about the middle; a jaw's fixed face beside the object (:meth:`Gripper.tcp_offset_m`)."""
-    off = gripper.tcp_offset_m(width_m)
+    fingers closing about the middle; a jaw's fixed face beside the object (:meth:`Gripper.tcp_offset_m`),
+    or, ``held``, against it once closed (:meth:`Gripper.held_offset_m`)."""
+    off = gripper.held_offset_m(width_m) if held else gripper.tcp_offset_m(width_m)
     if off == 0.0:
         return None
     return top_down(np.zeros(3), psi).rotation[:, 1] * off

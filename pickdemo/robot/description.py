@@ -124,6 +124,13 @@ class Gripper:
         fixed jaw's face beside the object (the jaw then presses it there)."""
         return 0.0 if self.kind == "parallel" else -(width_m / 2.0 + self.jaw_clearance_m)
 
+    def held_offset_m(self, width_m: float) -> float:
+        """Where the TCP is from a ``width_m``-wide object's centre along the hand's y once the hand
+        has closed on it: 0 for fingers closing about the middle; a jaw has pressed it to the fixed
+        jaw's face (``so101_pick_cube``: put down 8.8 mm off, median, when this was taken as
+        :meth:`tcp_offset_m`, with 10 mm of clearance)."""
+        return 0.0 if self.kind == "parallel" else -width_m / 2.0
+
 
 @dataclass(frozen=True, eq=False)
 class RobotDescription:

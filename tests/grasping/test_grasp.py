@@ -94,8 +94,8 @@ def test_a_grip_wider_than_a_known_object_is_no_hold_of_it_alone() -> None:
 
 def test_a_jaw_lowers_its_fixed_face_beside_the_object_and_puts_the_centre_on_the_place() -> None:
     """One jaw against a fixed one (the SO-101's): the TCP, on the fixed jaw's face, comes down
-    ``jaw_clearance_m`` beside the object along the closing axis (the jaw then presses the object to
-    it); the object's centre, not the TCP, goes to the place."""
+    ``jaw_clearance_m`` beside the object along the closing axis; the jaw then presses the object to
+    it, and the object's centre, not the TCP, goes to the place."""
     jaw = robot_named("so101").gripper
     model = TargetModel(Box((0.025, 0.025, 0.025)), (1.0, 0.0, 0.0))
     pose = Pose.from_xyz_rpy([0.18, 0.02, 0.0125], yaw=np.radians(20.0))
@@ -104,7 +104,7 @@ def test_a_jaw_lowers_its_fixed_face_beside_the_object_and_puts_the_centre_on_th
     y_axis = plan.grasp.rotation[:2, 1]  # the hand's closing axis: from the fixed jaw to the moving one
     assert np.linalg.norm(shift) == pytest.approx(0.0125 + jaw.jaw_clearance_m)
     assert shift @ y_axis == pytest.approx(-(0.0125 + jaw.jaw_clearance_m))
-    assert plan.place_offset_xy == pytest.approx(tuple(shift))
+    assert plan.place_offset_xy == pytest.approx(tuple(shift * 0.0125 / np.linalg.norm(shift)))  # (pressed)
     assert plan.place.position[:2] - np.asarray(plan.place_offset_xy) == pytest.approx([0.16, 0.14])
     parallel = plan_grasp(pose, model, (0.16, 0.14), gripper=ROBOT.gripper)
     assert parallel.grasp.position[:2] == pytest.approx(pose.position[:2]) and parallel.place_offset_xy == (0.0, 0.0)
