@@ -373,11 +373,16 @@ def _take_hand(arm_root: ET.Element, arm: RobotFiles, hand: RobotFiles, spec: _H
     _fixed_joint(arm_root, spec.joint, spec.flange_link, spec.root_link, spec.xyz, spec.rpy)
 
 
-@functools.cache
-def _write_joined(text: str, name: str) -> Path:
+def _scratch_dir() -> Path:
+    """A temporary directory of this process's own, removed when it exits."""
     out_dir = Path(tempfile.mkdtemp(prefix="pickdemo_urdf_"))
     atexit.register(shutil.rmtree, out_dir, ignore_errors=True)
-    out = out_dir / f"{name}_joined.urdf"
+    return out_dir
+
+
+@functools.cache
+def _write_joined(text: str, name: str) -> Path:
+    out = _scratch_dir() / f"{name}_joined.urdf"
     out.write_text(text)
     return out
 
@@ -448,8 +453,7 @@ def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None, collision: t
 def _lean_urdf_path(files: RobotFiles, name: str, collision: tuple = ()) -> Path:
     """A lean URDF for rendering (:func:`lean_urdf_text`), written once per process into a temporary
     directory; it refers to the installed meshes by absolute path (nothing copied or downloaded)."""
-    out_dir = Path(tempfile.mkdtemp(prefix="pickdemo_urdf_"))
-    atexit.register(shutil.rmtree, out_dir, ignore_errors=True)
+    out_dir = _scratch_dir()
     mesh_dir = out_dir / "meshes"
     mesh_dir.mkdir()
     out = out_dir / f"{name}_lean.urdf"
