@@ -113,6 +113,24 @@ def line_speed_scale(
     return 1.0 if worst * params.line_speed_m_s <= 1.0 else 1.0 / (worst * params.line_speed_m_s)
 
 
+def line_reach(kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()) -> float:
+    """How far along the straight line from ``start`` (the arm at ``q``) to ``end`` (a share, 0 to 1) the
+    per-tick IK follows it, converging at each of ``line_steps`` points with its joints fast enough for
+    ``min_line_speed_scale`` of the near-object speed (:func:`line_speed_scale`'s test, point by point)."""
+    n = params.line_steps
+    step_m = float(np.linalg.norm(end.position - start.position)) / n
+    v_max = params.line_velocity_share * kin.robot.limits.max_velocity_rad_s
+    q_prev, reached = np.asarray(q, dtype=float), 0.0
+    for k, q_k in enumerate(along_line(kin, q, start, end, n), start=1):
+        if q_k is None:
+            break
+        rate = float(np.max(np.abs(q_k - q_prev) / v_max)) / step_m if step_m > 0 else 0.0
+        if rate * params.line_speed_m_s * params.min_line_speed_scale > 1.0:
+            break
+        reached, q_prev = k / n, q_k
+    return reached
+
+
 def straight_carry_ok(
     kin: Kinematics,
     q: np.ndarray,

@@ -19,6 +19,7 @@ from pickdemo.motion.ik_goals import (
     along_line,
     choose_goal,
     goal_candidates,
+    line_reach,
     line_speed_scale,
     line_trackable,
     path_dip,
@@ -298,6 +299,19 @@ class ArmDriver:
         if goal.line_ok:
             self._line_checked_q = goal.q.copy()
         return goal.q, goal.index
+
+    def lift_in_reach(self, plan: GraspPlan) -> GraspPlan:
+        """The plan with its lift as high as the per-tick IK can follow the hand straight up from where
+        it is, up to the plan's (a small arm's hand points down only low near its base; the grasp
+        chooser took such a lift only if no hand angle had a whole one, and only up to the pregrasp's
+        height at least)."""
+        here = self.kin.forward(self.motion.q).position
+        start = Pose(np.array([*plan.lift.position[:2], here[2]]), plan.lift.rotation)
+        share = line_reach(self.kin, self.motion.q, start, plan.lift, self.p.goals)
+        if share >= 1.0:
+            return plan
+        z = here[2] + share * (plan.lift.position[2] - here[2])
+        return dataclasses.replace(plan, lift=Pose(np.array([*plan.lift.position[:2], z]), plan.lift.rotation))
 
     def straight_carry_ok(self, plan: GraspPlan, lift_scale: float) -> bool:
         """Whether the arm, carried along a straight line to above the place (the per-tick IK keeps

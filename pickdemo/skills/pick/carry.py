@@ -51,6 +51,11 @@ def _dropped(m: PickMachine, obs: Observation, stage: Stage, outcome: str) -> Tr
 def enter_lift(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
     m.grip.watch_hold()
+    lower = m.arm.lift_in_reach(m.plan)
+    if lower is not m.plan:
+        high = (lower.lift.position[2] - m.plan.grasp.position[2]) * 1e3
+        m.note(f"lifting only {high:.0f} mm: higher, the arm could not keep the hand pointing down")
+        m.plan = lower
     motion = m.arm.motion
     lift = m.arm.move.x4(m.plan.lift)
     v = motion.velocity[:2]

@@ -14,10 +14,12 @@ from pickdemo.skills.pick.arm import ArmDriver
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.tracking.belief import TargetBelief
 
+LEAVES_REACH = "the target leaves the arm's reach"
+
 
 def leaves_reach(where: str) -> str:
     """Why a moving target cannot be picked: where the arm would meet or hold it is out of reach."""
-    return f"the target leaves the arm's reach before the arm can meet it: {where} is out of reach"
+    return f"{LEAVES_REACH} before the arm can meet it: {where} is out of reach"
 
 
 class Interceptor:

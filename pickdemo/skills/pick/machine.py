@@ -34,7 +34,7 @@ from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.actions import Grip, Scale
 from pickdemo.skills.pick.arm import ArmDriver
 from pickdemo.skills.pick.chooser import GraspChooser
-from pickdemo.skills.pick.intercept import Interceptor
+from pickdemo.skills.pick.intercept import LEAVES_REACH, Interceptor
 from pickdemo.skills.pick.params import (
     HAND_OVER_TARGET,
     HELD_STATES,
@@ -168,6 +168,9 @@ class PickMachine:
         self.verify_frames = 0
         self.verify_settled = True
         self.relooks = 0
+        self.rested = False  # a pick was planned for the target at rest
+        #: (why, since when) a target that stood still moves out of reach: waiting for it to stop
+        self.moving_off: tuple[str, float] | None = None
         #: this look's postures looked from without finding the target (the arm hid the table from the
         #: fixed camera); no other posture would show more of it
         self.looked_from: list[np.ndarray] = []
@@ -399,8 +402,16 @@ class PickMachine:
                 pose, v, self.plan, hand_over_target=over, approaching=approaching, now_s=self.now_s
             )
         if isinstance(out, Failure):
+            if out.stage is Stage.IK and out.reason.startswith(LEAVES_REACH) and self.rested:
+                # it stood still: tipped over or rolling, it stops on the table (waited for, a while)
+                since = self.now_s if self.moving_off is None else self.moving_off[1]
+                if self.now_s - since < self.p.stop_wait_s:
+                    self.moving_off = (out.reason, since)
+                    return None
             self.fail(out.stage, out.reason)
             return None
+        self.moving_off = None
+        self.rested = self.rested or (first and v is None)
         return out
 
     def put_down_at(self, xy: tuple[float, float]) -> None:

@@ -78,6 +78,9 @@ class MachineParams:
     relook_margin_m: float = 0.06
     look_asides: int = 2
     max_relooks: int = 2  # the target lost while approaching: look again from home, at most this often
+    #: a target that stood still when the pick was planned and now moves out of the arm's reach (it
+    #: tipped over, it rolls): the arm looks again from home, waiting this long (s) for it to stop
+    stop_wait_s: float = 3.0
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
     moved_tolerance_rad: float = float(np.radians(8.0))
     moved_views: int = 2  # ... or this many whole views in a row refused that far from the track: back off

@@ -155,6 +155,9 @@ def tick_approach(m: PickMachine, obs: Observation) -> Transition:
         m.after_back_off = State.LOOK
         return State.BACK_OFF, "target lost while approaching: looking again"
     plan = m.track_plan()
+    if m.moving_off is not None and not m.finished:
+        m.after_back_off = State.LOOK
+        return State.BACK_OFF, f"{m.moving_off[0]}, but it stood still: looking again once it stops"
     if plan is not None:
         m.plan = plan
         if m.arm.legs:  # going over the top: its last leg goes down to where the plan is by then
