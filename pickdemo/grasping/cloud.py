@@ -311,11 +311,11 @@ class CloudGrasps:
     cloud_params: CloudGraspParams = CloudGraspParams()
     #: grasps tried and failed (TCP position in the world, hand angle): one near either comes after the others
     avoid: tuple[tuple[np.ndarray, float], ...] = ()
-    _planned: tuple[int, list[tuple[np.ndarray, float, float, float]]] | None = field(default=None, repr=False)
+    _planned: tuple[int, list[tuple[np.ndarray, float, float, float, float]]] | None = field(default=None, repr=False)
 
-    def _local(self, request) -> list[tuple[np.ndarray, float, float, float]]:  # noqa: ANN001 - a GraspRequest
+    def _local(self, request) -> list[tuple[np.ndarray, float, float, float, float]]:  # noqa: ANN001 - a GraspRequest
         """The cloud's grasps in the tracked pose's frame: (xy offset, hand angle, TCP height over the
-        surface, the least width it is held at), best first."""
+        surface, the least width it is held at, the span the fingers close on), best first."""
         if self._planned is not None and self._planned[0] == request.plan_id:
             return self._planned[1]
         cloud = request.cloud
@@ -340,6 +340,7 @@ class CloudGrasps:
                 g.hand_yaw_rad - yaw0,
                 g.above_surface_m,
                 g.held_width_m,
+                g.width_m,
             )
             for g in grasps
         ]
@@ -357,12 +358,12 @@ class CloudGrasps:
 
     def hand_yaws(self, request) -> list[float]:  # noqa: ANN001 - a GraspRequest
         """The best grasp's two hand angles (the hand is the same after a half turn), at the tracked pose."""
-        _, psi, _, _ = self._local(request)[0]
+        _, psi, _, _, _ = self._local(request)[0]
         yaw = float(request.pose.rpy[2]) + psi
         return [float(wrap_angle(yaw)), float(wrap_angle(yaw + np.pi))]
 
     def candidates(self, request) -> Iterator[GraspPlan]:  # noqa: ANN001 - a GraspRequest
-        offset, psi, z, width = self._local(request)[0]
+        offset, psi, z, width, span = self._local(request)[0]
         yaw = float(request.pose.rpy[2])
         c, s = np.cos(yaw), np.sin(yaw)
         held = np.array([[c, -s], [s, c]]) @ offset  # the TCP from the object's centre
@@ -370,10 +371,10 @@ class CloudGrasps:
         grasp_p = np.array([xy[0], xy[1], request.surface_z + z])
         for near in request.hand_yaws:
             hand = float(wrap_angle(yaw + psi)) if near is None else float(near + wrap_angle(yaw + psi - near, np.pi))
-            shift = tcp_shift(request.gripper, width, hand)
+            shift = tcp_shift(request.gripper, span, hand)
             if shift is None:
                 yield poses_of_pick(grasp_p, hand, z, width, request.place_xy, self.params, (held[0], held[1]))
-            else:  # a jaw: its fixed face beside the object; closed, the object is pressed to it
-                pressed = tcp_shift(request.gripper, width, hand, held=True)
+            else:  # a jaw: its fixed face beside the span it closes on; closed, the object is pressed to it
+                pressed = tcp_shift(request.gripper, span, hand, held=True)
                 at = (held[0] + pressed[0], held[1] + pressed[1])
                 yield poses_of_pick(grasp_p + shift, hand, z, width, request.place_xy, self.params, at)
