@@ -278,9 +278,26 @@ def _held_across_another_side(m: PickMachine, obs: Observation) -> None:
             return
 
 
+def _pushed_harder(m: PickMachine, obs: Observation) -> bool:
+    """A jaw that stalled on the object before the object reached the fixed jaw (one finger touching):
+    closes harder, doubling its force up to the hand's most. The moving jaw's arc presses the object
+    into the table as it pushes it, and the table's friction can hold it; a real servo gripper pushes
+    on at a higher current. (Two fingers closing about the middle do not push the object across.)"""
+    left, right = obs.finger_contacts
+    if m.kin.robot.gripper.coupled or (left > 0) == (right > 0) or m.grip.force_n >= m.grip.max_force_n:
+        return False
+    force = min(2.0 * m.grip.force_n, m.grip.max_force_n)
+    m.note(f"the jaw stopped at {obs.opening_m * 1e3:.1f} mm on the object alone: closing at {force:.0f} N")
+    m.grip.close(force)
+    m.grip.watch()
+    return True
+
+
 def tick_close(m: PickMachine, obs: Observation) -> Transition:
     assert m.plan is not None
     stalled = m.grip.stopped(obs)
+    if stalled and not m.grip.holding(obs, m.plan.object_width_m) and _pushed_harder(m, obs):
+        return None
     if stalled:
         _held_across_another_side(m, obs)
     width = m.plan.object_width_m
@@ -305,6 +322,8 @@ def tick_close(m: PickMachine, obs: Observation) -> Transition:
         if off_centre is not None:
             return m.retry(Stage.GRASP, "held off centre", off_centre)
         m.grasp_width_m = obs.opening_m
+        if m.grip.force_n > m.close_force_n:  # (pushed harder to the fixed jaw: held with the grip's force)
+            m.grip.close(m.close_force_n)
         return State.LIFT, f"holding: fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {m.close_force_n:.0f} N"
     reason = f"fingers closed to {obs.opening_m * 1e3:.1f} mm (expected {width * 1e3:.0f} mm): nothing held"
     return m.retry(Stage.GRASP, "missed", reason)
