@@ -9,7 +9,15 @@ import numpy as np
 
 from pickdemo.core.result import peak_limit_ratios
 from pickdemo.grasping.top_down import top_down
-from pickdemo.motion.ik_goals import Goal, GoalParams, choose_goal, goal_candidates, line_trackable, straight_carry_ok
+from pickdemo.motion.ik_goals import (
+    Goal,
+    GoalParams,
+    choose_goal,
+    goal_candidates,
+    line_reach,
+    line_trackable,
+    straight_carry_ok,
+)
 from pickdemo.motion.online import JointMotion, MotionError, OnlineMotion, top_down_pose
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
@@ -124,3 +132,21 @@ def test_a_straight_carry_that_would_pin_a_joint_at_its_limit_is_refused() -> No
     q_ok = kin.solve(top_down_pose(start), ROBOT.home_q, np.random.default_rng(0)).q
     assert straight_carry_ok(kin, q_ok, start, end, place, speed_m_s=limits.velocity, posture=q_ok, params=p.goals)
     assert _carry(kin, start, end, q_ok, limits) == "arrived"
+
+
+def test_how_far_up_a_lift_can_go_is_measured_where_a_small_arm_loses_the_hand_pointing_down() -> None:
+    """The SO-101 near its base: its hand points down only low (a lift there goes part of the way);
+    mid-table the whole lift; the Panda's whole lift anywhere on its table."""
+    for robot, xy, up_m in ((robot_named("so101"), (0.13, 0.0), 0.06), (ROBOT, (0.5, 0.1), 0.12)):
+        kin = kinematics_of(robot)
+        grasp = top_down(np.array([*xy, 0.012]), np.radians(90.0))
+        res = kin.solve(grasp, robot.home_q, np.random.default_rng(0))
+        assert res.success
+        top = top_down(grasp.position + [0.0, 0.0, up_m], np.radians(90.0))
+        share = line_reach(kin, res.q, grasp, top)
+        assert (share < 1.0) if robot.name == "so101" else share == 1.0, (robot.name, share)
+        assert share > 0.0
+    kin = kinematics_of(robot_named("so101"))
+    grasp = top_down(np.array([0.19, 0.0, 0.012]), np.radians(90.0))
+    res = kin.solve(grasp, robot_named("so101").home_q, np.random.default_rng(0))
+    assert line_reach(kin, res.q, grasp, top_down(grasp.position + [0.0, 0.0, 0.045], np.radians(90.0))) == 1.0
