@@ -167,6 +167,24 @@ def test_the_grasp_is_planned_once_and_carried_with_the_tracked_pose() -> None:
     assert carried.place.position[2] == pytest.approx(first.place.position[2])
 
 
+def test_a_jaw_comes_down_beside_the_span_it_closes_on_whatever_the_width() -> None:
+    """One jaw against a fixed one (the SO-101's): the fixed jaw's face, the TCP, comes down
+    ``jaw_clearance_m`` beside what the fingers close on (a 36 mm block's side, not beside a 12 mm
+    one: it came down on the block's top), and the place is reckoned with the block pressed to it."""
+    jaw = robot_named("so101").gripper
+    for size in ((0.036, 0.05, 0.012), (0.02, 0.05, 0.012)):
+        block = Block((0.18, 0.0), size)
+        request = GraspRequest(Pose.from_xyz_rpy(np.array([0.18, 0.0, 0.006])), MODEL, (0.18, 0.1),
+                               cloud=_cloud(block), plan_id=1, gripper=jaw)  # fmt: skip
+        plan = next(CloudGrasps(GraspParams()).candidates(request))
+        closing = plan.grasp.rotation[:2, 1]  # from the fixed jaw towards the moving one
+        assert abs(closing[0]) > 0.98  # across the block's narrow side
+        beside = (plan.grasp.position[:2] - np.array(block.centre_xy)) @ closing
+        assert beside == pytest.approx(-(size[0] / 2 + jaw.jaw_clearance_m), abs=0.003)
+        pressed = (plan.place.position[:2] - np.array([0.18, 0.1])) @ closing
+        assert pressed == pytest.approx(-size[0] / 2, abs=0.003)
+
+
 @pytest.mark.sim
 def test_objects_nobody_described_are_picked_and_put_down() -> None:
     """The closed loop on a duck and on held-out test-split objects: found, measured at their centre
