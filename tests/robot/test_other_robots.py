@@ -51,3 +51,11 @@ def test_the_so101_waits_for_a_target_that_slides_out_of_its_reach_and_stops() -
     results = episodes("so101_pick_cube_slid_off", (0, 1, 2))
     at_least(results, 2)
     none_fails_in(results, "ik", "trajectory", "reflex", "error")
+
+
+def test_the_so101_pushes_a_heavier_cube_to_its_fixed_jaw() -> None:
+    """A 60 g cube: the moving jaw's arc presses it into the table as it pushes it, and the jaw stalled
+    short of the fixed one at 5 N (0 of 5 before); stalled on the cube alone, it closes harder."""
+    results = episodes("so101_pick_heavier_cube", (0, 1, 2))
+    at_least(results, 2)
+    none_fails_in(results, "ik", "trajectory", "reflex", "error")
