@@ -79,6 +79,9 @@ class Gripper:
     jaw_clearance_m: float = 0.0  # the fixed jaw's face lowered this far beside the object (m)
     #: the force a grasp squeezes with where this hand's own differs from the skill's (N; None: the skill's)
     grip_force_n: float | None = None
+    #: the pads' friction coefficient as the simulator takes it (it multiplies the object's): 1.0 for the
+    #: Franka's fingers (with 20 N, a 5 cm cube held with about 1 mm of slip)
+    pad_friction: float = 1.0
 
     @property
     def max_opening_m(self) -> float:

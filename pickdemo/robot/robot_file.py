@@ -100,6 +100,7 @@ class _Gripper(_Model):
     jaw_lever_m: Positive | None = None
     jaw_clearance_m: Annotated[float, Field(ge=0.0, le=0.02)] = 0.0
     grip_force_n: Positive | None = None  # a grasp's force where this hand asks for its own (N)
+    pad_friction: Annotated[float, Field(gt=0.0, le=2.0)] = 1.0  # the pads' friction coefficient (the simulator's)
 
 
 class _Hand(_Model):
@@ -193,6 +194,7 @@ def load_robot_file(path: str | Path) -> RobotDescription:
             jaw_lever_m=g.jaw_lever_m or 0.0,
             jaw_clearance_m=g.jaw_clearance_m,
             grip_force_n=g.grip_force_n,
+            pad_friction=g.pad_friction,
         ),  # fmt: skip
         home_q=np.array(a.home),
         limits=JointLimits(

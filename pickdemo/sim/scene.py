@@ -28,7 +28,6 @@ from pickdemo.sim.conveyor import Belt
 FIXTURES = ("robot", "table", "conveyor", "tray")
 
 TABLE_THICKNESS_M = 0.05
-FINGER_FRICTION = 1.0  # measured: 1.0 with 20 N holds a 5 cm cube with ~1 mm slip
 #: The pads' torsional friction (m: torque per newton pressed). PyBullet's contact is a point, whose
 #: friction about the normal is near zero: an object held at one point pivots about the finger axis.
 #: A rubber pad pressed onto a patch of radius a resists with about (2/3) mu a: 0.003 m is a 4.5 mm
@@ -179,7 +178,9 @@ class Scene:
         for j, q in zip(self.finger_joints, gripper.joint_targets(gripper.finger_max_m), strict=True):
             c.resetJointState(robot, j, q)
         for link in self.finger_links:
-            c.changeDynamics(robot, link, lateralFriction=FINGER_FRICTION, spinningFriction=PAD_TORSIONAL_FRICTION_M)
+            c.changeDynamics(
+                robot, link, lateralFriction=gripper.pad_friction, spinningFriction=PAD_TORSIONAL_FRICTION_M
+            )
         if gripper.coupled:
             # The real gripper couples its fingers mechanically (the URDF's <mimic>, which PyBullet
             # ignores). Without the coupling a held object drifts sideways with both fingers in transit.
