@@ -200,6 +200,11 @@ BAD = [
         _edit("grip_force_n = 5.0", "grip_force_n = 50.0", SO101_FILE),
         "gripper.grip_force_n: 50.0 N is more than max_force_n's 40.0 N",
     ),
+    (
+        "pads without friction",
+        _edit("pad_friction = 0.5", "pad_friction = 0.0", SO101_FILE),
+        "gripper.pad_friction",
+    ),
 ]
 
 
