@@ -303,8 +303,8 @@ class ArmDriver:
     def lift_in_reach(self, plan: GraspPlan) -> GraspPlan:
         """The plan with its lift as high as the per-tick IK can follow the hand straight up from where
         it is, up to the plan's (a small arm's hand points down only low near its base; the grasp
-        chooser took such a lift only if no hand angle had a whole one, and only up to the pregrasp's
-        height at least)."""
+        chooser made sure that the descent from the pregrasp can be followed, so a lift goes as high
+        as that at least)."""
         here = self.kin.forward(self.motion.q).position
         start = Pose(np.array([*plan.lift.position[:2], here[2]]), plan.lift.rotation)
         share = line_reach(self.kin, self.motion.q, start, plan.lift, self.p.goals)

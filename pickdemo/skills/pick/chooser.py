@@ -23,9 +23,6 @@ from pickdemo.skills.pick.params import MachineParams
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.tracking.belief import TargetBelief
 
-#: :meth:`GraspChooser.unreachable`: all of the pick can be done, but the lift stops short of the carry's height
-LIFT_SHORT = "the lift cannot go up to the carry's height"
-
 
 class GraspChooser:
     """Grasp plans for the target where the belief says it is, each checked against the arm by IK."""
@@ -182,7 +179,6 @@ class GraspChooser:
         except GraspPlanningError as exc:
             return Failure(Stage.GRASP_PLANNING, str(exc))
         first_reason = ""  # the best-ranked hand angle's reason, if no angle will do
-        short: GraspPlan | None = None  # the best whose lift cannot go all the way up
         for _ in hand_yaws:
             try:
                 plan = next(candidates)
@@ -193,37 +189,28 @@ class GraspChooser:
                 return reason
             if not reason:
                 return plan
-            if reason == LIFT_SHORT:
-                short = short or plan
             first_reason = first_reason or reason
-        return short or Failure(Stage.IK, first_reason)
+        return Failure(Stage.IK, first_reason)
 
     def unreachable(self, plan: GraspPlan, now_s: float) -> str | Failure:
-        """Why the arm cannot do this plan's pick and place ("" if it can; :data:`LIFT_SHORT` if it can
-        with a lower lift; a failure to end the episode at once: a moving target that cannot be met at all)."""
+        """Why the arm cannot do this plan's pick and place ("" if it can; a failure to end the episode
+        at once: a moving target that cannot be met at all)."""
         reach = self.intercept.reach_targets(plan, now_s)
         if isinstance(reach, str):
             return Failure(Stage.IK, reach)
         q = self.arm.motion.q
         floor = self.p.goals.min_line_speed_scale
-        lift_short = False
         for name, target in (*reach, ("place", plan.place)):
             res = self.kin.solve(target, q, self.rng, IKParams())
             if not res.success:
                 if name not in ("grasp", "place"):  # a moving target's
                     return leaves_reach(name)
                 return f"{name} pose out of reach: {res.reason}"
-            if name == "grasp":
-                # The vertical line through the grasp: the descent follows it from the pregrasp, the lift
-                # up to the carry's height (a small arm's hand points down only low near its base, and
-                # a jaw's TCP is beside the object, on the side its angle puts it). A lift the arm
-                # cannot follow all the way goes as high as it can (LIFT_SHORT: the plan if no other will do).
-                if line_speed_scale(self.kin, res.q, plan.grasp, plan.pregrasp, self.p.goals) < floor:
-                    return "the straight descent onto the grasp is out of reach"
-                if plan.lift.position[2] > plan.pregrasp.position[2] and (
-                    line_speed_scale(self.kin, res.q, plan.grasp, plan.lift, self.p.goals) < floor
-                ):
-                    lift_short = True
+            if name == "grasp" and line_speed_scale(self.kin, res.q, plan.grasp, plan.pregrasp, self.p.goals) < floor:
+                # The descent follows the vertical line from the pregrasp (a small arm's hand points down
+                # only low near its base, and a jaw's TCP is beside the object, on the side its angle
+                # puts it); the lift goes up it as far as the arm follows (:meth:`ArmDriver.lift_in_reach`).
+                return "the straight descent onto the grasp is out of reach"
         # Above the place, some IK solution from which the lowering can be followed: with joint
         # transfers the carry may go in joint space to any of them, the hand turned half a turn or not.
         lines = [(plan.place_above, plan.place)]
@@ -239,4 +226,4 @@ class GraspChooser:
             return "the pose above the place is out of reach"
         if all(line_speed_scale(self.kin, q, start, end, self.p.goals) < floor for q, start, end in above):
             return "the straight lowering onto the place passes too near a singular posture"
-        return LIFT_SHORT if lift_short else ""
+        return ""
