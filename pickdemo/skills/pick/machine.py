@@ -109,6 +109,10 @@ class PickMachine:
         self.arm = ArmDriver(kin, q0, dt_s, p, rng)
         self.grip = Grip(p.grip, dt_s, kin.robot.gripper)
         self.scale = Scale(p.payload)
+        # The wrist's sensor reads in its joint's frame; where that is turned from the TCP's (the SO-101's
+        # roll joint: its z is the TCP's -z), the reading is turned with it (None: the TCP's frame).
+        sensor = kin.tcp_to_frame(kin.robot.wrist_joint).rotation
+        self.sensor_in_tcp = None if np.allclose(sensor, np.eye(3), atol=1e-9) else sensor
         self.counters = Counters()
         self.belief = TargetBelief(
             model, symmetry_rad, p.tracker, p.gate, surface_z=surface_z or (lambda x, y: 0.0), counters=self.counters

@@ -21,7 +21,8 @@ if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reade
 
 def wrist_load(m: PickMachine, obs: Observation) -> float:
     """The wrist's load along world z (N)."""
-    return m.scale.vertical(obs, m.kin.forward(obs.arm_q).rotation)
+    rotation = m.kin.forward(obs.arm_q).rotation
+    return m.scale.vertical(obs, rotation if m.sensor_in_tcp is None else rotation @ m.sensor_in_tcp)
 
 
 def _wrap(yaw_rad: float, period_rad: float) -> float:
