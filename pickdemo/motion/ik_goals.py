@@ -88,6 +88,25 @@ def line_trackable(kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, param
     return kin.limit_margin(q_prev) > 0.0
 
 
+def _line_rates(
+    kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams
+) -> Iterator[tuple[np.ndarray, float] | None]:
+    """Along the straight line from ``start`` (the arm at ``q``) to ``end``, at each of ``line_steps``
+    points: the per-tick IK's joints and the largest joint rate per metre of the line, as a share of
+    its speed limit (``line_velocity_share`` of it); ``None`` where the IK does not converge (and
+    nothing after)."""
+    n = params.line_steps
+    length = float(np.linalg.norm(end.position - start.position))
+    v_max = params.line_velocity_share * kin.robot.limits.max_velocity_rad_s
+    q_prev = np.asarray(q, dtype=float)
+    for q_k in along_line(kin, q, start, end, n):
+        if q_k is None:
+            yield None
+            return
+        yield q_k, (float(np.max(np.abs(q_k - q_prev) / (length / n) / v_max)) if length > 0 else 0.0)
+        q_prev = q_k
+
+
 def line_speed_scale(
     kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()
 ) -> float:
@@ -96,19 +115,14 @@ def line_speed_scale(
     ``line_velocity_share`` of its speed limit: 1.0 when the full speed will do, less near a singular
     posture (where the joints turn fast for a small move of the hand), 0.0 when the IK does not converge
     along it or it ends beyond a joint limit."""
-    n = params.line_steps
-    length = float(np.linalg.norm(end.position - start.position))
-    q_prev = np.asarray(q, dtype=float)
+    q_last = np.asarray(q, dtype=float)
     worst = 0.0  # the largest joint rate per metre of the line, as a share of its speed limit
-    for q_k in along_line(kin, q, start, end, n):
-        if q_k is None:
+    for point in _line_rates(kin, q, start, end, params):
+        if point is None:
             return 0.0
-        if length > 0:
-            v_max = params.line_velocity_share * kin.robot.limits.max_velocity_rad_s
-            rate = np.abs(q_k - q_prev) / (length / n) / v_max
-            worst = max(worst, float(np.max(rate)))
-        q_prev = q_k
-    if kin.limit_margin(q_prev) <= 0.0:
+        q_last, rate = point
+        worst = max(worst, rate)
+    if kin.limit_margin(q_last) <= 0.0:
         return 0.0
     return 1.0 if worst * params.line_speed_m_s <= 1.0 else 1.0 / (worst * params.line_speed_m_s)
 
@@ -117,17 +131,11 @@ def line_reach(kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, params: G
     """How far along the straight line from ``start`` (the arm at ``q``) to ``end`` (a share, 0 to 1) the
     per-tick IK follows it, converging at each of ``line_steps`` points with its joints fast enough for
     ``min_line_speed_scale`` of the near-object speed (:func:`line_speed_scale`'s test, point by point)."""
-    n = params.line_steps
-    step_m = float(np.linalg.norm(end.position - start.position)) / n
-    v_max = params.line_velocity_share * kin.robot.limits.max_velocity_rad_s
-    q_prev, reached = np.asarray(q, dtype=float), 0.0
-    for k, q_k in enumerate(along_line(kin, q, start, end, n), start=1):
-        if q_k is None:
+    reached = 0.0
+    for k, point in enumerate(_line_rates(kin, q, start, end, params), start=1):
+        if point is None or point[1] * params.line_speed_m_s * params.min_line_speed_scale > 1.0:
             break
-        rate = float(np.max(np.abs(q_k - q_prev) / v_max)) / step_m if step_m > 0 else 0.0
-        if rate * params.line_speed_m_s * params.min_line_speed_scale > 1.0:
-            break
-        reached, q_prev = k / n, q_k
+        reached = k / params.line_steps
     return reached
 
 
