@@ -13,7 +13,7 @@ from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.core.result import Failure, Stage
 from pickdemo.grasping.selection import GraspRequest, GraspSelector
 from pickdemo.grasping.top_down import GraspPlan, GraspPlanningError
-from pickdemo.motion.ik_goals import along_line, goal_candidates, line_speed_scale
+from pickdemo.motion.ik_goals import along_line, goal_candidates, line_reach, line_speed_scale
 from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import TargetModel
 from pickdemo.robot.kinematics import IKParams, Kinematics
@@ -22,6 +22,8 @@ from pickdemo.skills.pick.intercept import Interceptor, leaves_reach
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.tracking.belief import TargetBelief
+
+DESCENT_OUT_OF_REACH = "the straight descent onto the grasp is out of reach"
 
 
 class GraspChooser:
@@ -43,6 +45,8 @@ class GraspChooser:
         self.selector, self.belief, self.arm, self.intercept = selector, belief, arm, intercept
         self.plan_id = 0  # counts first plans (the grasp selector's plan_id)
         self._room_checked: tuple[np.ndarray, bool] | None = None  # a re-plan's last check of joint room
+        #: this attempt's pregrasp, lowered this far (m) to where the arm follows the descent (:meth:`lowered`)
+        self.descent_drop_m = 0.0
 
     def request(self, pose: Pose, hand_yaws: tuple[float | None, ...]) -> GraspRequest:
         """What the selector is asked: the target at ``pose`` (and, seen as a cloud, its newest view)."""
@@ -60,8 +64,10 @@ class GraspChooser:
         )
 
     def grasp(self, pose: Pose, near: float | None) -> GraspPlan:
-        """The selector's best grasp for the target at ``pose`` with the hand angle nearest ``near``."""
-        return next(iter(self.selector.candidates(self.request(pose, (near,)))))
+        """The selector's best grasp for the target at ``pose`` with the hand angle nearest ``near`` (its
+        pregrasp as low as this attempt's first plan had it)."""
+        plan = next(iter(self.selector.candidates(self.request(pose, (near,)))))
+        return lower_pregrasp(plan, self.descent_drop_m) if self.descent_drop_m else plan
 
     def best_ik(self, pose: Pose, seeds: list[np.ndarray]) -> np.ndarray | None:
         """Of the IK solutions of ``pose`` from each of ``seeds``, the one with the most joint-limit
@@ -173,12 +179,14 @@ class GraspChooser:
         those of the angles in ``avoid`` (it missed there, or a finger touched something beside it)."""
         held = None if v is None else pose.position[:2] + v * self.p.grasp_time_s
         self.plan_id += 1  # a first plan: the selector plans afresh
+        self.descent_drop_m = 0.0
         try:
             hand_yaws = self.ranked_hand_yaws(pose, held, avoid) or [None]
             candidates = iter(self.selector.candidates(self.request(pose, tuple(hand_yaws))))
         except GraspPlanningError as exc:
             return Failure(Stage.GRASP_PLANNING, str(exc))
         first_reason = ""  # the best-ranked hand angle's reason, if no angle will do
+        steep: list[GraspPlan] = []  # plans whose descent alone the arm cannot follow from the full height
         for _ in hand_yaws:
             try:
                 plan = next(candidates)
@@ -190,7 +198,34 @@ class GraspChooser:
             if not reason:
                 return plan
             first_reason = first_reason or reason
+            if reason == DESCENT_OUT_OF_REACH:
+                steep.append(plan)
+        for plan in steep:  # (only when no angle will do from the full height: the others' plans are as before)
+            lowered = self.lowered(plan, now_s)
+            if lowered is not None:
+                return lowered
         return Failure(Stage.IK, first_reason)
+
+    def lowered(self, plan: GraspPlan, now_s: float) -> GraspPlan | None:
+        """The plan with its pregrasp lowered to where the arm follows the descent from the grasp's IK
+        solution up (:func:`~pickdemo.motion.ik_goals.line_reach`), no lower than ``min_descent_share``
+        of the pregrasp's height; None if that will not do. Sets :attr:`descent_drop_m` for the attempt's
+        re-plans."""
+        height = float(plan.pregrasp.position[2] - plan.grasp.position[2])
+        res = self.kin.solve(plan.grasp, self.arm.motion.q, self.rng, IKParams())
+        if not res.success or height <= 0.0:
+            return None
+        steps = self.p.goals.line_steps
+        reached = round(line_reach(self.kin, res.q, plan.grasp, plan.pregrasp, self.p.goals) * steps)
+        for k in range(reached, 0, -1):  # the highest start whose whole plan the arm can do
+            if k / steps < self.p.min_descent_share:
+                break
+            drop = height * (1.0 - k / steps)
+            low = lower_pregrasp(plan, drop)
+            if not self.unreachable(low, now_s):
+                self.descent_drop_m = drop
+                return low
+        return None
 
     def unreachable(self, plan: GraspPlan, now_s: float) -> str | Failure:
         """Why the arm cannot do this plan's pick and place ("" if it can; a failure to end the episode
@@ -210,7 +245,7 @@ class GraspChooser:
                 # The descent follows the vertical line from the pregrasp (a small arm's hand points down
                 # only low near its base, and a jaw's TCP is beside the object, on the side its angle
                 # puts it); the lift goes up it as far as the arm follows (:meth:`ArmDriver.lift_in_reach`).
-                return "the straight descent onto the grasp is out of reach"
+                return DESCENT_OUT_OF_REACH
         # Above the place, some IK solution from which the lowering can be followed: with joint
         # transfers the carry may go in joint space to any of them, the hand turned half a turn or not.
         lines = [(plan.place_above, plan.place)]
@@ -227,3 +262,9 @@ class GraspChooser:
         if all(line_speed_scale(self.kin, q, start, end, self.p.goals) < floor for q, start, end in above):
             return "the straight lowering onto the place passes too near a singular posture"
         return ""
+
+
+def lower_pregrasp(plan: GraspPlan, drop_m: float) -> GraspPlan:
+    """The plan with its pregrasp ``drop_m`` lower (the descent onto the grasp starts there)."""
+    pre = Pose(plan.pregrasp.position - np.array([0.0, 0.0, drop_m]), plan.pregrasp.rotation)
+    return dataclasses.replace(plan, pregrasp=pre)

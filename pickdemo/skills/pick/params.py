@@ -81,6 +81,10 @@ class MachineParams:
     #: a target that stood still when the pick was planned and now moves out of the arm's reach (it
     #: tipped over, it rolls): the arm looks again from home, waiting this long (s) for it to stop
     stop_wait_s: float = 3.0
+    #: no hand angle's descent can be followed from the pregrasp's full height (a small arm near its
+    #: base: its hand points down only low there): the descent starts lower, where the arm follows it,
+    #: down to this share of the robot's pregrasp height (the hand still comes down from above the object)
+    min_descent_share: float = 0.5
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
     moved_tolerance_rad: float = float(np.radians(8.0))
     moved_views: int = 2  # ... or this many whole views in a row refused that far from the track: back off

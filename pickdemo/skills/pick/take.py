@@ -84,6 +84,9 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
             m.put_down_at(spot)
         m.plan = plan
         m.last_at = None  # (found: its track goes on from here)
+        if m.chooser.descent_drop_m:
+            m.note(f"the descent starts {m.chooser.descent_drop_m * 1e3:.0f} mm lower: from higher, no angle of "
+                   "the hand has a descent the arm can follow")  # fmt: skip
         # (more frames cannot mend that)
         unsafe = unsure(m.belief, plan, obs.time_s, m.p, m.grip.finger_max_m, calibration_only=True)
         if unsafe and (not m.hand_cameras or m.open_loop):
@@ -160,11 +163,16 @@ def tick_approach(m: PickMachine, obs: Observation) -> Transition:
         m.after_back_off = State.LOOK
         return State.BACK_OFF, f"{m.moving_off[0]}, but it stood still: looking again once it stops"
     if plan is not None:
-        m.plan = plan
+        before, m.plan = m.plan, plan
         if m.arm.legs:  # going over the top: its last leg goes down to where the plan is by then
             pass
         elif m.arm.joint:  # the transfer goes on to the new plan's goal, on the same branch
             q, turned = m.arm.goal(plan.pregrasp, plan.grasp, seeded=m.arm.joints.target)
+            if q is None and before is not None and abs(_wrap(plan.hand_yaw_rad - before.hand_yaw_rad, np.pi)) > 1e-6:
+                # the re-plan turned the hand (its angle was running out of room), to an angle whose
+                # descent cannot be followed from the pregrasp: the angle the pick was planned with
+                plan = m.plan = before
+                q, turned = m.arm.goal(plan.pregrasp, plan.grasp, seeded=m.arm.joints.target)
             if q is None:
                 m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
                 return None
