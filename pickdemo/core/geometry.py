@@ -105,3 +105,20 @@ class OrientedBox:
     def corners(self) -> np.ndarray:
         """Its 8 corners in the world (8, 3)."""
         return self.pose.transform_points(np.where(CORNER_IS_HI, self.hi, self.lo))
+
+
+def box_surface_points(boxes: tuple[OrientedBox, ...], spacing_m: float = 0.003) -> np.ndarray:
+    """Points on the faces of ``boxes``, a grid ``spacing_m`` apart (M, 3) (a fixture as the grasps see
+    an obstacle: as they see the points the camera showed near the target)."""
+    out = []
+    for box in boxes:
+        size = box.hi - box.lo
+        for axis in range(3):
+            u, v = [a for a in range(3) if a != axis]
+            nu, nv = (max(int(np.ceil(size[a] / spacing_m)), 1) + 1 for a in (u, v))
+            gu, gv = np.meshgrid(np.linspace(box.lo[u], box.hi[u], nu), np.linspace(box.lo[v], box.hi[v], nv))
+            for side in (box.lo[axis], box.hi[axis]):
+                local = np.empty((gu.size, 3))
+                local[:, u], local[:, v], local[:, axis] = gu.ravel(), gv.ravel(), side
+                out.append(box.pose.transform_points(local))
+    return np.vstack(out) if out else np.zeros((0, 3))

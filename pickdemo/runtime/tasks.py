@@ -21,6 +21,7 @@ from pickdemo.perception import PerceptionParams, PoseEstimate, TargetModel, est
 from pickdemo.perception.estimators import EstimatorError, resolve_estimator
 from pickdemo.runtime.referee import ClearReferee, Referee
 from pickdemo.runtime.world import World
+from pickdemo.scenario.fixtures import fixture_boxes
 from pickdemo.scenario.load import Scenario
 from pickdemo.scenario.task import target_model
 from pickdemo.skills.clear import ClearSequencer
@@ -122,6 +123,7 @@ class PickTask:
             place_tolerance_m=scenario.success.place_tolerance,
             open_loop=open_loop,
             surface_z=scenario.surface_z,
+            fixtures=fixture_boxes(scenario.fixtures),
             **common,
         )
 
@@ -161,6 +163,8 @@ class ClearTask:
             tray=world.tray,
             max_consecutive_failures=scenario.clear.max_consecutive_failures,
             on_pick_end=referee.pick_ended,  # truth: for scoring only
+            surface_z=scenario.surface_z,
+            fixtures=fixture_boxes(scenario.fixtures),
             **common,
         )
 

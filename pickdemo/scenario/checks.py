@@ -23,6 +23,7 @@ from pickdemo.robot.kinematics import IKParams, Kinematics, kinematics_of
 from pickdemo.robot.self_geometry import hidden_by_the_base
 from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.belt import ConveyorSpec
+from pickdemo.scenario.fixture_checks import check_fixtures
 from pickdemo.scenario.layout import LayoutError, Tray, sample_layout, sample_place, sample_round
 from pickdemo.scenario.objects import ObjectSpec, PlaceSpec
 from pickdemo.scenario.schema import Scenario
@@ -77,6 +78,7 @@ def check_scenario(sc: Scenario) -> None:
     _check_place_free(sc)
     check_twins(sc)
     _check_conveyor(sc)
+    check_fixtures(sc)
     TASK_CHECKS[sc.task](sc)
     _check_camera(sc)
     _check_behind_the_base(sc)

@@ -25,6 +25,7 @@ from pickdemo.core.meshes import usable
 from pickdemo.robot import DEFAULT_ROBOT, RobotDescription, RobotFileError, robot_named
 from pickdemo.scenario.base import DRAWN_NAME, Angle, Model, Name, Scale, Vec2, printable
 from pickdemo.scenario.belt import ConveyorSpec
+from pickdemo.scenario.fixtures import FixtureSpec
 from pickdemo.scenario.objects import ObjectSpec, PlaceSpec, TableSpec, resolve_path
 from pickdemo.scenario.sensors import CameraSpec, WristCameraSpec
 from pickdemo.scenario.tasks import TASK_RULES
@@ -161,6 +162,7 @@ class Scenario(Model):
     disturbances: tuple[DisturbanceSpec, ...] = ()
     conveyor: ConveyorSpec | None = None
     clear: ClearSpec | None = None  # a clear round's objects (task = "clear")
+    fixtures: tuple[FixtureSpec, ...] = ()  # bins fixed to the table, known to the robot
 
     @field_validator("robot")
     @classmethod
@@ -193,6 +195,10 @@ class Scenario(Model):
         names = [o.name for o in self.objects]
         if len(set(names)) != len(names):
             raise ValueError("object names must be unique")
+        for f in self.fixtures:
+            if f.name in names:
+                raise ValueError(f"fixtures.{f.name}: an object has that name; fixtures and objects are named apart")
+            names.append(f.name)
         if not self.description.isprintable():
             raise ValueError("description: control characters are not allowed")
         self._place_beside()
@@ -256,9 +262,12 @@ class Scenario(Model):
             raise ValueError('objects: a clear round (task = "clear") clears every object: none can be static')
 
     def surface_z(self, x: float, y: float) -> float:
-        """Height of what an object standing at (x, y) rests on: the belt's top, or the table (0)."""
+        """Height of what an object standing at (x, y) rests on: the belt's top, a bin's floor, or the
+        table (0)."""
         c = self.conveyor
-        return c.height_m if c is not None and c.holds(x, y) else 0.0
+        if c is not None and c.holds(x, y):
+            return c.height_m
+        return next((f.floor_z for f in self.fixtures if f.inside(x, y)), 0.0)
 
     @property
     def target(self) -> ObjectSpec:

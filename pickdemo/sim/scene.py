@@ -19,6 +19,7 @@ from pickdemo.core.meshes import resolve
 from pickdemo.core.shapes import Box, Cylinder, Mesh
 from pickdemo.robot import robot_named
 from pickdemo.robot.description import RobotDescription
+from pickdemo.scenario.fixtures import FixtureSpec
 from pickdemo.scenario.layout import Placement, Tray
 from pickdemo.scenario.load import ObjectSpec, Scenario
 from pickdemo.sim import quiet_c_stdout
@@ -114,6 +115,7 @@ class Scene:
         self.time_step_s = scenario.sim.time_step_s
         self.steps = 0
         self.bodies: dict[str, int] = {}
+        self.fixture_bodies: dict[str, list[int]] = {}  # a bin's parts (not objects on the table)
         self.belt = None
         if scenario.conveyor is not None:  # before the table: TinyRenderer then shades only the belt where both are
             self.belt = Belt(self.client, scenario.conveyor)
@@ -124,6 +126,8 @@ class Scene:
         self._build_robot()
         if tray is not None:
             self._build_tray(tray)
+        for fixture in scenario.fixtures:
+            self._build_fixture(fixture)
         specs = {o.name: o for o in scenario.objects}
         for placement in layout:
             spec = specs.get(placement.name)
@@ -153,6 +157,22 @@ class Scene:
                 globalScaling=tray.scale, useFixedBase=True,
             )  # fmt: skip
         self.bodies["tray"] = body
+
+    def _build_fixture(self, fixture: FixtureSpec) -> None:
+        """A fixture's parts, each a box fixed to the table, of the table's friction."""
+        c = self.client
+        parts = []
+        for box in fixture.boxes():
+            half = ((box.hi - box.lo) / 2.0).tolist()
+            centre = box.pose.transform_points(((box.lo + box.hi) / 2.0)[None, :])[0]
+            col = c.createCollisionShape(p.GEOM_BOX, halfExtents=half)
+            vis = c.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[*fixture.color, 1.0])
+            body = c.createMultiBody(
+                0.0, col, vis, basePosition=centre.tolist(), baseOrientation=list(box.pose.quaternion_xyzw)
+            )
+            c.changeDynamics(body, -1, lateralFriction=self.scenario.table.friction)
+            parts.append(body)
+        self.fixture_bodies[fixture.name] = parts
 
     def _build_robot(self) -> None:
         c = self.client

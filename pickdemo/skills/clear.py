@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 
 from pickdemo.core.camera import project
+from pickdemo.core.geometry import OrientedBox
 from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.core.shapes import Unknown
@@ -110,8 +111,13 @@ class ClearSequencer:
         max_consecutive_failures: int = 2,
         params: MachineParams | None = None,
         on_pick_end: Callable[[PickRecord], None] | None = None,
+        surface_z: Callable[[float, float], float] | None = None,
+        fixtures: tuple[OrientedBox, ...] = (),
     ) -> None:
+        """``surface_z(x, y)``: the height of what an object at (x, y) rests on (a bin's floor, the table);
+        ``fixtures``: the cell's fixtures (a bin's walls), known from the task: the grasps keep clear of them."""
         self.kin = kin
+        self.surface_z, self.fixtures = surface_z, fixtures
         self.tray = tray
         # A clear round looks through its fixed camera alone (not yet through one on the hand).
         self.cameras = [c for c in cameras if not c.on_hand][:1]
@@ -286,6 +292,8 @@ class ClearSequencer:
             rng=self.rng,
             params=params or self.p,
             place_tolerance_m=None,
+            surface_z=self.surface_z,
+            fixtures=self.fixtures,
             **kw,
         )
 

@@ -53,6 +53,12 @@ def _clear(old: str, new: str) -> str:
     return CLEAR.replace(old, new, 1)
 
 
+def _bin(fields: str, name: str = "bin") -> str:
+    """A ``[[fixtures]]`` bin with ``fields`` (its position at least; inner size 0.2 x 0.2 m unless given)."""
+    size = "" if "inner_size" in fields else "\ninner_size = [0.2, 0.2]"
+    return f'\n[[fixtures]]\nkind = "bin"\nname = "{name}"\n{fields}{size}\n'
+
+
 def _edit(old: str, new: str) -> str:
     assert old in GOOD, old
     return GOOD.replace(old, new, 1)
@@ -370,6 +376,48 @@ FILE_CASES: list[tuple[str, str, str]] = [
             "position = [0.6, 0.25]\ntarget = true\n[place]",
         ),
         "objects: target = true is for a pick",
+    ),
+    (
+        "bin: off the table",
+        GOOD + _bin("position = [1.05, 0.0]"),
+        "fixtures.bin.position: the bin at (1.050, 0.000) reaches past the table's edge",
+    ),
+    (
+        "bin: on the robot's base",
+        GOOD + _bin("position = [0.1, 0.0]"),
+        "fixtures.bin.position: the bin at (0.100, 0.000) stands on the robot's base",
+    ),
+    (
+        "bin: overlapping another",
+        GOOD + _bin("position = [0.5, -0.3]") + _bin("position = [0.6, -0.3]", name="bin2"),
+        "fixtures.bin2.position: the bin at (0.600, -0.300) overlaps fixtures.bin",
+    ),
+    (
+        "bin: overlapping the tray",
+        _clear("[place]", _bin("position = [0.4, 0.3]") + "[place]"),
+        "overlaps the tray (place.tray)",
+    ),
+    (
+        "bin: out of reach",
+        GOOD + _bin("position = [1.0, -0.45]\ninner_size = [0.15, 0.15]"),
+        "fixtures.bin: its floor at",
+    ),
+    (
+        "bin: the place on its wall",
+        GOOD + _bin("position = [0.45, 0.4]\ninner_size = [0.15, 0.15]"),
+        "place.position: (0.450, 0.300) m is on or against the walls of fixtures.bin",
+    ),
+    ("bin: too small", GOOD + _bin("position = [0.5, -0.3]\ninner_size = [0.01, 0.2]"), "fixtures.bin.inner_size[0]"),
+    ("bin: an unknown kind", GOOD + _bin("position = [0.5, -0.3]").replace('"bin"', '"crate"', 1), "fixtures.bin.kind"),
+    (
+        "bin: named as an object",
+        GOOD + _bin("position = [0.5, -0.3]", name="cube"),
+        "fixtures.cube: an object has that name",
+    ),
+    (
+        "bin: a wall of no height",
+        GOOD + _bin("position = [0.5, -0.3]\nwall_height_m = 0.0"),
+        "fixtures.bin.wall_height_m",
     ),
 ]
 

@@ -40,8 +40,12 @@ class GraspChooser:
         belief: TargetBelief,
         arm: ArmDriver,
         intercept: Interceptor,
+        fixture_points: np.ndarray | None = None,
     ) -> None:
+        """``fixture_points``: points on the cell's fixtures' faces (a bin's walls), known from the task:
+        the hand keeps out of them as it does out of what the camera sees beside the target."""
         self.kin, self.rng, self.p, self.model, self.place_xy = kin, rng, params, model, place_xy
+        self.fixture_points = fixture_points
         self.selector, self.belief, self.arm, self.intercept = selector, belief, arm, intercept
         self.plan_id = 0  # counts first plans (the grasp selector's plan_id)
         self._room_checked: tuple[np.ndarray, bool] | None = None  # a re-plan's last check of joint room
@@ -51,17 +55,34 @@ class GraspChooser:
     def request(self, pose: Pose, hand_yaws: tuple[float | None, ...]) -> GraspRequest:
         """What the selector is asked: the target at ``pose`` (and, seen as a cloud, its newest view)."""
         surface = self.belief.surface_z(float(pose.position[0]), float(pose.position[1]))
+        cloud, obstacles = self.belief.cloud, self.belief.neighbours
+        near = self._fixtures_near(pose)
+        if near is not None:
+            obstacles = near if obstacles is None else np.vstack([obstacles, near])
+            if cloud is not None:
+                cloud = dataclasses.replace(cloud, obstacles=np.vstack([cloud.obstacles, near]))
         return GraspRequest(
             pose,
             self.model,
             self.place_xy,
             hand_yaws,
-            cloud=self.belief.cloud,
+            cloud=cloud,
             surface_z=surface,
             plan_id=self.plan_id,
-            obstacles=self.belief.neighbours,
+            obstacles=obstacles,
             gripper=self.kin.robot.gripper,
         )
+
+    def _fixtures_near(self, pose: Pose) -> np.ndarray | None:
+        """The fixtures' points within the open hand's reach of the target (None: none)."""
+        pts = self.fixture_points
+        if pts is None or len(pts) == 0:
+            return None
+        g = self.kin.robot.gripper
+        # the open hand about the target, its palm, and how far a grasp may be from the target's centre
+        reach = g.finger_max_m + g.finger_thickness_m + max(g.palm_half_length_m, g.palm_half_width_m) + 0.1
+        near = pts[np.hypot(pts[:, 0] - pose.position[0], pts[:, 1] - pose.position[1]) <= reach]
+        return near if len(near) else None
 
     def grasp(self, pose: Pose, near: float | None) -> GraspPlan:
         """The selector's best grasp for the target at ``pose`` with the hand angle nearest ``near`` (its

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose
+from pickdemo.core.geometry import OrientedBox, Pose, box_surface_points
 from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.grasping.selection import GraspSelector, selector_for
@@ -83,6 +83,7 @@ class PickMachine:
         place_z_m: float = 0.0,
         look_at: np.ndarray | None = None,
         look_from_here: bool = False,
+        fixtures: tuple[OrientedBox, ...] = (),
     ) -> None:
         """``cameras``: the robot's cameras (a fixed one at least; one on the hand looks too whenever
         the target is wholly in its view). ``surface_z(x, y)``: the height of what a target at (x, y)
@@ -93,7 +94,8 @@ class PickMachine:
         above the table the target's bottom is let go at (a tray's rim: it drops in). ``look_at``:
         where the target was seen last (a survey of the table chose it among others): the first look
         is at a region around it; ``look_from_here``: from where the arm is (it hides nothing of the
-        table from the camera), not from home."""
+        table from the camera), not from home. ``fixtures``: the cell's fixtures (a bin's walls), known
+        from the task: the grasps keep the hand out of them."""
         self.p = p = params or MachineParams()
         self.kin, self.model, self.symmetry, self.place_xy, self.rng = kin, model, symmetry_rad, place_xy, rng
         self.max_attempts, self.place_tolerance_m, self.open_loop = max_attempts, place_tolerance_m, open_loop
@@ -118,7 +120,10 @@ class PickMachine:
             model, symmetry_rad, p.tracker, p.gate, surface_z=surface_z or (lambda x, y: 0.0), counters=self.counters
         )
         self.intercept = Interceptor(kin, rng, p, self.belief, self.arm, open_loop=open_loop)
-        self.chooser = GraspChooser(kin, rng, p, model, place_xy, selector, self.belief, self.arm, self.intercept)
+        self.chooser = GraspChooser(
+            kin, rng, p, model, place_xy, selector, self.belief, self.arm, self.intercept,
+            fixture_points=box_surface_points(fixtures) if fixtures else None,
+        )  # fmt: skip
         self.watch = MoveWatch(kin, p, model, self.belief, self.hand_cameras, open_loop=open_loop)
         self.place_finder = PlaceFinder(
             p, model, self.belief, place_xy, place_tolerance_m, kin.robot.gripper, place_z_m

@@ -1,0 +1,115 @@
+"""What ``validate`` checks of a scenario's fixtures (:mod:`pickdemo.scenario.fixtures`) before it runs:
+each stands on the table, clear of the robot's base, of the other fixtures and of the tray; the arm
+reaches into it from above; no place spot and no object at a fixed position is on its walls.
+
+Pure: no simulator (reach is checked with the arm's kinematics). Each check raises
+:class:`~pickdemo.scenario.base.ScenarioError` naming the fixture's key.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from pickdemo.grasping.top_down import GraspParams, top_down
+from pickdemo.robot.kinematics import IKParams, kinematics_of
+from pickdemo.scenario.base import ScenarioError
+from pickdemo.scenario.fixtures import FixtureSpec
+from pickdemo.scenario.layout import Tray
+from pickdemo.scenario.schema import Scenario
+from pickdemo.scenario.tasks import TASK_RULES
+
+#: The arm must reach into a bin this far inside its walls, at each corner and the middle (m).
+REACH_INSET_M = 0.03
+
+
+def _mm(poly: np.ndarray) -> np.ndarray:
+    return (np.asarray(poly, dtype=float) * 1e3).astype(np.float32)
+
+
+def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two convex footprints (m, (4, 2)) share area."""
+    area, _ = cv2.intersectConvexConvex(_mm(a), _mm(b))
+    return area > 1.0  # mm^2: touching edges are not an overlap
+
+
+def _tray_footprint(tray: Tray) -> np.ndarray:
+    hx, hy = tray.half_extents
+    local = np.array([[-hx, -hy, 0.0], [hx, -hy, 0.0], [hx, hy, 0.0], [-hx, hy, 0.0]])
+    return tray.pose.transform_points(local)[:, :2]
+
+
+def check_fixtures(sc: Scenario) -> None:
+    """Raise :class:`ScenarioError` for a fixture that cannot stand where the scenario puts it."""
+    if not sc.fixtures:
+        return
+    robot = sc.robot_description
+    tray = Tray.of(sc)
+    for i, f in enumerate(sc.fixtures):
+        key = f"fixtures.{f.name}"
+        corners = f.footprint()
+        if not all(sc.table.holds(float(x), float(y)) for x, y in corners):
+            raise ScenarioError(f"{key}.position: the {f.kind} at {_xy(f)} reaches past the table's edge")
+        base = cv2.pointPolygonTest(_mm(corners), (0.0, 0.0), True) * 1e-3  # > 0: the base inside it
+        if base > -robot.base_radius_m:
+            raise ScenarioError(
+                f"{key}.position: the {f.kind} at {_xy(f)} stands on the robot's base (keep its walls "
+                f"{robot.base_radius_m * 1e3:.0f} mm from the origin)"
+            )
+        for other in sc.fixtures[:i]:
+            if _overlap(corners, other.footprint()):
+                raise ScenarioError(f"{key}.position: the {f.kind} at {_xy(f)} overlaps fixtures.{other.name}")
+        if tray is not None and _overlap(corners, _tray_footprint(tray)):
+            raise ScenarioError(f"{key}.position: the {f.kind} at {_xy(f)} overlaps the tray (place.tray)")
+        _check_reach(sc, f, key)
+        _check_walls_free(sc, f, key)
+
+
+def _xy(f: FixtureSpec) -> str:
+    return f"({f.position[0]:.3f}, {f.position[1]:.3f})"
+
+
+def _check_reach(sc: Scenario, f: FixtureSpec, key: str) -> None:
+    """The hand, pointing down, reaches the bin's floor at its corners (``REACH_INSET_M`` inside the
+    walls) and its middle, at some hand angle."""
+    robot = sc.robot_description
+    kin = kinematics_of(robot)
+    grasp = GraspParams(**dict(robot.grasp_heights)) if robot.grasp_heights else GraspParams()
+    ix, iy = (max(s / 2.0 - REACH_INSET_M, 0.0) for s in f.inner_size)
+    z = f.floor_z + grasp.min_tcp_height_m
+    rng = np.random.default_rng(0)
+    for lx, ly in ((-ix, -iy), (ix, -iy), (ix, iy), (-ix, iy), (0.0, 0.0)):
+        at = f.pose.transform_points(np.array([[lx, ly, z]]))[0]
+        reasons = []
+        for yaw in (0.0, np.pi / 2.0, np.pi, -np.pi / 2.0):
+            res = kin.solve(top_down(at, yaw), robot.home_q, rng, IKParams())
+            if res.success:
+                break
+            reasons.append(res.reason)
+        else:
+            raise ScenarioError(
+                f"{key}: its floor at ({at[0]:.2f}, {at[1]:.2f}) is out of the arm's reach from above ({reasons[0]})"
+            )
+
+
+def _check_walls_free(sc: Scenario, f: FixtureSpec, key: str) -> None:
+    """No place spot and no object standing at a fixed position is on the bin's walls or against them:
+    the target put down there, or the object, would stand on a wall (inside the bin clear of them, or
+    outside clear of them, is fine)."""
+    spots = []
+    if sc.place.tray is None and TASK_RULES[sc.task].places_target:
+        r = sc.target.largest_shape.footprint_radius_m
+        spots += [(sc.place.key, x, y, r) for x, y in sc.place.spots]
+    spots += [
+        (f"objects.{o.name}.position", o.position[0], o.position[1], o.largest_shape.footprint_radius_m)
+        for o in sc.objects
+        if o.position is not None and o.shape != "mesh"  # (a mesh's size is its file's: the layout's check)
+    ]
+    outer = _mm(f.footprint())
+    for what, x, y, r in spots:
+        off = cv2.pointPolygonTest(outer, (float(x) * 1e3, float(y) * 1e3), True) * 1e-3  # > 0: inside
+        if off > -r and not f.inside(float(x), float(y), margin=r):
+            raise ScenarioError(
+                f"{what}: ({x:.3f}, {y:.3f}) m is on or against the walls of {key} (what stands there needs "
+                f"{r * 1e3:.0f} mm clear around it)"
+            )
