@@ -1,0 +1,229 @@
+"""Grasps from any side: 6-DoF antipodal parallel-jaw grasps sampled on an object's point cloud.
+
+Pure: no simulator. As Drake's clutter chapter (``GenerateAntipodalGraspCandidate``) and GPD sample
+them: a cloud point and its surface normal give the closing axis; the hand is rolled about that axis
+from the most downward approach the axis allows (``rolls_deg``, within ``max_tilt_deg`` of the
+vertical); the TCP goes where the pads close across the object's extent along the axis, as deep as
+the palm allows. A candidate is kept when:
+
+- **it fits**: the object's extent between the pads leaves the open hand ``width_margin_m``;
+- **it collides with nothing**: no point of the object, of what stands near it, or of a fixture
+  lies where the open fingers sweep on their way in along the approach axis (from ``approach_m``
+  back), or behind the palm; the finger tips stay above the surface the object rests on.
+
+Its cost (lowest first), as Drake's ``GraspCandidateCost`` weighs it: the approach's tilt from the
+vertical, the far face out of square with the closing axis (``1 - |n . y|``), the lever of the
+cloud's centroid about the closing axis (its weight turns it in the grip), and a width near the
+opening's limit (the cloud grasps' rule: the narrower span leaves the estimate's error more room).
+
+The hand frame is the TCP's: ``z`` the approach (from the palm to the finger tips), ``y`` the closing
+axis, ``x = y x z`` across the pads. A top-down grasp has ``z`` straight down; it is the special case.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo.grasping.top_down import GraspParams
+from pickdemo.robot.description import Gripper
+
+DOWN = np.array([0.0, 0.0, -1.0])
+
+
+@dataclass(frozen=True)
+class AntipodalParams:
+    samples: int = 100  # cloud points tried as a contact, drawn evenly over the cloud
+    #: rolls of the hand about the closing axis, from the most downward approach it allows (Drake's
+    #: +-60 deg in 7 steps)
+    rolls_deg: tuple[float, ...] = (0.0, -20.0, 20.0, -40.0, 40.0, -60.0, 60.0)
+    max_tilt_deg: float = 90.0  # the approach at most this far from straight down
+    voxel_m: float = 0.004  # the cloud thinned to this grid before sampling (normals, checks)
+    normal_neighbours: int = 12
+    approach_m: float = 0.06  # the fingers come in along the approach axis from this far back
+    clearance_m: float = 0.003  # the open hand keeps this far from every point not between its pads
+    depth_steps: int = 4  # the TCP backed off along the approach this many steps when the palm meets the object
+    tilt_weight: float = 1.0  # cost per radian of tilt
+    square_weight: float = 1.0  # cost of the far face out of square with the closing axis (1 - |n . y|)
+    lever_weight: float = 10.0  # cost per metre of the centroid's lever about the closing axis
+    width_weight: float = 0.5  # cost of a width near the opening's limit (the width over the widest it takes)
+
+
+@dataclass(frozen=True)
+class AntipodalGrasp:
+    """A grasp in the world: the TCP's pose (``rotation``'s columns are the hand's x, y, z), the
+    object's extent between the pads, and its cost."""
+
+    position: np.ndarray  # (3,) m, the TCP
+    rotation: np.ndarray  # (3, 3)
+    width_m: float
+    cost: float
+
+    @property
+    def tilt_rad(self) -> float:
+        """The approach's angle from straight down."""
+        return float(np.arccos(np.clip(self.rotation[:, 2] @ DOWN, -1.0, 1.0)))
+
+
+def thinned(points: np.ndarray, voxel_m: float) -> np.ndarray:
+    """One point per occupied ``voxel_m`` cube (the first, in the order given): an even cloud."""
+    if len(points) == 0:
+        return points
+    keys = np.floor(points / voxel_m).astype(np.int64)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    return points[np.sort(first)]
+
+
+def normal_at(points: np.ndarray, i: int, k: int, centroid: np.ndarray) -> np.ndarray:
+    """Point ``i``'s surface normal: the least principal axis of its ``k`` nearest neighbours, turned
+    away from the cloud's ``centroid`` (what the camera sees of an object is its outside)."""
+    d2 = ((points - points[i]) ** 2).sum(axis=1)
+    k = min(k, len(points))
+    nb = points[np.argpartition(d2, k - 1)[:k]]
+    nb = nb - nb.mean(axis=0)
+    _, vecs = np.linalg.eigh(nb.T @ nb)
+    n = vecs[:, 0]
+    return -n if n @ (points[i] - centroid) < 0.0 else n
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The cross product of two 3-vectors (``np.cross`` costs ten times as much on one pair)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """``v`` turned ``angle`` about the unit ``axis`` (Rodrigues)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return v * c + _cross(axis, v) * s + axis * (axis @ v) * (1.0 - c)
+
+
+def sample_antipodal(
+    points: np.ndarray,
+    surface_z: float,
+    gripper: Gripper,
+    rng: np.random.Generator,
+    *,
+    obstacles: np.ndarray | None = None,
+    grasp: GraspParams | None = None,
+    params: AntipodalParams | None = None,
+) -> list[AntipodalGrasp]:
+    """Every collision-free antipodal grasp of the object whose cloud is ``points`` (world, (N, 3))
+    found from ``params.samples`` contacts, best (lowest cost) first. ``obstacles``: points of what
+    stands near it (other objects, a fixture's faces) the hand keeps out of; ``surface_z``: the height
+    of what the object rests on."""
+    grasp = grasp or GraspParams()
+    p = params or AntipodalParams()
+    pts = thinned(np.asarray(points, dtype=float), p.voxel_m)
+    pts = pts[pts[:, 2] - surface_z > 0.002]
+    if len(pts) < 10:
+        return []
+    obs = np.zeros((0, 3)) if obstacles is None or len(obstacles) == 0 else np.asarray(obstacles, dtype=float)
+    centroid = pts.mean(axis=0)
+    widest = gripper.max_opening_m - grasp.width_margin_m
+    max_tilt = np.radians(p.max_tilt_deg)
+    picks = rng.choice(len(pts), size=min(p.samples, len(pts)), replace=False)
+    out: list[AntipodalGrasp] = []
+    for i in picks:
+        y = normal_at(pts, int(i), p.normal_neighbours, centroid)
+        z0 = DOWN - y * (DOWN @ y)  # the most downward approach square to the closing axis
+        if np.linalg.norm(z0) < 0.2:  # a closing axis within 12 deg of the vertical: not from a table
+            continue
+        z0 /= np.linalg.norm(z0)
+        for roll in p.rolls_deg:
+            z = _rotate(z0, y, np.radians(roll))
+            if np.arccos(np.clip(z @ DOWN, -1.0, 1.0)) > max_tilt:
+                continue
+            found = _candidate(pts, obs, pts[i], y, z, surface_z, gripper, widest, centroid, p)
+            if found is not None:
+                out.append(found)
+    out.sort(key=lambda g: g.cost)
+    return out
+
+
+def _candidate(
+    pts: np.ndarray,
+    obs: np.ndarray,
+    contact: np.ndarray,
+    y: np.ndarray,
+    z: np.ndarray,
+    surface_z: float,
+    gripper: Gripper,
+    widest: float,
+    centroid: np.ndarray,
+    p: AntipodalParams,
+) -> AntipodalGrasp | None:
+    """The grasp closing along ``y`` approached along ``z`` with its pads at ``contact``'s depth (backed
+    off when the palm would meet the object), or None if it does not fit or collides."""
+    x = _cross(y, z)
+    R = np.column_stack([x, y, z])
+    hh, hw = gripper.pad_half_height_m, gripper.pad_half_width_m
+    step = hh / max(p.depth_steps, 1)
+    for k in range(p.depth_steps + 1):
+        tcp = contact - z * (k * step)
+        local = (pts - tcp) @ R
+        band = (np.abs(local[:, 0]) < hw) & (np.abs(local[:, 2]) < hh)
+        if band.sum() < 3:
+            return None
+        lo, hi = local[band, 1].min(), local[band, 1].max()
+        width = float(hi - lo)
+        if width > widest:
+            return None
+        mid = 0.5 * (lo + hi)
+        centre = tcp + y * mid
+        local[:, 1] -= mid
+        if _palm_hits(local, gripper, p.clearance_m):
+            continue  # the palm meets the object: back off along the approach
+        if _fingers_hit(local, gripper, p) or (
+            len(obs) and _fingers_hit((obs - centre) @ R, gripper, p, obstacle=True)
+        ):
+            return None
+        if len(obs) and _palm_hits((obs - centre) @ R, gripper, p.clearance_m):
+            return None
+        reach = gripper.finger_max_m + gripper.finger_thickness_m
+        corners = np.array([[sx * hw, sy * reach, hh] for sx in (-1, 1) for sy in (-1, 1)])
+        tips = centre + corners @ R.T
+        if tips[:, 2].min() < surface_z + 0.002:
+            return None
+        # antipodal: the face the other pad meets (the band's far side) square to the closing axis too
+        far = int(np.flatnonzero(band)[np.argmin(local[band, 1])])
+        square = 1.0 - abs(float(normal_at(pts, far, p.normal_neighbours, centroid) @ y))
+        lever = float(np.linalg.norm(_cross(centroid - centre, y)))
+        tilt = float(np.arccos(np.clip(z @ DOWN, -1.0, 1.0)))
+        cost = (
+            p.tilt_weight * tilt + p.square_weight * square + p.lever_weight * lever + p.width_weight * width / widest
+        )
+        return AntipodalGrasp(centre, R, width, cost)
+    return None
+
+
+def _fingers_hit(local: np.ndarray, gripper: Gripper, p: AntipodalParams, *, obstacle: bool = False) -> bool:
+    """Whether points (in the grasp's frame, centred between the pads) lie where the open fingers sweep
+    in along the approach, from ``approach_m`` back to their tips (the object's own points between the
+    pads are what is grasped; an obstacle's are hits there too)."""
+    c = p.clearance_m
+    inner, outer = gripper.finger_max_m - c, gripper.finger_max_m + gripper.finger_thickness_m + c
+    along = (local[:, 2] > -gripper.palm_above_tcp_m - p.approach_m) & (local[:, 2] < gripper.pad_half_height_m + c)
+    across = np.abs(local[:, 0]) < gripper.pad_half_width_m + c
+    ay = np.abs(local[:, 1])
+    in_finger = (ay > inner) & (ay < outer)
+    if obstacle:
+        in_finger = ay < outer  # between the open fingers too: it would be grasped with the object
+    return bool(np.any(along & across & in_finger))
+
+
+#: The hand's body behind the palm, along the approach (m): what lies farther back is the wrist's.
+HAND_DEPTH_M = 0.12
+
+
+def _palm_hits(local: np.ndarray, gripper: Gripper, clearance_m: float) -> bool:
+    """Whether points lie behind the palm, within the hand's body seen along the approach."""
+    z = local[:, 2]
+    return bool(
+        np.any(
+            (z < -gripper.palm_above_tcp_m + clearance_m)
+            & (z > -gripper.palm_above_tcp_m - HAND_DEPTH_M)
+            & (np.abs(local[:, 1]) < gripper.palm_half_length_m)
+            & (np.abs(local[:, 0]) < gripper.palm_half_width_m)
+        )
+    )
