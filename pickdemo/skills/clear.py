@@ -1,10 +1,10 @@
 """Clearing a table: a sequencer above the pick skill, for ``task = "clear"``.
 
 Pure: no simulator. :class:`ClearSequencer` looks at the whole table (a survey: every object found by
-its geometry, :func:`~pickdemo.perception.unknown.survey_objects`), chooses the next object (the best
-top-down grasp over all of them, collision-free against the rest: :func:`~pickdemo.grasping.cloud.sample_grasps`,
-reachable by IK), and hands it to a :class:`~pickdemo.skills.pick.PickMachine` told only where the object was
-seen and its rough size; the pick's closed loop tracks it from there (a neighbour's pick may have
+its geometry, :func:`~pickdemo.perception.unknown.survey_objects`), chooses the next object
+(:class:`~pickdemo.skills.clear_choice.ObjectChooser`: the best reachable grasp over all of them), and
+hands it to a :class:`~pickdemo.skills.pick.PickMachine` told only where the object was seen and its
+rough size; the pick's closed loop tracks it from there (a neighbour's pick may have
 moved it), drops it into the tray and comes home; then it looks at the table again. The round ends
 when the table is clear, when no grasp is found, or after ``max_consecutive_failures`` failed
 attempts in a row (VGN's clutter-removal protocol).
@@ -29,14 +29,15 @@ from pickdemo.core.geometry import OrientedBox
 from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.core.shapes import Unknown
-from pickdemo.grasping.cloud import CloudGrasps, sample_grasps
-from pickdemo.grasping.top_down import GraspParams, GraspPlan, top_down
+from pickdemo.grasping.cloud import CloudGrasps
+from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.motion.online import MotionSample
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.scenario.layout import Tray
+from pickdemo.skills.clear_choice import TRIED_RADIUS_M, Choice, ObjectChooser
 from pickdemo.skills.pick import CameraModel, Event, FrameRequest, MachineParams, PickMachine, State
 from pickdemo.tracking.belief import Counters, Verdict
 from pickdemo.tracking.tracker import TargetTracker
@@ -53,10 +54,6 @@ EXTENT_MARGIN = 1.5
 #: The arm's links' boxes, padded by this (m), must project clear of what is on the table for the camera to
 #: look at it with the arm where it let go of an object (else it goes home first)
 ARM_VIEW_PAD_M = 0.03
-#: After a failed pick, an object seen within this of where it was tried (m) ...
-TRIED_RADIUS_M = 0.03
-#: ... comes after the others: its grasp's cost is raised by this
-TRIED_PENALTY = 10.0
 
 
 @dataclass(frozen=True)
@@ -86,14 +83,6 @@ class PickRecord:
             "start_s": round(self.start_s, 4),
             "end_s": round(self.end_s, 4),
         }
-
-
-@dataclass(frozen=True)
-class Choice:
-    """The object a survey chose and its best grasp's cost."""
-
-    seen: SeenObject
-    cost: float
 
 
 class ClearSequencer:
@@ -141,6 +130,7 @@ class ClearSequencer:
             home_after_place=False,
             end_at_rest=True,
         )
+        self.chooser = ObjectChooser(kin, rng, self.p.grasp, self.p.goals.ik)  # which object next
         self.on_pick_end = on_pick_end
         self.events: list[Event] = []
         self.picks: list[PickRecord] = []
@@ -321,7 +311,7 @@ class ClearSequencer:
         if not survey.objects:
             self._finish(f"the table is clear: {self._placed()} object(s) put into the tray")
             return
-        choice = self._choose(survey)
+        choice = self.chooser.choose(survey, self._tried)
         if choice is None:
             n = len(survey.objects)
             self._fail(Stage.GRASP_PLANNING, f"no grasp found for the {n} object(s) left on the table")
@@ -356,32 +346,6 @@ class ClearSequencer:
                   f"{h * 1e3:.0f} mm tall, {wide * 1e3:.0f} x {narrow * 1e3:.0f} mm (grasp cost {choice.cost:.2f})",
                   note=True)
         )  # fmt: skip
-
-    def _choose(self, survey: Survey) -> Choice | None:
-        """The object with the best reachable top-down grasp (its cloud's, clear of the others' points)."""
-        best: Choice | None = None
-        params = self.p.grasp
-        for seen in survey.objects:
-            tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in self._tried)
-            # the best few: the first that IK reaches
-            for g in sample_grasps(seen.cloud, 0.0, self.kin.robot.gripper, params)[:3]:
-                cost = g.cost + (TRIED_PENALTY if tried else 0.0)
-                if best is not None and cost >= best.cost:
-                    break
-                if self._reachable(g.position, g.hand_yaw_rad, params):
-                    best = Choice(seen, cost)
-                    break
-        return best
-
-    def _reachable(self, position: np.ndarray, hand_yaw: float, params: GraspParams) -> bool:
-        for yaw in (hand_yaw, hand_yaw + np.pi):
-            for p in (position, position + np.array([0.0, 0.0, params.pregrasp_height_m])):
-                res = self.kin.solve(top_down(p, yaw), self.kin.robot.home_q, self.rng, self.p.goals.ik)
-                if not res.success:
-                    break
-            else:
-                return True
-        return False
 
     def _placed(self) -> int:
         return sum(1 for r in self.picks if r.outcome == "placed")
