@@ -22,6 +22,7 @@ RNG_STREAMS = (
     "clear",
     "wrist_camera",
     "hand_eye",
+    "grasps",
 )
 
 

@@ -6,7 +6,8 @@ from the most downward approach the axis allows (``rolls_deg``, within ``max_til
 vertical); the TCP goes where the pads close across the object's extent along the axis, as deep as
 the palm allows. A candidate is kept when:
 
-- **it fits**: the object's extent between the pads leaves the open hand ``width_margin_m``;
+- **it fits**: the object's extent between the pads leaves the open hand ``width_margin_m``, and the
+  faces the pads meet are within ``friction_cone_deg`` of square to the closing axis;
 - **it collides with nothing**: no point of the object, of what stands near it, or of a fixture
   lies where the open fingers sweep on their way in along the approach axis (from ``approach_m``
   back), or behind the palm; the finger tips stay above the surface the object rests on.
@@ -22,14 +23,19 @@ axis, ``x = y x z`` across the pads. A top-down grasp has ``z`` straight down; i
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.grasping.top_down import GraspParams
+from pickdemo.core.geometry import Pose
+from pickdemo.grasping.top_down import GraspParams, GraspPlan, GraspPlanningError
 from pickdemo.robot.description import Gripper
 
 DOWN = np.array([0.0, 0.0, -1.0])
+#: A normal with less vertical than this is a side's (the fingers close along it); more, a top's (within
+#: 12 deg of level: closing axes across it are sampled instead, as the top-down grasps do)
+SIDE_NORMAL_Z = float(np.sin(np.radians(78.0)))
 
 
 @dataclass(frozen=True)
@@ -39,6 +45,10 @@ class AntipodalParams:
     #: +-60 deg in 7 steps)
     rolls_deg: tuple[float, ...] = (0.0, -20.0, 20.0, -40.0, 40.0, -60.0, 60.0)
     max_tilt_deg: float = 90.0  # the approach at most this far from straight down
+    top_axes: int = 6  # closing axes across a top face sampled at (over a half turn)
+    #: a face the pads meet more than this out of square with the closing axis is refused (GPD's 20 deg;
+    #: the pads' friction of about 1 on the objects' allows 45)
+    friction_cone_deg: float = 30.0
     voxel_m: float = 0.004  # the cloud thinned to this grid before sampling (normals, checks)
     normal_neighbours: int = 12
     approach_m: float = 0.06  # the fingers come in along the approach axis from this far back
@@ -119,24 +129,32 @@ def sample_antipodal(
     if len(pts) < 10:
         return []
     obs = np.zeros((0, 3)) if obstacles is None or len(obstacles) == 0 else np.asarray(obstacles, dtype=float)
+    obs = obs[obs[:, 2] - surface_z > 0.002]  # what rests on the surface is the surface (the finger tips' check)
     centroid = pts.mean(axis=0)
     widest = gripper.max_opening_m - grasp.width_margin_m
     max_tilt = np.radians(p.max_tilt_deg)
     picks = rng.choice(len(pts), size=min(p.samples, len(pts)), replace=False)
     out: list[AntipodalGrasp] = []
+    top = float(pts[:, 2].max())
+    depth = min((top - surface_z) / 2.0, gripper.palm_above_tcp_m - grasp.palm_clearance_m)
     for i in picks:
-        y = normal_at(pts, int(i), p.normal_neighbours, centroid)
-        z0 = DOWN - y * (DOWN @ y)  # the most downward approach square to the closing axis
-        if np.linalg.norm(z0) < 0.2:  # a closing axis within 12 deg of the vertical: not from a table
-            continue
-        z0 /= np.linalg.norm(z0)
-        for roll in p.rolls_deg:
-            z = _rotate(z0, y, np.radians(roll))
-            if np.arccos(np.clip(z @ DOWN, -1.0, 1.0)) > max_tilt:
-                continue
-            found = _candidate(pts, obs, pts[i], y, z, surface_z, gripper, widest, centroid, p)
-            if found is not None:
-                out.append(found)
+        n = normal_at(pts, int(i), p.normal_neighbours, centroid)
+        if abs(n[2]) < SIDE_NORMAL_Z:  # a side: the fingers close along its normal, at its depth
+            axes, contact = [n], pts[i]
+        else:  # the top (or a face near level): closing axes across it, the pads as deep as the palm allows
+            psi = np.arange(p.top_axes) * (np.pi / p.top_axes)
+            axes = [np.array([np.cos(a), np.sin(a), 0.0]) for a in psi]
+            contact = pts[i] + DOWN * depth
+        for y in axes:
+            z0 = DOWN - y * (DOWN @ y)  # the most downward approach square to the closing axis
+            z0 /= np.linalg.norm(z0)
+            for roll in p.rolls_deg:
+                z = _rotate(z0, y, np.radians(roll))
+                if np.arccos(np.clip(z @ DOWN, -1.0, 1.0)) > max_tilt:
+                    continue
+                found = _candidate(pts, obs, contact, y, z, surface_z, gripper, widest, centroid, p)
+                if found is not None:
+                    out.append(found)
     out.sort(key=lambda g: g.cost)
     return out
 
@@ -185,9 +203,13 @@ def _candidate(
         tips = centre + corners @ R.T
         if tips[:, 2].min() < surface_z + 0.002:
             return None
-        # antipodal: the face the other pad meets (the band's far side) square to the closing axis too
-        far = int(np.flatnonzero(band)[np.argmin(local[band, 1])])
-        square = 1.0 - abs(float(normal_at(pts, far, p.normal_neighbours, centroid) @ y))
+        # antipodal: the faces the pads meet (the band's two extremes) square to the closing axis
+        idx = np.flatnonzero(band)
+        ends = (int(idx[np.argmin(local[band, 1])]), int(idx[np.argmax(local[band, 1])]))
+        aligned = min(abs(float(normal_at(pts, e, p.normal_neighbours, centroid) @ y)) for e in ends)
+        if aligned < np.cos(np.radians(p.friction_cone_deg)):
+            return None  # a face outside the friction cone: squeezed, it slides out between the pads
+        square = 1.0 - aligned
         lever = float(np.linalg.norm(_cross(centroid - centre, y)))
         tilt = float(np.arccos(np.clip(z @ DOWN, -1.0, 1.0)))
         cost = (
@@ -227,3 +249,106 @@ def _palm_hits(local: np.ndarray, gripper: Gripper, clearance_m: float) -> bool:
             & (np.abs(local[:, 0]) < gripper.palm_half_width_m)
         )
     )
+
+
+def tilted_pick(
+    g: AntipodalGrasp, centre: np.ndarray, surface_z: float, place_xy: tuple[float, float], params: GraspParams
+) -> GraspPlan:
+    """Every TCP pose of a pick and place from a grasp from any side: in along its approach axis from
+    ``pregrasp_height_m`` back, lifted straight up, and put down as it stood (the same orientation, the
+    same height over the table) with the object's ``centre`` (x, y) over ``place_xy``; out again along the
+    approach. The hand keeps its orientation throughout (the motion near the object turns it about the
+    vertical only)."""
+    R, tcp = g.rotation, g.position
+    approach = R[:, 2]
+    offset = tcp[:2] - centre[:2]  # the TCP from the object's centre, held so
+    place_p = np.array(
+        [place_xy[0] + offset[0], place_xy[1] + offset[1], tcp[2] - surface_z + params.place_clearance_m]
+    )
+    carry_z = tcp[2] + params.transport_height_m
+    pose = lambda p: Pose(np.asarray(p, dtype=float), R)  # noqa: E731
+    return GraspPlan(
+        pregrasp=pose(tcp - approach * params.pregrasp_height_m),
+        grasp=pose(tcp),
+        lift=pose([tcp[0], tcp[1], carry_z]),
+        place_above=pose([place_p[0], place_p[1], max(carry_z, place_p[2] + 0.05)]),
+        place=pose(place_p),
+        retreat=pose(place_p - approach * params.retreat_height_m),
+        object_width_m=float(g.width_m),
+        hand_yaw_rad=float(np.arctan2(approach[1], approach[0]))
+        if g.tilt_rad > 1e-3
+        else float(np.arctan2(R[0, 1], R[0, 0])),
+        place_offset_xy=(float(offset[0]), float(offset[1])),
+    )
+
+
+@dataclass
+class AnySideGrasps:
+    """A :class:`~pickdemo.grasping.selection.GraspSelector` of grasps from any side for an object nobody
+    described (:func:`sample_antipodal` on the request's cloud, the cloud's neighbours and the request's
+    obstacles kept out of): sampled once per plan (the request's ``plan_id``) in the frame of the target's
+    pose as tracked then, and carried with the tracked pose after. Its own draw: ``rng``."""
+
+    rng: np.random.Generator
+    params: GraspParams = GraspParams()
+    antipodal: AntipodalParams = AntipodalParams()
+    best: int = 8  # the candidates offered, best first (the skill takes the first the arm reaches)
+    _planned: tuple[int, list[tuple[np.ndarray, np.ndarray, float, float]], np.ndarray] | None = field(
+        default=None, repr=False
+    )
+
+    def _local(self, request) -> tuple[list[tuple[np.ndarray, np.ndarray, float, float]], np.ndarray]:  # noqa: ANN001
+        """The grasps in the tracked pose's frame (TCP position, rotation, width, cost), best first, and the
+        cloud's centre there."""
+        at = request.pose
+        if self._planned is None or self._planned[0] != request.plan_id:
+            cloud = request.cloud
+            if cloud is None:
+                raise GraspPlanningError("no view of the object to plan a grasp from")
+            obstacles = [o for o in (cloud.obstacles, request.obstacles) if o is not None and len(o)]
+            found = sample_antipodal(
+                cloud.points, request.surface_z, request.gripper, self.rng,
+                obstacles=np.vstack(obstacles) if obstacles else None, grasp=self.params, params=self.antipodal,
+            )  # fmt: skip
+            if not found:
+                raise GraspPlanningError(
+                    "no grasp from any side fits what was seen: wherever the fingers could close, the object is "
+                    "wider than the open hand or the hand would meet something"
+                )
+            inv = at.rotation.T
+            local = [
+                (inv @ (g.position - at.position), inv @ g.rotation, g.width_m, g.cost) for g in found[: self.best]
+            ]
+            centre = inv @ (cloud.points.mean(axis=0) - at.position)
+            self._planned = (request.plan_id, local, centre)
+        return self._planned[1], self._planned[2]
+
+    def _world(self, request) -> list[tuple[AntipodalGrasp, np.ndarray]]:  # noqa: ANN001
+        local, centre = self._local(request)
+        at = request.pose
+        out = []
+        for p, R, w, c in local:
+            out.append(
+                (
+                    AntipodalGrasp(at.position + at.rotation @ p, at.rotation @ R, w, c),
+                    at.position + at.rotation @ centre,
+                )
+            )
+        return out
+
+    def hand_yaws(self, request) -> list[float]:  # noqa: ANN001 - a GraspRequest
+        """The candidates' hand angles, best first (each a grasp of its own: a grasp from the side is not
+        the same turned about the vertical)."""
+        return [
+            tilted_pick(g, c, request.surface_z, request.place_xy, self.params).hand_yaw_rad
+            for g, c in self._world(request)
+        ]
+
+    def candidates(self, request) -> Iterator[GraspPlan]:  # noqa: ANN001 - a GraspRequest
+        """For each hand angle asked, the best candidate at the nearest angle (None: the best)."""
+        plans = [tilted_pick(g, c, request.surface_z, request.place_xy, self.params) for g, c in self._world(request)]
+        for near in request.hand_yaws:
+            if near is None:
+                yield plans[0]
+            else:
+                yield min(plans, key=lambda plan: abs(float(np.angle(np.exp(1j * (plan.hand_yaw_rad - near))))))

@@ -5,7 +5,8 @@ Pure: no simulator. The pick skill asks a :class:`GraspSelector` for candidates 
 one the arm can reach; :class:`TopDownFaceGrasps` (a top-down parallel-jaw grasp across the
 narrower pair of faces of a known box or cylinder) is one implementation,
 :class:`~pickdemo.grasping.cloud.CloudGrasps` (grasps sampled on the point cloud of an object nobody
-described) the other; :func:`selector_for` gives each target its own.
+described) another, and :class:`TopDownFirst` those or, where none fits, grasps from any side
+(:class:`~pickdemo.grasping.antipodal.AnySideGrasps`); :func:`selector_for` gives each target its own.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 from pickdemo.core.camera import RGBDFrame
 from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.core.shapes import Unknown
+from pickdemo.grasping.antipodal import AnySideGrasps
 from pickdemo.grasping.cloud import CloudGrasps, hand_hits
 from pickdemo.grasping.top_down import (
     GraspParams,
@@ -49,6 +51,8 @@ class GraspRequest:
     #: them (None: not seen)
     obstacles: np.ndarray | None = None
     gripper: Gripper = field(kw_only=True)  # the robot's hand the grasps are for
+    #: this target's grasps that held nothing or let it slip so far
+    misses: int = field(default=0, kw_only=True)
 
 
 class GraspSelector(Protocol):
@@ -143,8 +147,43 @@ class TopDownFaceGrasps:
         return None
 
 
-def selector_for(model: TargetModel, params: GraspParams) -> GraspSelector:
-    """A target's grasps: from its cloud when nobody described it, else across its known faces."""
+@dataclass
+class TopDownFirst:
+    """A :class:`GraspSelector` of the top-down cloud grasps where any fits, and of grasps from any side
+    where none does (an object leaning, one beside a wall) or once a grasp of the target held nothing or
+    let it slip (the request's ``misses``): the top-down grasps first, where they hold (measured:
+    docs/decisions.md#grasps-and-holds). Chosen once per plan (the request's ``plan_id``)."""
+
+    top: CloudGrasps
+    any_side: AnySideGrasps
+    _chosen: tuple[int, GraspSelector] | None = field(default=None, repr=False)
+
+    def _pick(self, request: GraspRequest) -> GraspSelector:
+        if self._chosen is None or self._chosen[0] != request.plan_id:
+            order = (self.any_side, self.top) if request.misses else (self.top, self.any_side)
+            try:
+                order[0].hand_yaws(request)
+                chosen: GraspSelector = order[0]
+            except GraspPlanningError:
+                chosen = order[1]
+            self._chosen = (request.plan_id, chosen)
+        return self._chosen[1]
+
+    def hand_yaws(self, request: GraspRequest) -> list[float]:
+        return self._pick(request).hand_yaws(request)
+
+    def candidates(self, request: GraspRequest) -> Iterator[GraspPlan]:
+        return self._pick(request).candidates(request)
+
+
+def selector_for(
+    model: TargetModel, params: GraspParams, *, any_side: np.random.Generator | None = None
+) -> GraspSelector:
+    """A target's grasps: from its cloud when nobody described it, else across its known faces.
+    ``any_side``: the draw of grasps from any side, where no top-down grasp of the cloud fits (None:
+    top-down only: an arm that cannot tilt its hand every way, a jaw gripper)."""
     if isinstance(model.geometry, Unknown):
+        if any_side is not None:
+            return TopDownFirst(CloudGrasps(params), AnySideGrasps(any_side, params))
         return CloudGrasps(params)
     return TopDownFaceGrasps(params)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo.core.geometry import Pose, wrap_angle
-from pickdemo.motion.online import top_down_se3
+from pickdemo.motion.online import hand_se3
 from pickdemo.robot.kinematics import IKParams, Kinematics
 
 
@@ -149,9 +149,11 @@ def straight_carry_ok(
     speed_m_s: float,
     posture: np.ndarray,
     params: GoalParams = GoalParams(),
+    frame: np.ndarray | None = None,
 ) -> bool:
-    """Whether the per-tick IK, from the arm at ``q`` with its TCP at the top-down ``start`` (x, y, z,
-    yaw), can carry the hand along the straight line to ``end`` at ``speed_m_s`` on the branch it is on:
+    """Whether the per-tick IK, from the arm at ``q`` with its TCP at ``start`` (x, y, z, yaw; the hand's
+    orientation at yaw 0 ``frame``, None: pointing down), can carry the hand along the straight line to
+    ``end`` at ``speed_m_s`` on the branch it is on:
     converging at ``line_steps`` points with its joints within ``line_velocity_share`` of their speed
     limits and ``line_margin_rad`` inside their position limits, and arriving where it can follow the
     lowering onto ``place``."""
@@ -162,7 +164,7 @@ def straight_carry_ok(
     max_step = params.line_velocity_share * kin.robot.limits.max_velocity_rad_s * step_s
     q = np.asarray(q, dtype=float)
     for k in range(1, n + 1):
-        res = kin.track(top_down_se3(start + (end - start) * (k / n)), q, max_iterations=8, posture=posture)
+        res = kin.track(hand_se3(start + (end - start) * (k / n), frame), q, max_iterations=8, posture=posture)
         if not res.success or np.any(np.abs(res.q - q) > max_step):
             return False
         if kin.limit_margin(res.q) < params.line_margin_rad:
@@ -241,14 +243,20 @@ def choose_goal(goals: Sequence[Goal], params: GoalParams = GoalParams()) -> Goa
 
 
 def turn_path(
-    kin: Kinematics, q: np.ndarray, start_x4: np.ndarray, end_x4: np.ndarray, params: GoalParams = GoalParams()
+    kin: Kinematics,
+    q: np.ndarray,
+    start_x4: np.ndarray,
+    end_x4: np.ndarray,
+    params: GoalParams = GoalParams(),
+    frame: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float]:
     """The per-tick IK walked along a Cartesian motion from ``start_x4`` (the arm at ``q``) to
     ``end_x4`` (x, y, z and the hand's yaw, unwrapped: 3 rad is not -3.28 rad), as the motion will
     follow it (a phase-synchronised Ruckig move is the straight line between them in x, y, z, yaw):
     the joints it ends in, and the least joint-limit margin (rad) on the way; ``-inf`` if the IK
     loses the path (a joint held at its stop). Which of a pose's IK solutions the arm ends in
-    depends on the way round; every joint counts, not one joint's rule."""
+    depends on the way round; every joint counts, not one joint's rule. ``frame``: the hand's
+    orientation at yaw 0 (None: pointing down)."""
 
     start, end = np.asarray(start_x4, dtype=float), np.asarray(end_x4, dtype=float)
     d = end - start
@@ -258,7 +266,7 @@ def turn_path(
     q_prev = q_start = np.asarray(q, dtype=float)
     margin = kin.limit_margin(q_start)
     for k in range(1, n + 1):
-        res = kin.track(top_down_se3(start + d * (k / n)), q_prev, max_iterations=8, posture=q_start)
+        res = kin.track(hand_se3(start + d * (k / n), frame), q_prev, max_iterations=8, posture=q_start)
         if not res.success:
             return res.q, -np.inf
         q_prev = res.q
@@ -267,7 +275,12 @@ def turn_path(
 
 
 def way_round(
-    kin: Kinematics, q: np.ndarray, setpoint: np.ndarray, x4: np.ndarray, params: GoalParams = GoalParams()
+    kin: Kinematics,
+    q: np.ndarray,
+    setpoint: np.ndarray,
+    x4: np.ndarray,
+    params: GoalParams = GoalParams(),
+    frame: np.ndarray | None = None,
 ) -> np.ndarray:
     """``x4`` (x, y, z, yaw) with its yaw unwrapped to the way round a Cartesian turn of the hand
     should go from ``setpoint`` (the arm at ``q``): the nearer way, unless on its path
@@ -279,10 +292,10 @@ def way_round(
     x4[3] = setpoint[3] + d
     if abs(d) < params.turn_step_rad:  # a small turn: the other way is a whole revolution
         return x4
-    _, margin_near = turn_path(kin, q, setpoint, x4, params)
+    _, margin_near = turn_path(kin, q, setpoint, x4, params, frame)
     if margin_near >= params.min_margin_rad:
         return x4
     other = x4.copy()
     other[3] -= 2.0 * np.pi * np.sign(d)
-    _, margin_other = turn_path(kin, q, setpoint, other, params)
+    _, margin_other = turn_path(kin, q, setpoint, other, params, frame)
     return other if margin_other > margin_near else x4

@@ -1,7 +1,10 @@
 """Online motion: Ruckig's online form in the TCP's Cartesian space, and one IK solve per tick.
 
-Pure: no simulator. The hand always points down (every pose of a top-down pick and place), so the
-TCP has four degrees of freedom: ``x, y, z`` (m) and the hand's yaw about world z (rad). One
+Pure: no simulator. Near the object the hand keeps its orientation but for a turn about the
+vertical, so the TCP has four degrees of freedom: ``x, y, z`` (m) and the hand's yaw about world z
+(rad). Its orientation at yaw 0 is the motion's ``frame``: pointing straight down (None: every pose
+of a top-down pick and place), or a tilted grasp's (:func:`hand_frame`: its approach axis turned
+into the x-z plane), taken on when the motion is re-seated for a target tilted so. One
 ``Ruckig(4, dt)`` instance lives for the whole episode, as in Ruckig's ``01_position`` example:
 each tick ``update`` then ``pass_to_input``; re-targeting writes ``target_position`` (and
 ``target_velocity``) into the input and Ruckig recomputes from where the motion is, so the commanded
@@ -125,6 +128,10 @@ class MotionSample:
     new_calculation: bool  # Ruckig recomputed this tick (a re-target, or new limits)
 
 
+#: A hand whose approach axis is within this of straight down points down (rad): a top-down pose.
+TILT_EPS_RAD = 1e-3
+
+
 def top_down_pose(x4: np.ndarray) -> Pose:
     """The TCP pose pointing straight down at ``(x, y, z)`` with the hand turned by ``yaw`` about z."""
     return Pose.from_se3(top_down_se3(x4))
@@ -135,18 +142,44 @@ def top_down_se3(x4: np.ndarray) -> pin.SE3:
     return pin.SE3(pin.rpy.rpyToMatrix(np.pi, 0.0, float(x4[3])), np.array(x4[:3], dtype=float))
 
 
-def pose_to_x4(pose: Pose | pin.SE3) -> np.ndarray:
-    """``(x, y, z, yaw)`` of a top-down TCP pose (``R = Rz(yaw) Rx(pi)``)."""
+def _rz(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def hand_frame(rotation: np.ndarray) -> np.ndarray | None:
+    """The orientation of a TCP ``rotation`` at yaw 0: None if it points straight down (within
+    :data:`TILT_EPS_RAD`), else the rotation turned about the vertical until its approach axis (z)
+    lies in the x-z plane, pointing along +x (a tilted grasp's frame; its yaw is the approach's heading)."""
+    z = rotation[:, 2]
+    if -z[2] >= np.cos(TILT_EPS_RAD):
+        return None
+    return _rz(-float(np.arctan2(z[1], z[0]))) @ rotation
+
+
+def hand_se3(x4: np.ndarray, frame: np.ndarray | None = None) -> pin.SE3:
+    """The TCP pose at ``x4 = (x, y, z, yaw)``: the ``frame`` turned by ``yaw`` about the vertical
+    (None: pointing straight down, :func:`top_down_se3`)."""
+    if frame is None:
+        return top_down_se3(x4)
+    return pin.SE3(_rz(float(x4[3])) @ frame, np.array(x4[:3], dtype=float))
+
+
+def pose_to_x4(pose: Pose | pin.SE3, frame: np.ndarray | None = None) -> np.ndarray:
+    """``(x, y, z, yaw)`` of a TCP pose: pointing down (``R = Rz(yaw) Rx(pi)``, ``frame`` None), or the
+    ``frame`` turned by ``yaw`` about the vertical (the yaw is the approach axis's heading)."""
     if isinstance(pose, pin.SE3):
         r, t = pose.rotation, pose.translation
     else:
         r, t = pose.rotation, pose.position
-    return np.array([*t, float(np.arctan2(r[0, 1], r[0, 0]))])
+    if frame is None:
+        return np.array([*t, float(np.arctan2(r[0, 1], r[0, 0]))])
+    return np.array([*t, float(np.arctan2(r[1, 2], r[0, 2]))])
 
 
-def _tcp_x4(kin: Kinematics, q: np.ndarray) -> np.ndarray:
+def _tcp_x4(kin: Kinematics, q: np.ndarray, frame: np.ndarray | None = None) -> np.ndarray:
     """:func:`pose_to_x4` of the TCP at ``q`` (without a :class:`Pose`: this runs every tick)."""
-    return pose_to_x4(kin.forward_se3(q))
+    return pose_to_x4(kin.forward_se3(q), frame)
 
 
 def _advance(otg: Ruckig, inp: InputParameter, out: OutputParameter, what: Callable[[], str]) -> tuple[bool, bool]:
@@ -173,6 +206,8 @@ class OnlineMotion:
         self.q = np.asarray(q0, dtype=float).copy()
         #: the configuration the per-tick IK holds the arm's free swing to: where the motion was seated
         self.posture = self.q.copy()
+        #: the hand's orientation at yaw 0 (:func:`hand_frame`; None: pointing down)
+        self.frame: np.ndarray | None = None
         self._otg = Ruckig(4, dt_s)
         self._inp = InputParameter(4)
         self._out = OutputParameter(4)
@@ -308,12 +343,14 @@ class OnlineMotion:
                 lo = mid
         return hi
 
-    def reset_at(self, q: np.ndarray) -> None:
-        """Re-seat the motion at rest where a joint-space transfer left the arm (its TCP at ``q``)."""
+    def reset_at(self, q: np.ndarray, frame: np.ndarray | None = None) -> None:
+        """Re-seat the motion at rest where a joint-space transfer left the arm (its TCP at ``q``), its
+        hand's orientation at yaw 0 ``frame`` from now (None: pointing down)."""
         self.q = np.asarray(q, dtype=float).copy()
         self.seated += 1
         self.posture = self.q.copy()  # the posture the goal was chosen for
-        x0 = pose_to_x4(self.kin.forward(self.q))
+        self.frame = frame
+        x0 = pose_to_x4(self.kin.forward(self.q), frame)
         self._inp.current_position = x0.tolist()
         self._inp.current_velocity = [0.0] * 4
         self._inp.current_acceleration = [0.0] * 4
@@ -352,7 +389,7 @@ class OnlineMotion:
         )
 
     def _joints(self, x4: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        res = self.kin.track(top_down_se3(x4), self.q, posture=self.posture)
+        res = self.kin.track(hand_se3(x4, self.frame), self.q, posture=self.posture)
         if not res.success and (res.position_error_m > 1e-3 or res.rotation_error_rad > np.radians(0.5)):
             raise MotionError(f"IK lost the Cartesian setpoint {np.round(x4, 4).tolist()}: {res.reason}")
         dq = (res.q - self.q) / self.dt_s

@@ -162,5 +162,11 @@ class RobotDescription:
     def dof(self) -> int:
         return len(self.arm_joints)
 
+    @property
+    def grasps_any_side(self) -> bool:
+        """Whether its hand can take a grasp from any side: six arm joints or more (any orientation
+        within reach) and two fingers closing about the middle (a jaw's grasps are planned top-down)."""
+        return self.dof >= 6 and self.gripper.coupled
+
     def files(self) -> RobotFiles:
         return self.locate()

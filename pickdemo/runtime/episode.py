@@ -390,6 +390,7 @@ class Episode:
             q0=self.robot.observe().arm_q,
             dt_s=self.dt_ctl,
             rng=world.rngs["ik"],
+            grasp_rng=world.rngs["grasps"],
             params=machine_params(sc, opts.machine),
         )
         self.machine = self.view.controller = task.controller(sc, world, told, self.referee, opts.open_loop, common)

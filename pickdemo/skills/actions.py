@@ -19,7 +19,7 @@ import numpy as np
 from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.core.interfaces import Observation
 from pickdemo.motion import ik_goals
-from pickdemo.motion.online import CartesianLimits, MotionError, MotionSample, OnlineMotion, pose_to_x4
+from pickdemo.motion.online import CartesianLimits, MotionError, MotionSample, OnlineMotion, hand_frame, pose_to_x4
 from pickdemo.robot.description import Gripper
 
 GRAVITY_M_S2 = 9.81
@@ -53,17 +53,31 @@ class Move:
         (:func:`pickdemo.motion.ik_goals.way_round`). A target near the last one decided (a moving target's
         next estimate, a lift above a grasp) keeps its way round without asking the IK again: the
         choice holds while the target moves, and does not flip halfway through a turn."""
-        x4 = pose_to_x4(target) if isinstance(target, Pose) else np.array(target, dtype=float)
         m = self.motion
+        if isinstance(target, Pose):
+            self._reframe(target)
+            x4 = pose_to_x4(target, m.frame)
+        else:
+            x4 = np.array(target, dtype=float)
         if self._turn is not None and self._turn[0] == m.seated:
             last = self._turn[1]
             dyaw = float(wrap_angle(x4[3] - last[3]))
             if abs(dyaw) <= TURN_KEPT_RAD and float(np.hypot(*(x4[:2] - last[:2]))) <= TURN_KEPT_M:
                 x4[3] = last[3] + dyaw
                 return x4
-        x4 = ik_goals.way_round(m.kin, m.q, m.setpoint, x4)
+        x4 = ik_goals.way_round(m.kin, m.q, m.setpoint, x4, frame=m.frame)
         self._turn = (m.seated, x4.copy())
         return x4
+
+    def _reframe(self, target: Pose) -> None:
+        """A target tilted otherwise than the motion's frame (a tilted grasp's pregrasp, reached by a joint
+        transfer, or back to pointing down): the motion, at rest, is re-seated in the target's frame.
+        Under way, it keeps its frame (a re-plan moves the target, it does not tilt it)."""
+        m = self.motion
+        frame = hand_frame(target.rotation)
+        same = (frame is None) == (m.frame is None) and (frame is None or np.allclose(frame, m.frame, atol=1e-6))
+        if not same and m.finished:
+            m.reset_at(m.q, frame)
 
     def to(self, target: Pose | np.ndarray, *, limits: CartesianLimits | None = None) -> None:
         """Go to a fixed pose (limits change only at rest: ``None`` keeps the current ones)."""

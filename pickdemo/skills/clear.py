@@ -25,12 +25,14 @@ import cv2
 import numpy as np
 
 from pickdemo.core.camera import project
-from pickdemo.core.geometry import OrientedBox
+from pickdemo.core.geometry import OrientedBox, box_surface_points
 from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.core.shapes import Unknown
+from pickdemo.grasping.antipodal import AnySideGrasps
 from pickdemo.grasping.cloud import CloudGrasps
-from pickdemo.grasping.top_down import GraspPlan
+from pickdemo.grasping.selection import GraspSelector, TopDownFirst
+from pickdemo.grasping.top_down import GraspParams, GraspPlan
 from pickdemo.motion.online import MotionSample
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.perception.unknown import SeenObject, Survey
@@ -102,11 +104,13 @@ class ClearSequencer:
         on_pick_end: Callable[[PickRecord], None] | None = None,
         surface_z: Callable[[float, float], float] | None = None,
         fixtures: tuple[OrientedBox, ...] = (),
+        grasp_rng: np.random.Generator | None = None,
     ) -> None:
         """``surface_z(x, y)``: the height of what an object at (x, y) rests on (a bin's floor, the table);
-        ``fixtures``: the cell's fixtures (a bin's walls), known from the task: the grasps keep clear of them."""
+        ``fixtures``: the cell's fixtures (a bin's walls), known from the task: the grasps keep clear of them;
+        ``grasp_rng``: the draw of grasps from any side (:class:`~pickdemo.skills.pick.PickMachine`'s)."""
         self.kin = kin
-        self.surface_z, self.fixtures = surface_z, fixtures
+        self.surface_z, self.fixtures, self.grasp_rng = surface_z, fixtures, grasp_rng
         self.tray = tray
         # A clear round looks through its fixed camera alone (not yet through one on the hand).
         self.cameras = [c for c in cameras if not c.on_hand][:1]
@@ -130,7 +134,16 @@ class ClearSequencer:
             home_after_place=False,
             end_at_rest=True,
         )
-        self.chooser = ObjectChooser(kin, rng, self.p.grasp, self.p.goals.ik)  # which object next
+        self.any_side = grasp_rng if kin.robot.grasps_any_side and self.p.joint_transfers else None
+        self.chooser = ObjectChooser(
+            kin,
+            rng,
+            self.p.grasp,
+            self.p.goals.ik,
+            surface_z=surface_z,
+            fixture_points=box_surface_points(fixtures) if fixtures else None,
+            any_side=self.any_side,
+        )  # which object next; fmt: skip
         self.on_pick_end = on_pick_end
         self.events: list[Event] = []
         self.picks: list[PickRecord] = []
@@ -284,6 +297,7 @@ class ClearSequencer:
             place_tolerance_m=None,
             surface_z=self.surface_z,
             fixtures=self.fixtures,
+            grasp_rng=self.grasp_rng,
             **kw,
         )
 
@@ -328,7 +342,7 @@ class ClearSequencer:
             q0,
             TargetModel(Unknown(max_extent_m=_extent(seen), size_cue_m=seen.size_m, heap=True), color=None),
             params=dataclasses.replace(self.p, grip_force_n=force),
-            selector=CloudGrasps(self.p.grasp, avoid=tuple(self._failed_grasps)),
+            selector=selector_for_round(self.p.grasp, tuple(self._failed_grasps), self.any_side),
             place_xy=self.tray.spot(k),
             place_z_m=self.tray.rim_z + TRAY_DROP_M,
             look_at=seen.centre,
@@ -430,3 +444,10 @@ def _extent(seen: SeenObject) -> float:
     """A bound on the size of an object seen (m): what sizes the regions the pick looks at (tight, so
     that its neighbours stay out of them as far as they can; at most a whole object's default)."""
     return float(min(Unknown().max_extent_m, EXTENT_MARGIN * max(seen.size_m) + 0.02))
+
+
+def selector_for_round(params: GraspParams, avoid: tuple, any_side: np.random.Generator | None) -> GraspSelector:
+    """A round's pick's grasps: top-down on its cloud (those that failed before last), and where none fits,
+    from any side (if ``any_side``, the draw, is given)."""
+    top = CloudGrasps(params, avoid=avoid)
+    return top if any_side is None else TopDownFirst(top, AnySideGrasps(any_side, params))

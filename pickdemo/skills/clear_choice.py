@@ -1,15 +1,20 @@
 """Which object a clear round picks next: of every object a survey found, the one with the best
-reachable top-down grasp (its cloud's, clear of the others' points:
+reachable top-down grasp (its cloud's, clear of the others' points and of the cell's fixtures:
 :func:`~pickdemo.grasping.cloud.sample_grasps`), an object a pick failed on since the last that placed one
-after the others. A part of :class:`~pickdemo.skills.clear.ClearSequencer`: it returns a choice, never
-writes the round's state."""
+after the others; where no object has one, the best reachable grasp from any side
+(:func:`~pickdemo.grasping.antipodal.sample_antipodal`), if the robot's hand takes them. A part of
+:class:`~pickdemo.skills.clear.ClearSequencer`: it returns a choice, never writes the round's state."""
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from pickdemo.core.geometry import Pose
+from pickdemo.grasping.antipodal import sample_antipodal
 from pickdemo.grasping.cloud import sample_grasps
 from pickdemo.grasping.top_down import GraspParams, top_down
 from pickdemo.perception.unknown import SeenObject, Survey
@@ -19,6 +24,8 @@ from pickdemo.robot.kinematics import IKParams, Kinematics
 TRIED_RADIUS_M = 0.03
 #: ... comes after the others: its grasp's cost is raised by this
 TRIED_PENALTY = 10.0
+#: A fixture's points this near an object (m, horizontally) are obstacles to its grasps
+FIXTURES_NEAR_M = 0.2
 
 
 @dataclass(frozen=True)
@@ -32,23 +39,74 @@ class Choice:
 class ObjectChooser:
     """The next object of a round, by its best reachable grasp (see the module docstring)."""
 
-    def __init__(self, kin: Kinematics, rng: np.random.Generator, grasp: GraspParams, ik: IKParams) -> None:
-        """``rng``: the IK's restarts; ``grasp``: the pick's heights; ``ik``: the solver's settings."""
+    def __init__(
+        self,
+        kin: Kinematics,
+        rng: np.random.Generator,
+        grasp: GraspParams,
+        ik: IKParams,
+        *,
+        surface_z: Callable[[float, float], float] | None = None,
+        fixture_points: np.ndarray | None = None,
+        any_side: np.random.Generator | None = None,
+    ) -> None:
+        """``rng``: the IK's restarts; ``grasp``: the pick's heights; ``ik``: the solver's settings;
+        ``surface_z(x, y)``: what an object there rests on (None: the table); ``fixture_points``: points
+        on the fixtures' faces, obstacles to every grasp; ``any_side``: the draw of grasps from any side
+        (None: top-down only)."""
         self.kin, self.rng, self.grasp, self.ik = kin, rng, grasp, ik
+        self.surface_z, self.fixture_points, self.any_side = surface_z, fixture_points, any_side
+
+    def _surface(self, seen: SeenObject) -> float:
+        return 0.0 if self.surface_z is None else self.surface_z(float(seen.centre[0]), float(seen.centre[1]))
+
+    def _cloud(self, seen: SeenObject):  # noqa: ANN202 - an ObjectCloud
+        """The object's cloud with the fixtures' points near it among its obstacles."""
+        pts = self.fixture_points
+        if pts is None or len(pts) == 0:
+            return seen.cloud
+        near = pts[np.hypot(pts[:, 0] - seen.centre[0], pts[:, 1] - seen.centre[1]) <= FIXTURES_NEAR_M]
+        if len(near) == 0:
+            return seen.cloud
+        return dataclasses.replace(seen.cloud, obstacles=np.vstack([seen.cloud.obstacles, near]))
 
     def choose(self, survey: Survey, tried: list[np.ndarray]) -> Choice | None:
-        """The object with the best reachable top-down grasp (None: no object has one); ``tried``: where
-        picks failed since the last that placed an object."""
+        """The object with the best reachable top-down grasp, else (none has one) with the best
+        reachable grasp from any side (None: no object has one); ``tried``: where picks failed since the
+        last that placed an object."""
         best: Choice | None = None
         params = self.grasp
         for seen in survey.objects:
             was_tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
             # the best few: the first that IK reaches
-            for g in sample_grasps(seen.cloud, 0.0, self.kin.robot.gripper, params)[:3]:
+            for g in sample_grasps(self._cloud(seen), self._surface(seen), self.kin.robot.gripper, params)[:3]:
                 cost = g.cost + (TRIED_PENALTY if was_tried else 0.0)
                 if best is not None and cost >= best.cost:
                     break
                 if self._reachable(g.position, g.hand_yaw_rad):
+                    best = Choice(seen, cost)
+                    break
+        if best is None and self.any_side is not None:
+            best = self._any_side(survey, tried)
+        return best
+
+    def _any_side(self, survey: Survey, tried: list[np.ndarray]) -> Choice | None:
+        """The object with the best reachable grasp from any side."""
+        best: Choice | None = None
+        for seen in survey.objects:
+            was_tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
+            cloud = self._cloud(seen)
+            found = sample_antipodal(
+                cloud.points, self._surface(seen), self.kin.robot.gripper, self.any_side, obstacles=cloud.obstacles,
+                grasp=self.grasp,
+            )  # fmt: skip
+            for g in found[:3]:
+                cost = g.cost + (TRIED_PENALTY if was_tried else 0.0)
+                if best is not None and cost >= best.cost:
+                    break
+                grasp = Pose(g.position, g.rotation)
+                pre = Pose(g.position - g.rotation[:, 2] * self.grasp.pregrasp_height_m, g.rotation)
+                if all(self.kin.solve(p, self.kin.robot.home_q, self.rng, self.ik).success for p in (grasp, pre)):
                     best = Choice(seen, cost)
                     break
         return best

@@ -327,6 +327,7 @@ class ArmDriver:
             speed_m_s=self.p.free.scaled(lift_scale).velocity,
             posture=self.motion.posture,
             params=self.p.goals,
+            frame=self.motion.frame,
         )
 
     def line_limits(self, end: Pose) -> CartesianLimits:

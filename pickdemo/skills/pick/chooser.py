@@ -46,6 +46,9 @@ class GraspChooser:
         the hand keeps out of them as it does out of what the camera sees beside the target."""
         self.kin, self.rng, self.p, self.model, self.place_xy = kin, rng, params, model, place_xy
         self.fixture_points = fixture_points
+        #: this target's grasps that held nothing or let it slip: the selector's grasps from any side
+        #: come first after one (:class:`~pickdemo.grasping.selection.TopDownFirst`)
+        self.misses = 0
         self.selector, self.belief, self.arm, self.intercept = selector, belief, arm, intercept
         self.plan_id = 0  # counts first plans (the grasp selector's plan_id)
         self._room_checked: tuple[np.ndarray, bool] | None = None  # a re-plan's last check of joint room
@@ -71,6 +74,7 @@ class GraspChooser:
             plan_id=self.plan_id,
             obstacles=obstacles,
             gripper=self.kin.robot.gripper,
+            misses=self.misses,
         )
 
     def _fixtures_near(self, pose: Pose) -> np.ndarray | None:

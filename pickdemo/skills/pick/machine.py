@@ -84,6 +84,7 @@ class PickMachine:
         look_at: np.ndarray | None = None,
         look_from_here: bool = False,
         fixtures: tuple[OrientedBox, ...] = (),
+        grasp_rng: np.random.Generator | None = None,
     ) -> None:
         """``cameras``: the robot's cameras (a fixed one at least; one on the hand looks too whenever
         the target is wholly in its view). ``surface_z(x, y)``: the height of what a target at (x, y)
@@ -95,7 +96,9 @@ class PickMachine:
         where the target was seen last (a survey of the table chose it among others): the first look
         is at a region around it; ``look_from_here``: from where the arm is (it hides nothing of the
         table from the camera), not from home. ``fixtures``: the cell's fixtures (a bin's walls), known
-        from the task: the grasps keep the hand out of them."""
+        from the task: the grasps keep the hand out of them. ``grasp_rng``: the draw of grasps from any
+        side, for an object nobody described that no top-down grasp fits, where the robot's hand can
+        take them (None: top-down only)."""
         self.p = p = params or MachineParams()
         self.kin, self.model, self.symmetry, self.place_xy, self.rng = kin, model, symmetry_rad, place_xy, rng
         self.max_attempts, self.place_tolerance_m, self.open_loop = max_attempts, place_tolerance_m, open_loop
@@ -103,7 +106,8 @@ class PickMachine:
         self.look_here = look_from_here
         self.hand_cameras = frozenset(c.name for c in cameras if c.on_hand)
         self.arm_q = np.asarray(q0, dtype=float)  # the joint states last observed (where a hand camera is)
-        selector = selector or selector_for(model, p.grasp)
+        any_side = grasp_rng if kin.robot.grasps_any_side and p.joint_transfers else None
+        selector = selector or selector_for(model, p.grasp, any_side=any_side)
         if place_z_m != 0.0 or p.drop_place:
             selector = PlacedHigher(selector, place_z_m, from_carry=p.drop_place)
         self.selector = selector
@@ -387,6 +391,8 @@ class PickMachine:
         change = RETRIES.get(outcome, SLIPPED)
         if change.other_faces:  # a square box may be taken by its other pair of faces
             self.turn_hand = 0.0 < self.symmetry < np.pi - 1e-9  # a square top (a cube)
+        if change.any_side_first:  # (where the robot's grasps come from any side too)
+            self.chooser.misses += 1
         if change.force_factor != 1.0:
             self.grip_force_n = min(self.grip_force_n * change.force_factor, self.grip.max_force_n)
         self.lift_scale *= change.lift_factor

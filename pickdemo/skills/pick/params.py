@@ -178,17 +178,23 @@ class MachineParams:
 @dataclass(frozen=True)
 class Retry:
     """What a failed attempt changes in the next: the grip force and the lift's speed share
-    (multiplied), and whether a square box is taken by its other pair of faces first."""
+    (multiplied), whether a square box is taken by its other pair of faces first, and whether a grasp
+    from any side comes before the top-down ones (the grasp held nothing, or let the object slip)."""
 
     force_factor: float = 1.0
     lift_factor: float = 1.0
     other_faces: bool = False
+    any_side_first: bool = False
 
 
 #: The retry policy, by the failed attempt's outcome: a miss looks again (a square box by its other
 #: faces), a hold off centre grasps it again where it lies, a slip holds harder and lifts more gently.
-RETRIES: dict[str, Retry] = {"missed": Retry(other_faces=True), "held off centre": Retry(), "motion failed": Retry()}
-SLIPPED = Retry(force_factor=2.0, lift_factor=0.5)  # any other outcome: it slipped out
+RETRIES: dict[str, Retry] = {
+    "missed": Retry(other_faces=True, any_side_first=True),
+    "held off centre": Retry(),
+    "motion failed": Retry(),
+}
+SLIPPED = Retry(force_factor=2.0, lift_factor=0.5, any_side_first=True)  # any other outcome: it slipped out
 
 
 @dataclass(frozen=True)

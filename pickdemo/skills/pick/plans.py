@@ -11,12 +11,19 @@ import numpy as np
 from pickdemo.core.geometry import Pose
 from pickdemo.grasping.selection import GraspRequest, GraspSelector
 from pickdemo.grasping.top_down import GraspPlan, top_down
+from pickdemo.motion.online import hand_frame
+
+#: A hand turned half a turn about its own approach axis (z): a parallel gripper's equivalent.
+ABOUT_APPROACH = np.diag([-1.0, -1.0, 1.0])
 
 
 def half_turn(pose: Pose, shift: np.ndarray | None = None) -> Pose:
-    """A top-down TCP pose turned half a turn about the vertical: a parallel gripper's equivalent (moved
-    by ``shift``, m)."""
-    return top_down(pose.position if shift is None else pose.position + shift, float(pose.rpy[2]) + np.pi)
+    """A TCP pose turned half a turn about its approach axis, a parallel gripper's equivalent (moved by
+    ``shift``, m): for a top-down pose, about the vertical."""
+    at = pose.position if shift is None else pose.position + shift
+    if hand_frame(pose.rotation) is not None:  # a grasp from the side
+        return Pose(at, pose.rotation @ ABOUT_APPROACH)
+    return top_down(at, float(pose.rpy[2]) + np.pi)
 
 
 def moved_place(plan: GraspPlan, dxy: tuple[float, float]) -> GraspPlan:

@@ -11,6 +11,7 @@ import numpy as np
 
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Stage
+from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.skills.pick.params import Event, State, Transition
 from pickdemo.skills.pick.plans import moved_place, turned_plan
 from pickdemo.skills.pick.views import unsure
@@ -23,6 +24,13 @@ def wrist_load(m: PickMachine, obs: Observation) -> float:
     """The wrist's load along world z (N)."""
     rotation = m.kin.forward(obs.arm_q).rotation
     return m.scale.vertical(obs, rotation if m.sensor_in_tcp is None else rotation @ m.sensor_in_tcp)
+
+
+def _tilt(plan: GraspPlan) -> str:
+    """How a grasp from the side is said: its approach's tilt from straight down ("" for a top-down one)."""
+    down = -float(plan.grasp.rotation[2, 2])
+    tilt = float(np.degrees(np.arccos(np.clip(down, -1.0, 1.0))))
+    return f", from the side: tilted {tilt:.0f} deg" if tilt > 0.1 else ""
 
 
 def _wrap(yaw_rad: float, period_rad: float) -> float:
@@ -99,7 +107,7 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
             yaw = f", yaw {said:+.2f} deg (modulo {np.degrees(m.symmetry):.0f})"
         return State.APPROACH, (
             f"target at ({tp.position[0]:.4f}, {tp.position[1]:.4f}, {tp.position[2]:.4f}) m{yaw} "
-            f"from {m.belief.accepted} estimate(s); grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg"
+            f"from {m.belief.accepted} estimate(s); grasp yaw {np.degrees(plan.hand_yaw_rad):+.1f} deg{_tilt(plan)}"
             + (f" (attempt {m.attempt})" if m.attempt > 1 else "")
         )
     if (
