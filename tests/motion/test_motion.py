@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickdemo.motion.online import CartesianLimits, OnlineMotion, pose_to_x4, top_down_pose
+from pickdemo.core.geometry import Pose
+from pickdemo.motion.online import CartesianLimits, OnlineMotion, hand_frame, pose_to_x4, top_down_pose
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
 
@@ -130,3 +131,33 @@ def test_a_move_with_no_turn_never_goes_a_whole_revolution_round() -> None:
     for eps in (0.0, 1e-15, -1e-15, 1e-3):
         x4 = way_round(kin, q, sp, sp + np.array([0.0, 0.0, -0.1, eps]))
         assert abs(x4[3] - sp[3]) < 2e-3
+
+
+def test_a_tilted_hand_keeps_its_tilt_along_a_straight_line_into_the_grasp() -> None:
+    """A grasp from the side: the motion is re-seated in the tilted hand's frame (where a joint transfer
+    left the arm at the pregrasp), then goes in along the approach axis: a straight line, the hand's
+    orientation kept to a tenth of a milliradian, and its yaw the approach's heading."""
+    kin = kinematics_of(ROBOT)
+    tilt = np.radians(35.0)
+    # the approach 35 deg from straight down, heading +x; the fingers closing along world y
+    z = np.array([np.sin(tilt), 0.0, -np.cos(tilt)])
+    y = np.array([0.0, 1.0, 0.0])
+    R = np.column_stack([np.cross(y, z), y, z])
+    grasp = Pose(np.array([0.55, 0.05, 0.06]), R)
+    pregrasp = Pose(grasp.position - z * 0.08, R)
+    res = kin.solve(pregrasp, ROBOT.home_q, np.random.default_rng(0))
+    assert res.success
+    frame = hand_frame(R)
+    assert frame is not None and hand_frame(top_down_pose(np.array([0.5, 0.0, 0.2, 0.3])).rotation) is None
+    m = OnlineMotion(kin, res.q, DT, CartesianLimits(velocity=0.1, acceleration=0.5, jerk=5.0))
+    m.reset_at(res.q, frame)
+    np.testing.assert_allclose(m.setpoint, [*pregrasp.position, 0.0], atol=1e-4)  # heading +x: yaw 0
+    m.set_target(pose_to_x4(grasp, frame))
+    samples = _run(m, 4000)
+    assert samples[-1].finished
+    for s in samples:
+        tcp = kin.forward(s.q)
+        assert np.allclose(tcp.rotation, R, atol=1e-4)
+        off = tcp.position - pregrasp.position
+        assert np.linalg.norm(off - z * (off @ z)) < 2e-4  # on the approach axis
+    assert np.allclose(kin.forward(samples[-1].q).position, grasp.position, atol=1e-4)
