@@ -23,6 +23,7 @@ axis, ``x = y x z`` across the pads. A top-down grasp has ``z`` straight down; i
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -49,6 +50,9 @@ class AntipodalParams:
     #: a face the pads meet more than this out of square with the closing axis is refused (GPD's 20 deg;
     #: the pads' friction of about 1 on the objects' allows 45)
     friction_cone_deg: float = 30.0
+    #: the fingers open this far past the object's extent on each side on the way in (m): the estimate's
+    #: error and the tracking's, as the top-down grasps' margin allows for, and twice that to spare
+    open_margin_m: float = 0.012
     voxel_m: float = 0.004  # the cloud thinned to this grid before sampling (normals, checks)
     normal_neighbours: int = 12
     approach_m: float = 0.06  # the fingers come in along the approach axis from this far back
@@ -69,6 +73,7 @@ class AntipodalGrasp:
     rotation: np.ndarray  # (3, 3)
     width_m: float
     cost: float
+    open_m: float | None = None  # each finger from the middle on the way in (None: wide open)
 
     @property
     def tilt_rad(self) -> float:
@@ -192,13 +197,14 @@ def _candidate(
         local[:, 1] -= mid
         if _palm_hits(local, gripper, p.clearance_m):
             continue  # the palm meets the object: back off along the approach
-        if _fingers_hit(local, gripper, p) or (
-            len(obs) and _fingers_hit((obs - centre) @ R, gripper, p, obstacle=True)
+        opening = min(width / 2.0 + p.open_margin_m, gripper.finger_max_m)
+        if _fingers_hit(local, gripper, p, opening) or (
+            len(obs) and _fingers_hit((obs - centre) @ R, gripper, p, opening, obstacle=True)
         ):
             return None
         if len(obs) and _palm_hits((obs - centre) @ R, gripper, p.clearance_m):
             return None
-        reach = gripper.finger_max_m + gripper.finger_thickness_m
+        reach = opening + gripper.finger_thickness_m
         corners = np.array([[sx * hw, sy * reach, hh] for sx in (-1, 1) for sy in (-1, 1)])
         tips = centre + corners @ R.T
         if tips[:, 2].min() < surface_z + 0.002:
@@ -215,16 +221,18 @@ def _candidate(
         cost = (
             p.tilt_weight * tilt + p.square_weight * square + p.lever_weight * lever + p.width_weight * width / widest
         )
-        return AntipodalGrasp(centre, R, width, cost)
+        return AntipodalGrasp(centre, R, width, cost, None if opening >= gripper.finger_max_m else opening)
     return None
 
 
-def _fingers_hit(local: np.ndarray, gripper: Gripper, p: AntipodalParams, *, obstacle: bool = False) -> bool:
-    """Whether points (in the grasp's frame, centred between the pads) lie where the open fingers sweep
-    in along the approach, from ``approach_m`` back to their tips (the object's own points between the
-    pads are what is grasped; an obstacle's are hits there too)."""
+def _fingers_hit(
+    local: np.ndarray, gripper: Gripper, p: AntipodalParams, opening_m: float, *, obstacle: bool = False
+) -> bool:
+    """Whether points (in the grasp's frame, centred between the pads) lie where the fingers, open
+    ``opening_m`` each, sweep in along the approach, from ``approach_m`` back to their tips (the
+    object's own points between the pads are what is grasped; an obstacle's are hits there too)."""
     c = p.clearance_m
-    inner, outer = gripper.finger_max_m - c, gripper.finger_max_m + gripper.finger_thickness_m + c
+    inner, outer = opening_m - c, opening_m + gripper.finger_thickness_m + c
     along = (local[:, 2] > -gripper.palm_above_tcp_m - p.approach_m) & (local[:, 2] < gripper.pad_half_height_m + c)
     across = np.abs(local[:, 0]) < gripper.pad_half_width_m + c
     ay = np.abs(local[:, 1])
@@ -279,6 +287,7 @@ def tilted_pick(
         if g.tilt_rad > 1e-3
         else float(np.arctan2(R[0, 1], R[0, 0])),
         place_offset_xy=(float(offset[0]), float(offset[1])),
+        open_m=g.open_m,
     )
 
 
@@ -293,13 +302,10 @@ class AnySideGrasps:
     params: GraspParams = GraspParams()
     antipodal: AntipodalParams = AntipodalParams()
     best: int = 8  # the candidates offered, best first (the skill takes the first the arm reaches)
-    _planned: tuple[int, list[tuple[np.ndarray, np.ndarray, float, float]], np.ndarray] | None = field(
-        default=None, repr=False
-    )
+    _planned: tuple[int, list[AntipodalGrasp], np.ndarray] | None = field(default=None, repr=False)
 
-    def _local(self, request) -> tuple[list[tuple[np.ndarray, np.ndarray, float, float]], np.ndarray]:  # noqa: ANN001
-        """The grasps in the tracked pose's frame (TCP position, rotation, width, cost), best first, and the
-        cloud's centre there."""
+    def _local(self, request) -> tuple[list[AntipodalGrasp], np.ndarray]:  # noqa: ANN001 - a GraspRequest
+        """The grasps in the tracked pose's frame, best first, and the cloud's centre there."""
         at = request.pose
         if self._planned is None or self._planned[0] != request.plan_id:
             cloud = request.cloud
@@ -317,24 +323,26 @@ class AnySideGrasps:
                 )
             inv = at.rotation.T
             local = [
-                (inv @ (g.position - at.position), inv @ g.rotation, g.width_m, g.cost) for g in found[: self.best]
+                dataclasses.replace(g, position=inv @ (g.position - at.position), rotation=inv @ g.rotation)
+                for g in found[: self.best]
             ]
-            centre = inv @ (cloud.points.mean(axis=0) - at.position)
-            self._planned = (request.plan_id, local, centre)
+            self._planned = (request.plan_id, local, inv @ (cloud.points.mean(axis=0) - at.position))
         return self._planned[1], self._planned[2]
 
-    def _world(self, request) -> list[tuple[AntipodalGrasp, np.ndarray]]:  # noqa: ANN001
+    def _world(self, request) -> list[tuple[AntipodalGrasp, np.ndarray]]:  # noqa: ANN001 - a GraspRequest
+        """The grasps and the cloud's centre carried with the tracked pose now."""
         local, centre = self._local(request)
         at = request.pose
-        out = []
-        for p, R, w, c in local:
-            out.append(
-                (
-                    AntipodalGrasp(at.position + at.rotation @ p, at.rotation @ R, w, c),
-                    at.position + at.rotation @ centre,
-                )
+        where = at.position + at.rotation @ centre
+        return [
+            (
+                dataclasses.replace(
+                    g, position=at.position + at.rotation @ g.position, rotation=at.rotation @ g.rotation
+                ),
+                where,
             )
-        return out
+            for g in local
+        ]
 
     def hand_yaws(self, request) -> list[float]:  # noqa: ANN001 - a GraspRequest
         """The candidates' hand angles, best first (each a grasp of its own: a grasp from the side is not

@@ -73,6 +73,9 @@ class GraspPlan:
     #: squeeze it with that share of the grip force, as hard per area as a whole pad would (measured:
     #: a 15 mm, 10 g cube squeezed at the full 20 N turned between the pads in 25 of 50 first grasps)
     pad_share: float = 1.0
+    #: each finger's opening from the middle on the way in (m; None: wide open): a grasp whose wide-open
+    #: fingers would meet a wall or a neighbour opens only as far as it needs
+    open_m: float | None = None
 
 
 def top_down(position: np.ndarray, yaw_rad: float) -> Pose:

@@ -96,7 +96,7 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
             m.note(f"the descent starts {m.chooser.descent_drop_m * 1e3:.0f} mm lower: from higher, no angle of "
                    "the hand has a descent the arm can follow")  # fmt: skip
         # (more frames cannot mend that)
-        unsafe = unsure(m.belief, plan, obs.time_s, m.p, m.grip.finger_max_m, calibration_only=True)
+        unsafe = unsure(m.belief, plan, obs.time_s, m.p, plan.open_m or m.grip.finger_max_m, calibration_only=True)
         if unsafe and (not m.hand_cameras or m.open_loop):
             m.fail(Stage.PERCEPTION, f"{unsafe}, and no camera can see it closer: not tried")
             return None
@@ -138,6 +138,8 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
 def enter_approach(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
     m.hover_since = None
+    if m.plan.open_m is not None:  # (wide open, the fingers would meet a wall or a neighbour)
+        m.grip.open(to_m=m.plan.open_m)
     if not m.p.joint_transfers or m.intercept.velocity(m.now_s) is not None:
         # Cartesian (a moving target is met so, moving with it)
         m.arm.cartesian()
@@ -196,7 +198,7 @@ def tick_approach(m: PickMachine, obs: Observation) -> Transition:
         last = m.belief.tracker.last_accept_s
         if hidden and not m.hand_cameras and last is not None and m.intercept.velocity(m.now_s) is None:
             when = last  # the arm hides it from the camera: as sure as when it was last seen (it stood still)
-        unsafe = "" if m.open_loop else unsure(m.belief, m.plan, when, m.p, m.grip.finger_max_m)
+        unsafe = "" if m.open_loop else unsure(m.belief, m.plan, when, m.p, m.plan.open_m or m.grip.finger_max_m)
         if unsafe:  # wait above it for more frames, or the hand's camera, to make it surer (a bounded wait)
             m.hover_since = obs.time_s if m.hover_since is None else m.hover_since
             if obs.time_s - m.hover_since >= m.p.hover_max_s:
