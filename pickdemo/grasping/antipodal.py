@@ -10,7 +10,8 @@ the palm allows. A candidate is kept when:
   faces the pads meet are within ``friction_cone_deg`` of square to the closing axis;
 - **it collides with nothing**: no point of the object, of what stands near it, or of a fixture
   lies where the open fingers sweep on their way in along the approach axis (from ``approach_m``
-  back), or behind the palm; the finger tips stay above the surface the object rests on.
+  back), or behind the palm; the finger tips stay above the surface the object rests on. The fingers
+  open wide; where that collides, only ``open_margin_m`` past the object's extent.
 
 Its cost (lowest first), as Drake's ``GraspCandidateCost`` weighs it: the approach's tilt from the
 vertical, the far face out of square with the closing axis (``1 - |n . y|``), the lever of the
@@ -50,8 +51,8 @@ class AntipodalParams:
     #: a face the pads meet more than this out of square with the closing axis is refused (GPD's 20 deg;
     #: the pads' friction of about 1 on the objects' allows 45)
     friction_cone_deg: float = 30.0
-    #: the fingers open this far past the object's extent on each side on the way in (m): the estimate's
-    #: error and the tracking's, as the top-down grasps' margin allows for, and twice that to spare
+    #: where the wide-open fingers would meet something, they open this far past the object's extent on
+    #: each side on the way in (m): the estimate's error and the tracking's, and twice that to spare
     open_margin_m: float = 0.012
     voxel_m: float = 0.004  # the cloud thinned to this grid before sampling (normals, checks)
     normal_neighbours: int = 12
@@ -135,6 +136,7 @@ def sample_antipodal(
         return []
     obs = np.zeros((0, 3)) if obstacles is None or len(obstacles) == 0 else np.asarray(obstacles, dtype=float)
     obs = obs[obs[:, 2] - surface_z > 0.002]  # what rests on the surface is the surface (the finger tips' check)
+    obs = thinned(obs, p.voxel_m)  # (as even as the cloud: a fixture's faces come 3 mm apart)
     centroid = pts.mean(axis=0)
     widest = gripper.max_opening_m - grasp.width_margin_m
     max_tilt = np.radians(p.max_tilt_deg)
@@ -197,17 +199,22 @@ def _candidate(
         local[:, 1] -= mid
         if _palm_hits(local, gripper, p.clearance_m):
             continue  # the palm meets the object: back off along the approach
-        opening = min(width / 2.0 + p.open_margin_m, gripper.finger_max_m)
-        if _fingers_hit(local, gripper, p, opening) or (
-            len(obs) and _fingers_hit((obs - centre) @ R, gripper, p, opening, obstacle=True)
-        ):
+        # wide open, as the top-down grasps go in (a single view may hide how far the object reaches
+        # behind); only where that meets a wall, a neighbour or the surface, as far as it needs
+        obs_local = (obs - centre) @ R if len(obs) else obs
+        if len(obs) and _palm_hits(obs_local, gripper, p.clearance_m):
             return None
-        if len(obs) and _palm_hits((obs - centre) @ R, gripper, p.clearance_m):
-            return None
-        reach = opening + gripper.finger_thickness_m
-        corners = np.array([[sx * hw, sy * reach, hh] for sx in (-1, 1) for sy in (-1, 1)])
-        tips = centre + corners @ R.T
-        if tips[:, 2].min() < surface_z + 0.002:
+        opening = None
+        for o in (gripper.finger_max_m, min(width / 2.0 + p.open_margin_m, gripper.finger_max_m)):
+            hits = _fingers_hit(local, gripper, p, o) or (
+                len(obs) and _fingers_hit(obs_local, gripper, p, o, obstacle=True)
+            )
+            reach = o + gripper.finger_thickness_m
+            corners = np.array([[sx * hw, sy * reach, hh] for sx in (-1, 1) for sy in (-1, 1)])
+            if not hits and (centre + corners @ R.T)[:, 2].min() >= surface_z + 0.002:
+                opening = o
+                break
+        if opening is None:
             return None
         # antipodal: the faces the pads meet (the band's two extremes) square to the closing axis
         idx = np.flatnonzero(band)
