@@ -14,3 +14,12 @@ def test_an_object_on_its_edge_is_picked_from_the_side_after_a_top_down_miss() -
     tilted = [p.message for r in results for p in r.phases if "from the side: tilted" in p.message]
     assert tilted, "no grasp from the side"
     assert all(max((r.peak_joint_limit_ratio or {"": 0.0}).values()) <= 1.0 for r in results)
+
+
+def test_a_round_in_a_walled_bin_puts_objects_into_the_tray() -> None:
+    """The bin's walls stay: its floor is what the objects rest on, perception leaves it out, the grasps
+    keep out of its walls; over two rounds, objects go into the tray and no motion fails."""
+    results = episodes("clear_bin", (0, 1))
+    none_fails_in(results, "trajectory", "reflex", "error")
+    cleared = [r.clear["cleared"] for r in results if r.clear is not None]
+    assert len(cleared) == 2 and all(c >= 2 for c in cleared), cleared
