@@ -53,6 +53,8 @@ class GraspRequest:
     gripper: Gripper = field(kw_only=True)  # the robot's hand the grasps are for
     #: this target's grasps that held nothing or let it slip so far
     misses: int = field(default=0, kw_only=True)
+    #: the target stands still (a moving one is met from above: a tilted hand is re-seated at rest)
+    still: bool = field(default=True, kw_only=True)
 
 
 class GraspSelector(Protocol):
@@ -161,6 +163,8 @@ class TopDownFirst:
     def _pick(self, request: GraspRequest) -> GraspSelector:
         if self._chosen is None or self._chosen[0] != request.plan_id:
             order = (self.any_side, self.top) if request.misses else (self.top, self.any_side)
+            if not request.still:
+                order = (self.top, self.top)
             try:
                 order[0].hand_yaws(request)
                 chosen: GraspSelector = order[0]

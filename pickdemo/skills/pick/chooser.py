@@ -49,6 +49,7 @@ class GraspChooser:
         #: this target's grasps that held nothing or let it slip: the selector's grasps from any side
         #: come first after one (:class:`~pickdemo.grasping.selection.TopDownFirst`)
         self.misses = 0
+        self.still = True  # the target stood still at the last plan (a grasp from the side is for one that does)
         self.selector, self.belief, self.arm, self.intercept = selector, belief, arm, intercept
         self.plan_id = 0  # counts first plans (the grasp selector's plan_id)
         self._room_checked: tuple[np.ndarray, bool] | None = None  # a re-plan's last check of joint room
@@ -75,6 +76,7 @@ class GraspChooser:
             obstacles=obstacles,
             gripper=self.kin.robot.gripper,
             misses=self.misses,
+            still=self.still,
         )
 
     def _fixtures_near(self, pose: Pose) -> np.ndarray | None:
@@ -177,6 +179,7 @@ class GraspChooser:
         then be left without room at the grasp (and the hand is not yet going down over the target);
         ``approaching`` a moving target: still in reach where it will be met?"""
         held = None if v is None else pose.position[:2] + v * self.p.grasp_time_s
+        self.still = v is None
         near = None if current is None else current.hand_yaw_rad
         try:
             plan = self.grasp(pose, near)
@@ -203,6 +206,7 @@ class GraspChooser:
         (:meth:`ranked_hand_yaws`) that the whole pick and place can reach; the other faces before
         those of the angles in ``avoid`` (it missed there, or a finger touched something beside it)."""
         held = None if v is None else pose.position[:2] + v * self.p.grasp_time_s
+        self.still = v is None
         self.plan_id += 1  # a first plan: the selector plans afresh
         self.descent_drop_m = 0.0
         try:
