@@ -7,7 +7,6 @@ could never succeed is refused before any simulation starts (exit 2), not failed
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 
 import cv2
@@ -17,15 +16,16 @@ from pickdemo.core.camera import look_at_pose, project, rendered_intrinsics
 from pickdemo.core.meshes import MeshFileError, expand, read_urdf
 from pickdemo.core.shapes import Mesh
 from pickdemo.core.streams import spawn_rngs
-from pickdemo.grasping.top_down import GraspParams, top_down
+from pickdemo.grasping.top_down import GraspParams
 from pickdemo.robot.description import RobotDescription
-from pickdemo.robot.kinematics import IKParams, Kinematics, kinematics_of
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.self_geometry import hidden_by_the_base
 from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.belt import ConveyorSpec
 from pickdemo.scenario.fixture_checks import check_fixtures
 from pickdemo.scenario.layout import LayoutError, Tray, sample_layout, sample_place, sample_round
 from pickdemo.scenario.objects import ObjectSpec, PlaceSpec
+from pickdemo.scenario.reach import grasp_params, reach_from_above
 from pickdemo.scenario.schema import Scenario
 from pickdemo.scenario.tasks import TASK_RULES
 from pickdemo.scenario.twins import check_twins
@@ -338,7 +338,7 @@ def _check_pick(sc: Scenario) -> None:
     if target.mass > robot.payload_kg:
         carries = f"the {robot.label} carries ({robot.payload_kg} kg)"
         raise ScenarioError(f"{key}.mass: {target.mass} kg is more than {carries}")
-    grasp = _grasp_params(robot)
+    grasp = grasp_params(robot)
     carried = grasp.transport_height_m
     if sc.success.lift_height >= carried - 0.005:
         raise ScenarioError(
@@ -353,34 +353,7 @@ def _check_pick(sc: Scenario) -> None:
     for what, x, y in spots:
         z = max(target.largest_shape.height_m / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y)
         for dz in (0.0, grasp.pregrasp_height_m):
-            _reach_from_above(kin, np.array([x, y, z + dz]), rng, what, narrow)
-
-
-def _grasp_params(robot: RobotDescription) -> GraspParams:
-    """The heights of a pick as the robot's skill will use them (the robot's own where it has them)."""
-    return dataclasses.replace(GraspParams(), **dict(robot.grasp_heights))
-
-
-#: Hand angles tried for reach from above, the first that solves wins (an arm of five joints turns its
-#: hand through a range short of a whole turn: some spots it reaches at some angles only).
-REACH_YAWS = (0.0, np.pi / 2.0, np.pi, -np.pi / 2.0)
-
-
-def _reach_from_above(
-    kin: Kinematics, at: np.ndarray, rng: np.random.Generator, what: str, width_m: float = 0.0
-) -> None:
-    """The hand pointing down at one of :data:`REACH_YAWS` to grasp what is ``width_m`` wide at ``at``
-    (a jaw's TCP beside it: :meth:`~pickdemo.robot.description.Gripper.tcp_offset_m`), else the spot
-    is out of reach."""
-    reasons = []
-    offset = kin.robot.gripper.tcp_offset_m(width_m)
-    for yaw in REACH_YAWS:
-        tcp = at if offset == 0.0 else at + top_down(np.zeros(3), yaw).rotation[:, 1] * offset
-        res = kin.solve(top_down(tcp, yaw), kin.robot.home_q, rng, IKParams())
-        if res.success:
-            return
-        reasons.append(res.reason)
-    raise ScenarioError(f"{what}: out of the arm's reach from above ({reasons[0]})")
+            reach_from_above(kin, np.array([x, y, z + dz]), rng, what, narrow)
 
 
 def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float, robot: RobotDescription) -> None:
@@ -493,7 +466,7 @@ def _check_clear(sc: Scenario) -> None:
             raise ScenarioError(f"{key}.mass: {obj.mass} kg is more than {carries}")
     kin = kinematics_of(robot)
     rng = np.random.default_rng(0)
-    grasp = _grasp_params(robot)
+    grasp = grasp_params(robot)
     spots = [(f"clear.region's corner ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m) for x, y in _corners(region)]
     spots += [(f"objects.{o.name} at ({x:.2f}, {y:.2f})", x, y, grasp.min_tcp_height_m)
               for o in sc.objects for x, y in _reach_points(o)]  # fmt: skip
@@ -501,7 +474,7 @@ def _check_clear(sc: Scenario) -> None:
               for x, y in (tray.spot(k) for k in range(len(Tray.SPOTS)))]  # fmt: skip
     for what, x, y, z in spots:
         for dz in (0.0, grasp.pregrasp_height_m):
-            _reach_from_above(kin, np.array([x, y, z + dz]), rng, what)
+            reach_from_above(kin, np.array([x, y, z + dz]), rng, what)
     _check_region_in_view(sc, region)
 
 

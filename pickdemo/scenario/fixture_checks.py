@@ -11,11 +11,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from pickdemo.grasping.top_down import GraspParams, top_down
-from pickdemo.robot.kinematics import IKParams, kinematics_of
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.fixtures import FixtureSpec
 from pickdemo.scenario.layout import Tray
+from pickdemo.scenario.reach import grasp_params, reach_from_above
 from pickdemo.scenario.schema import Scenario
 from pickdemo.scenario.tasks import TASK_RULES
 
@@ -74,22 +74,12 @@ def _check_reach(sc: Scenario, f: FixtureSpec, key: str) -> None:
     walls) and its middle, at some hand angle."""
     robot = sc.robot_description
     kin = kinematics_of(robot)
-    grasp = GraspParams(**dict(robot.grasp_heights)) if robot.grasp_heights else GraspParams()
     ix, iy = (max(s / 2.0 - REACH_INSET_M, 0.0) for s in f.inner_size)
-    z = f.floor_z + grasp.min_tcp_height_m
+    z = f.floor_z + grasp_params(robot).min_tcp_height_m
     rng = np.random.default_rng(0)
     for lx, ly in ((-ix, -iy), (ix, -iy), (ix, iy), (-ix, iy), (0.0, 0.0)):
         at = f.pose.transform_points(np.array([[lx, ly, z]]))[0]
-        reasons = []
-        for yaw in (0.0, np.pi / 2.0, np.pi, -np.pi / 2.0):
-            res = kin.solve(top_down(at, yaw), robot.home_q, rng, IKParams())
-            if res.success:
-                break
-            reasons.append(res.reason)
-        else:
-            raise ScenarioError(
-                f"{key}: its floor at ({at[0]:.2f}, {at[1]:.2f}) is out of the arm's reach from above ({reasons[0]})"
-            )
+        reach_from_above(kin, at, rng, f"{key}: its floor at ({at[0]:.2f}, {at[1]:.2f})")
 
 
 def _check_walls_free(sc: Scenario, f: FixtureSpec, key: str) -> None:
