@@ -122,3 +122,58 @@ def box_surface_points(boxes: tuple[OrientedBox, ...], spacing_m: float = 0.003)
                 local[:, u], local[:, v], local[:, axis] = gu.ravel(), gv.ravel(), side
                 out.append(box.pose.transform_points(local))
     return np.vstack(out) if out else np.zeros((0, 3))
+
+
+def _box_frames(boxes: tuple[OrientedBox, ...] | list[OrientedBox]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each box's centre in the world (N, 3), axes as columns (N, 3, 3) and half extents (N, 3)."""
+    R = np.array([b.pose.rotation for b in boxes]).reshape(-1, 3, 3)
+    mid = np.array([(b.lo + b.hi) / 2.0 for b in boxes]).reshape(-1, 3)
+    centre = np.einsum("nij,nj->ni", R, mid) + np.array([b.pose.position for b in boxes]).reshape(-1, 3)
+    half = np.array([(b.hi - b.lo) / 2.0 for b in boxes]).reshape(-1, 3)
+    return centre, R, half
+
+
+def boxes_meet(a: tuple[OrientedBox, ...] | list[OrientedBox], b: tuple[OrientedBox, ...] | list[OrientedBox]) -> bool:
+    """Whether any box of ``a`` overlaps any box of ``b`` (the separating axis test over each pair's 15
+    axes, every pair at once)."""
+    if not a or not b:
+        return False
+    ca, Ra, ha = _box_frames(a)
+    cb, Rb, hb = _box_frames(b)
+    A = Ra[:, None]  # (na, 1, 3, 3): columns are the axes
+    B = Rb[None, :]
+    edges = np.cross(A[:, :, :, :, None], B[:, :, :, None, :], axisa=2, axisb=2, axisc=2)  # (na, nb, 3, 3, 3)
+    axes = np.concatenate(
+        [np.broadcast_to(A, (len(a), len(b), 3, 3)), np.broadcast_to(B, (len(a), len(b), 3, 3)),
+         edges.reshape(len(a), len(b), 3, 9)], axis=3,
+    )  # fmt: skip  # (na, nb, 3, 15): each column an axis to test
+    norm = np.linalg.norm(axes, axis=2, keepdims=True)
+    axes = np.where(norm > 1e-9, axes / np.maximum(norm, 1e-12), 0.0)  # parallel edges: no axis
+    d = cb[None, :, :] - ca[:, None, :]  # (na, nb, 3)
+    dist = np.abs(np.einsum("abk,abkm->abm", d, axes))
+    ra = np.einsum("ak,abkm->abm", ha, np.abs(np.einsum("aki,abkm->abim", Ra, axes)))
+    rb = np.einsum("bk,abkm->abm", hb, np.abs(np.einsum("bki,abkm->abim", Rb, axes)))
+    separated = (dist > ra + rb + 1e-12).any(axis=2)
+    return bool((~separated).any())
+
+
+def top_below(boxes: tuple[OrientedBox, ...] | list[OrientedBox], x: float, y: float, z: float) -> float | None:
+    """The highest point at or below ``z`` where a vertical line through (x, y) leaves one of the boxes
+    upwards (the top of what stands under the point: a shelf's board), or None."""
+    best = None
+    for box in boxes:
+        R, p = box.pose.rotation, box.pose.position
+        o = R.T @ (np.array([x, y, 0.0]) - p)  # the line's point at z = 0, in the box's frame
+        d = R.T @ np.array([0.0, 0.0, 1.0])
+        lo_t, hi_t = -np.inf, np.inf
+        for k in range(3):
+            if abs(d[k]) < 1e-12:
+                if not box.lo[k] <= o[k] <= box.hi[k]:
+                    break
+                continue
+            t0, t1 = sorted(((box.lo[k] - o[k]) / d[k], (box.hi[k] - o[k]) / d[k]))
+            lo_t, hi_t = max(lo_t, t0), min(hi_t, t1)
+        else:
+            if lo_t <= hi_t and hi_t <= z and (best is None or hi_t > best):
+                best = float(hi_t)
+    return best

@@ -26,7 +26,7 @@ from pickdemo.scenario.fixture_checks import check_fixtures
 from pickdemo.scenario.layout import LayoutError, Tray, sample_layout, sample_place, sample_round
 from pickdemo.scenario.objects import ObjectSpec, PlaceSpec
 from pickdemo.scenario.reach import grasp_params, reach_from_above
-from pickdemo.scenario.schema import Scenario
+from pickdemo.scenario.schema import SUPPORT_TOLERANCE_M, Scenario
 from pickdemo.scenario.tasks import TASK_RULES
 from pickdemo.scenario.twins import check_twins
 
@@ -121,13 +121,37 @@ def _no_usable_file(key: str, pattern: str) -> None:
     raise ScenarioError(f"{key}: none of its {len(matched)} matches can be read")
 
 
+def _check_on_fixture(sc: Scenario, obj: ObjectSpec, key: str, r: float) -> None:
+    """An object at a ``level_m`` stands wholly on one top of a fixture (a shelf's board) wherever it may
+    stand: the same top under its footprint's corners."""
+    for x, y in _region(obj):
+        tops = {
+            round(sc.surface_z(x + dx, y + dy, obj.level_m), 4)
+            if _under_fixture(sc, x + dx, y + dy, obj.level_m)
+            else None
+            for dx in (-r, 0.0, r)
+            for dy in (-r, 0.0, r)
+        }
+        if len(tops) != 1 or None in tops:
+            raise ScenarioError(
+                f"{key}.level_m: at ({x:.3f}, {y:.3f}) m its footprint ({r * 1e3:.0f} mm radius) is not wholly on "
+                f"one top of a fixture at or below {obj.level_m:.3f} m"
+            )
+
+
+def _under_fixture(sc: Scenario, x: float, y: float, level: float) -> bool:
+    return any(f.support_z(x, y, level + SUPPORT_TOLERANCE_M) is not None for f in sc.fixtures)
+
+
 def _check_objects(sc: Scenario) -> None:
     table = sc.table
     fixed: list[tuple[str, np.ndarray]] = []
     for obj in sc.objects:
         key = f"objects.{obj.name}"
         r = obj.largest_shape.footprint_radius_m
-        for x, y in _region(obj):
+        if obj.level_m is not None:
+            _check_on_fixture(sc, obj, key, r)
+        for x, y in _region(obj) if obj.level_m is None else ():
             if not table.holds(x, y, margin=r):
                 raise ScenarioError(
                     f"{key}: at ({x:.3f}, {y:.3f}) m its footprint ({r * 1e3:.0f} mm radius) is off the table "
@@ -284,7 +308,7 @@ def _check_camera(sc: Scenario) -> None:
             continue
         shape = obj.largest_shape
         h, r = shape.height_m, shape.footprint_radius_m
-        pts = np.array([[x + dx, y + dy, sc.surface_z(x, y) + z] for x, y in _region(obj) for dx in (-r, r)
+        pts = np.array([[x + dx, y + dy, sc.surface_z(x, y, obj.level_m) + z] for x, y in _region(obj) for dx in (-r, r)
                         for dy in (-r, r) for z in (0.0, h)])  # fmt: skip
         p_cam = T_cam_world.transform_points(pts)
         if np.any(p_cam[:, 2] <= cam.near_m) or np.any(p_cam[:, 2] >= cam.far_m):
@@ -312,7 +336,7 @@ def _check_behind_the_base(sc: Scenario) -> None:
         return
     target = sc.target
     h = target.largest_shape.height_m
-    tops = np.array([[x, y, sc.surface_z(x, y) + h] for x, y in _reach_points(target)])
+    tops = np.array([[x, y, sc.surface_z(x, y, target.level_m) + h] for x, y in _reach_points(target)])
     hidden = hidden_by_the_base(_robot(sc), np.array(cam.position, dtype=float), tops)
     if hidden.any():
         x, y, _ = tops[np.argmax(hidden)]
@@ -347,11 +371,11 @@ def _check_pick(sc: Scenario) -> None:
         )
     kin = kinematics_of(robot)
     rng = np.random.default_rng(0)
-    spots = [(f"{key} at ({x:.2f}, {y:.2f})", x, y) for x, y in _reach_points(target)]
-    spots += [(f"{sc.place.key} at ({x:.2f}, {y:.2f})" if sc.place.position is None else sc.place.key, x, y)
+    spots = [(f"{key} at ({x:.2f}, {y:.2f})", x, y, target.level_m) for x, y in _reach_points(target)]
+    spots += [(f"{sc.place.key} at ({x:.2f}, {y:.2f})" if sc.place.position is None else sc.place.key, x, y, None)
               for x, y in sc.place.spots]  # fmt: skip
-    for what, x, y in spots:
-        z = max(target.largest_shape.height_m / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y)
+    for what, x, y, level in spots:
+        z = max(target.largest_shape.height_m / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y, level)
         for dz in (0.0, grasp.pregrasp_height_m):
             reach_from_above(kin, np.array([x, y, z + dz]), rng, what, narrow)
 

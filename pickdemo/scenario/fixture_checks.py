@@ -1,6 +1,8 @@
 """What ``validate`` checks of a scenario's fixtures (:mod:`pickdemo.scenario.fixtures`) before it runs:
-each stands on the table, clear of the robot's base, of the other fixtures and of the tray; the arm
-reaches into it from above; no place spot and no object at a fixed position is on its walls.
+each stands clear of the robot's base, of the other fixtures and of the tray; a bin stands on the
+table, the arm reaches into it from above, and no place spot and no object at a fixed position is on
+its walls; a model (a shelf) is not inside the table's slab, and no place spot or object at a fixed
+position is inside it.
 
 Pure: no simulator (reach is checked with the arm's kinematics). Each check raises
 :class:`~pickdemo.scenario.base.ScenarioError` naming the fixture's key.
@@ -11,10 +13,12 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.scenario.base import ScenarioError
-from pickdemo.scenario.fixtures import FixtureSpec
+from pickdemo.scenario.fixtures import BinSpec, ModelSpec
 from pickdemo.scenario.layout import Tray
+from pickdemo.scenario.objects import TABLE_THICKNESS_M
 from pickdemo.scenario.reach import grasp_params, reach_from_above
 from pickdemo.scenario.schema import Scenario
 from pickdemo.scenario.tasks import TASK_RULES
@@ -48,7 +52,7 @@ def check_fixtures(sc: Scenario) -> None:
     for i, f in enumerate(sc.fixtures):
         key = f"fixtures.{f.name}"
         corners = f.footprint()
-        if not all(sc.table.holds(float(x), float(y)) for x, y in corners):
+        if f.kind == "bin" and not all(sc.table.holds(float(x), float(y)) for x, y in corners):
             raise ScenarioError(f"{key}.position: the {f.kind} at {_xy(f)} reaches past the table's edge")
         base = cv2.pointPolygonTest(_mm(corners), (0.0, 0.0), True) * 1e-3  # > 0: the base inside it
         if base > -robot.base_radius_m:
@@ -61,15 +65,18 @@ def check_fixtures(sc: Scenario) -> None:
                 raise ScenarioError(f"{key}.position: the {f.kind} at {_xy(f)} overlaps fixtures.{other.name}")
         if tray is not None and _overlap(corners, _tray_footprint(tray)):
             raise ScenarioError(f"{key}.position: the {f.kind} at {_xy(f)} overlaps the tray (place.tray)")
-        _check_reach(sc, f, key)
-        _check_walls_free(sc, f, key)
+        if f.kind == "bin":
+            _check_reach(sc, f, key)
+            _check_walls_free(sc, f, key)
+        else:
+            _check_model(sc, f, key)
 
 
-def _xy(f: FixtureSpec) -> str:
+def _xy(f: BinSpec | ModelSpec) -> str:
     return f"({f.position[0]:.3f}, {f.position[1]:.3f})"
 
 
-def _check_reach(sc: Scenario, f: FixtureSpec, key: str) -> None:
+def _check_reach(sc: Scenario, f: BinSpec, key: str) -> None:
     """The hand, pointing down, reaches the bin's floor at its corners (``REACH_INSET_M`` inside the
     walls) and its middle, at some hand angle."""
     robot = sc.robot_description
@@ -82,7 +89,7 @@ def _check_reach(sc: Scenario, f: FixtureSpec, key: str) -> None:
         reach_from_above(kin, at, rng, f"{key}: its floor at ({at[0]:.2f}, {at[1]:.2f})")
 
 
-def _check_walls_free(sc: Scenario, f: FixtureSpec, key: str) -> None:
+def _check_walls_free(sc: Scenario, f: BinSpec, key: str) -> None:
     """No place spot and no object standing at a fixed position is on the bin's walls or against them:
     the target put down there, or the object, would stand on a wall (inside the bin clear of them, or
     outside clear of them, is fine)."""
@@ -101,5 +108,40 @@ def _check_walls_free(sc: Scenario, f: FixtureSpec, key: str) -> None:
         if off > -r and not f.inside(float(x), float(y), margin=r):
             raise ScenarioError(
                 f"{what}: ({x:.3f}, {y:.3f}) m is on or against the walls of {key} (what stands there needs "
+                f"{r * 1e3:.0f} mm clear around it)"
+            )
+
+
+#: A model may stand on the table's top: only this far into the slab is an overlap (m).
+TABLE_TOUCH_M = 0.001
+
+
+def _check_model(sc: Scenario, f: ModelSpec, key: str) -> None:
+    """A model is not inside the table's slab (it may stand on the table, or beside it), and no place
+    spot and no object standing at a fixed position on the table is inside it or against it."""
+    boxes = f.boxes()
+    t = sc.table
+    slab = OrientedBox(
+        Pose(np.array([t.center[0], t.center[1], 0.0]), np.eye(3)),
+        np.array([-t.size[0] / 2.0, -t.size[1] / 2.0, -TABLE_THICKNESS_M]),
+        np.array([t.size[0] / 2.0, t.size[1] / 2.0, -TABLE_TOUCH_M]),
+    )
+    if boxes_meet(boxes, [slab]):
+        raise ScenarioError(f"{key}.position: the model at {_xy(f)} reaches into the table (raise it or move it aside)")
+    spots = []
+    if sc.place.tray is None and TASK_RULES[sc.task].places_target:
+        r = sc.target.largest_shape.footprint_radius_m
+        spots += [(sc.place.key, x, y, r) for x, y in sc.place.spots]
+    spots += [
+        (f"objects.{o.name}.position", o.position[0], o.position[1], o.largest_shape.footprint_radius_m)
+        for o in sc.objects
+        if o.position is not None and o.level_m is None and o.shape != "mesh"
+    ]
+    for what, x, y, r in spots:
+        grown = f.boxes(grown_m=r)
+        column = np.array([[x, y, z] for z in (0.005, 0.02, 0.05, 0.1)])  # what stands there, up its height
+        if any(b.contains(column).any() for b in grown):
+            raise ScenarioError(
+                f"{what}: ({x:.3f}, {y:.3f}) m is inside or against {key} (what stands there needs "
                 f"{r * 1e3:.0f} mm clear around it)"
             )

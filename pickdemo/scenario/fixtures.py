@@ -1,28 +1,33 @@
-"""The cell's fixtures (``[[fixtures]]`` in a scenario): a walled bin, built of boxes, fixed to the table.
+"""The cell's fixtures (``[[fixtures]]`` in a scenario): a walled bin built of boxes on the table
+(:class:`BinSpec`), or a rigid model from a URDF or SDF file (:class:`ModelSpec`: a shelf).
 
-A fixture is part of the task, as a real cell's bins are: the robot knows its pose and shape. What
-the rest of pickdemo reads of one is its boxes (:meth:`FixtureSpec.boxes`): the simulator builds them,
-perception leaves their points out of its cloud (as it does the robot's own links), the grasps keep
-the hand clear of them, an object standing inside rests on its floor (:meth:`FixtureSpec.floor_z`),
-and ``validate`` checks that it stands on the table, clear of the others and of the place.
+A fixture is part of the task, as a real cell's bins and shelves are: the robot knows its pose and
+shape. What the rest of pickdemo reads of one is its boxes (``boxes()``): perception leaves their
+points out of its cloud (as it does the robot's own links), the grasps and the arm keep clear of them,
+and an object stands on the highest of their tops under it (``support_z``: a bin's floor, a shelf's
+board); the simulator builds a bin's boxes and loads a model's file. ``validate`` checks that each
+stands clear of the robot, the table's slab, the others and the place.
 
 Pure: no simulator.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import Field, field_validator
+from pydantic import Field, ValidationInfo, field_validator
 
-from pickdemo.core.geometry import OrientedBox, Pose
-from pickdemo.scenario.base import RESERVED_NAMES, Angle, Model, Name, UnitFloat, Vec2
+from pickdemo.core.geometry import OrientedBox, Pose, top_below
+from pickdemo.core.meshes import MeshFileError, resolve
+from pickdemo.core.model_file import read_model
+from pickdemo.scenario.base import RESERVED_NAMES, Angle, Model, Name, Scale, UnitFloat, Vec2, Vec3
+from pickdemo.scenario.objects import resolve_path
 
 InnerSide = Annotated[float, Field(ge=0.05, le=1.5)]  # m, a bin's inside along one axis
 
 
-class FixtureSpec(Model):
+class BinSpec(Model):
     """A walled bin: its inside ``inner_size`` (x, y, in its own frame) on a floor ``floor_thickness_m``
     thick, walls ``wall_thickness_m`` thick rising ``wall_height_m`` above the floor, its centre at
     ``position`` on the table, turned ``yaw_deg`` about the vertical."""
@@ -95,7 +100,81 @@ class FixtureSpec(Model):
         local = np.array([[-ox, -oy, 0.0], [ox, -oy, 0.0], [ox, oy, 0.0], [-ox, oy, 0.0]])
         return self.pose.transform_points(local)[:, :2]
 
+    def support_z(self, x: float, y: float, z: float) -> float | None:
+        """The top of its part under (x, y) at or below ``z`` (its floor inside it), or None."""
+        return top_below(self.boxes(), x, y, z)
 
-def fixture_boxes(fixtures: tuple[FixtureSpec, ...], grown_m: float = 0.0) -> tuple[OrientedBox, ...]:
+
+class ModelSpec(Model):
+    """A rigid model fixed in the cell, from a URDF or SDF file (``pybullet_data:kiva_shelf/model.sdf``,
+    or a path relative to the scenario file): its frame (the root link's) at ``position`` (x, y, and z
+    above the table's top: a shelf standing on the floor beside the table has it below 0), turned
+    ``yaw_deg`` about the vertical, at ``scale``. Its collision geometry is read as boxes
+    (:mod:`pickdemo.core.model_file`)."""
+
+    kind: Literal["model"]
+    name: Name
+    file: Annotated[str, Field(min_length=1, max_length=500)]
+    position: Vec3
+    yaw_deg: Angle = 0.0
+    scale: Scale = 1.0
+    color: tuple[UnitFloat, UnitFloat, UnitFloat] | None = None  # None: the file's own
+
+    @field_validator("name")
+    @classmethod
+    def _not_reserved(cls, name: str) -> str:
+        if name in RESERVED_NAMES:
+            raise ValueError(f"{name!r} is the name of a body of the scene; choose another")
+        return name
+
+    @field_validator("file")
+    @classmethod
+    def _readable(cls, spec: str, info: ValidationInfo) -> str:
+        path = resolve_path(spec, info)
+        assert path is not None
+        try:
+            read_model(resolve(path, None))
+        except MeshFileError as exc:
+            raise ValueError(str(exc)) from None
+        return path
+
+    @property
+    def pose(self) -> Pose:
+        """Its frame in the world."""
+        return Pose.from_xyz_rpy(np.array(self.position, dtype=float), yaw=float(np.radians(self.yaw_deg)))
+
+    def _local(self) -> tuple[tuple[OrientedBox, ...], Pose]:
+        return read_model(resolve(self.file, None)).scaled(self.scale)
+
+    @property
+    def inertial_pose(self) -> Pose:
+        """Its root link's inertial frame in the world (where PyBullet puts its base)."""
+        return self.pose @ self._local()[1]
+
+    def boxes(self, grown_m: float = 0.0) -> tuple[OrientedBox, ...]:
+        """Its collision boxes in the world, ``grown_m`` larger every way."""
+        g = np.full(3, grown_m)
+        at = self.pose
+        return tuple(OrientedBox(at @ b.pose, b.lo - g, b.hi + g) for b in self._local()[0])
+
+    def footprint(self) -> np.ndarray:
+        """The corners of its boxes' bounding rectangle in its own frame, on the table (4, 2)."""
+        corners = np.vstack([b.pose.transform_points(np.where(_CORNERS, b.hi, b.lo)) for b in self._local()[0]])
+        (x0, y0), (x1, y1) = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+        local = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
+        return self.pose.transform_points(local)[:, :2]
+
+    def support_z(self, x: float, y: float, z: float) -> float | None:
+        """The highest top of its boxes under (x, y) at or below ``z`` (a shelf's board), or None."""
+        return top_below(self.boxes(), x, y, z)
+
+
+_CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=bool)
+
+#: A fixture of any kind (``kind`` says which).
+FixtureSpec = Annotated[Union[BinSpec, ModelSpec], Field(discriminator="kind")]  # noqa: UP007 - a pydantic union
+
+
+def fixture_boxes(fixtures: tuple[BinSpec | ModelSpec, ...], grown_m: float = 0.0) -> tuple[OrientedBox, ...]:
     """Every fixture's solid parts in the world (``grown_m`` larger every way)."""
     return tuple(b for f in fixtures for b in f.boxes(grown_m))

@@ -227,7 +227,7 @@ def sample_layout(
         pose = Pose.from_xyz_rpy(np.array([xy[0], xy[1], 0.0]), roll=roll, pitch=pitch, yaw=yaw)
         z = obj.position[2] if obj.position is not None and len(obj.position) == 3 else None
         if z is None:  # resting on the table, or on the belt where there is one
-            z = shape.resting_height_m(pose.rotation) + scenario.surface_z(float(xy[0]), float(xy[1]))
+            z = shape.resting_height_m(pose.rotation) + scenario.surface_z(float(xy[0]), float(xy[1]), obj.level_m)
         out.append(Placement(obj.name, Pose(np.array([xy[0], xy[1], z]), pose.rotation), shape))
     return tuple(out)
 

@@ -23,6 +23,9 @@ from pickdemo.scenario.base import (
     Vec2,
 )
 
+#: The table's slab, below its top (m).
+TABLE_THICKNESS_M = 0.05
+
 
 class TableSpec(Model):
     """The table; its top surface is the world plane z = 0 and the robot stands on it at the origin."""
@@ -93,6 +96,9 @@ class ObjectSpec(Model):
     friction: Friction = 0.9  # (a mesh: its file's unless given)
     position: tuple[Coord, Coord] | tuple[Coord, Coord, Coord] | None = None  # m: x, y (and centre z)
     position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
+    #: it stands on the highest top of a fixture under it at most this high (m above the table's top: a
+    #: shelf's board); None: on the table, a belt or a bin's floor
+    level_m: Coord | None = None
     beside: BesideSpec | None = None  # ... or against another object
     yaw_deg: Angle | None = None
     yaw_range_deg: tuple[Angle, Angle] | None = None
@@ -257,6 +263,9 @@ class PlaceSpec(Model):
 
     position: Vec2 | None = None  # m, x, y on the table
     position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
+    #: it stands on the highest top of a fixture under it at most this high (m above the table's top: a
+    #: shelf's board); None: on the table, a belt or a bin's floor
+    level_m: Coord | None = None
     #: a tray's URDF ("pybullet_data:tray/traybox.urdf", or a path relative to the scenario file)
     tray: Annotated[str, Field(min_length=1, max_length=500)] | None = None
     tray_scale: Scale = 0.5  # times the URDF's own size (pybullet_data's traybox is 0.6 m square at 1)

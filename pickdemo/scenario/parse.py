@@ -121,6 +121,10 @@ def _message(err: dict, data: object, listed: set[tuple[int | str, ...]] | None 
             listed.add(loc[:-1])
         return f"{where}: unknown key (valid keys: {', '.join(valid)})"
     msg = err["msg"].removeprefix("Value error, ")
+    if err["type"] == "union_tag_invalid":  # a tagged table (a fixture's kind) of no known kind
+        ctx = err.get("ctx", {})
+        key = ctx.get("discriminator", "kind").strip("'")
+        return f"{where}.{key}: {printable(repr(ctx.get('tag')), 40)} is not one of {ctx.get('expected_tags')}"
     if not loc:
         return msg
     if err["type"] in ("float_type", "int_type", "bool_type", "string_type", "tuple_type"):

@@ -138,6 +138,10 @@ class SimSpec(Model):
     max_sim_time_s: Annotated[float, Field(gt=0.0, le=600.0)] = 60.0  # simulated-time budget of one episode
 
 
+#: An object's lowest points may be seen this far below the top it stands on (depth noise): ``surface_z``.
+SUPPORT_TOLERANCE_M = 0.005
+
+
 class Scenario(Model):
     """A whole scenario file, validated."""
 
@@ -162,7 +166,7 @@ class Scenario(Model):
     disturbances: tuple[DisturbanceSpec, ...] = ()
     conveyor: ConveyorSpec | None = None
     clear: ClearSpec | None = None  # a clear round's objects (task = "clear")
-    fixtures: tuple[FixtureSpec, ...] = ()  # bins fixed to the table, known to the robot
+    fixtures: tuple[FixtureSpec, ...] = ()  # bins on the table, models (a shelf): known to the robot
 
     @field_validator("robot")
     @classmethod
@@ -261,13 +265,17 @@ class Scenario(Model):
         if any(o.static for o in self.objects):
             raise ValueError('objects: a clear round (task = "clear") clears every object: none can be static')
 
-    def surface_z(self, x: float, y: float) -> float:
+    def surface_z(self, x: float, y: float, z: float | None = None) -> float:
         """Height of what an object standing at (x, y) rests on: the belt's top, a bin's floor, or the
-        table (0)."""
+        table (0); for an object whose lowest points are at ``z`` (or whose centre is), the highest top of
+        a fixture under it no higher than that (a shelf's board), else the table."""
         c = self.conveyor
         if c is not None and c.holds(x, y):
             return c.height_m
-        return next((f.floor_z for f in self.fixtures if f.inside(x, y)), 0.0)
+        if z is None:
+            return next((f.floor_z for f in self.fixtures if f.kind == "bin" and f.inside(x, y)), 0.0)
+        tops = [t for f in self.fixtures if (t := f.support_z(x, y, z + SUPPORT_TOLERANCE_M)) is not None]
+        return max(tops, default=0.0)
 
     @property
     def target(self) -> ObjectSpec:

@@ -22,13 +22,13 @@ from pickdemo.robot.description import RobotDescription
 from pickdemo.scenario.fixtures import FixtureSpec
 from pickdemo.scenario.layout import Placement, Tray
 from pickdemo.scenario.load import ObjectSpec, Scenario
+from pickdemo.scenario.objects import TABLE_THICKNESS_M
 from pickdemo.sim import quiet_c_stdout
 from pickdemo.sim.conveyor import Belt
 
 #: The scene's bodies that are not objects on the table.
 FIXTURES = ("robot", "table", "conveyor", "tray")
 
-TABLE_THICKNESS_M = 0.05
 #: The pads' torsional friction (m: torque per newton pressed). PyBullet's contact is a point, whose
 #: friction about the normal is near zero: an object held at one point pivots about the finger axis.
 #: A rubber pad pressed onto a patch of radius a resists with about (2/3) mu a: 0.003 m is a 4.5 mm
@@ -159,8 +159,23 @@ class Scene:
         self.bodies["tray"] = body
 
     def _build_fixture(self, fixture: FixtureSpec) -> None:
-        """A fixture's parts, each a box fixed to the table, of the table's friction."""
+        """A bin's parts, each a box fixed to the table, of the table's friction; a model's file, fixed
+        where the scenario puts its frame (PyBullet places a body by its inertial frame)."""
         c = self.client
+        if fixture.kind == "model":
+            path = str(resolve(fixture.file, None))
+            with quiet_c_stdout():
+                if path.lower().endswith(".sdf"):
+                    body = c.loadSDF(path, globalScaling=fixture.scale)[0]
+                else:
+                    body = c.loadURDF(path, useFixedBase=True, globalScaling=fixture.scale)
+            at = fixture.inertial_pose
+            c.resetBasePositionAndOrientation(body, at.position.tolist(), list(at.quaternion_xyzw))
+            c.changeDynamics(body, -1, lateralFriction=self.scenario.table.friction)
+            if fixture.color is not None:
+                c.changeVisualShape(body, -1, rgbaColor=[*fixture.color, 1.0])
+            self.fixture_bodies[fixture.name] = [body]
+            return
         parts = []
         for box in fixture.boxes():
             half = ((box.hi - box.lo) / 2.0).tolist()

@@ -102,11 +102,12 @@ class ClearSequencer:
         max_consecutive_failures: int = 2,
         params: MachineParams | None = None,
         on_pick_end: Callable[[PickRecord], None] | None = None,
-        surface_z: Callable[[float, float], float] | None = None,
+        surface_z: Callable[..., float] | None = None,
         fixtures: tuple[OrientedBox, ...] = (),
         grasp_rng: np.random.Generator | None = None,
     ) -> None:
-        """``surface_z(x, y)``: the height of what an object at (x, y) rests on (a bin's floor, the table);
+        """``surface_z(x, y, z)``: the height of what an object at (x, y), its centre at ``z``, rests on (a
+        bin's floor, the table);
         ``fixtures``: the cell's fixtures (a bin's walls), known from the task: the grasps keep clear of them;
         ``grasp_rng``: the draw of grasps from any side (:class:`~pickdemo.skills.pick.PickMachine`'s)."""
         self.kin = kin

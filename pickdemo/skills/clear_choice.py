@@ -58,7 +58,7 @@ class ObjectChooser:
         self.surface_z, self.fixture_points, self.any_side = surface_z, fixture_points, any_side
 
     def _surface(self, seen: SeenObject) -> float:
-        return 0.0 if self.surface_z is None else self.surface_z(float(seen.centre[0]), float(seen.centre[1]))
+        return 0.0 if self.surface_z is None else self.surface_z(*(float(v) for v in seen.centre[:3]))
 
     def _cloud(self, seen: SeenObject):  # noqa: ANN202 - an ObjectCloud
         """The object's cloud with the fixtures' points near it among its obstacles."""

@@ -83,10 +83,11 @@ class TargetBelief:
         tracker_params: TrackerParams,
         gate: GateParams,
         *,
-        surface_z: Callable[[float, float], float],
+        surface_z: Callable[..., float],
         counters: Counters,
     ) -> None:
-        """``surface_z(x, y)``: the height of what a target at (x, y) rests on (a belt's top, the table)."""
+        """``surface_z(x, y, z)``: the height of what a target at (x, y), its centre at ``z``, rests on (a
+        belt's top, the table, a shelf's board)."""
         self.model = model
         self.symmetry = symmetry_rad
         self.tracker_params = tracker_params
@@ -205,7 +206,7 @@ class TargetBelief:
         sigma = float(np.sqrt(max(np.max(np.linalg.eigvalsh(cov)), 0.0)))
         if sigma > self.gate.max_sigma_m:
             return f"estimate too uncertain ({sigma * 1e3:.1f} mm)"
-        surface = self.surface_z(float(p[0]), float(p[1]))
+        surface = self.surface_z(float(p[0]), float(p[1]), float(p[2]))
         if self.unknown:  # its features lie on it: between what it rests on and its size bound above
             if float(p[2]) < surface - self.gate.table_gap_m - self._calibration_slack(est):
                 return f"estimate sinks {(surface - float(p[2])) * 1e3:.0f} mm into what it rests on"

@@ -59,6 +59,12 @@ def _bin(fields: str, name: str = "bin") -> str:
     return f'\n[[fixtures]]\nkind = "bin"\nname = "{name}"\n{fields}{size}\n'
 
 
+def _model(fields: str, name: str = "shelf") -> str:
+    """A ``[[fixtures]]`` model with ``fields`` (the shelf at ``position`` unless a file is given)."""
+    file = "" if "file" in fields else '\nfile = "pybullet_data:kiva_shelf/model.sdf"'
+    return f'\n[[fixtures]]\nkind = "model"\nname = "{name}"\n{fields}{file}\n'
+
+
 def _edit(old: str, new: str) -> str:
     assert old in GOOD, old
     return GOOD.replace(old, new, 1)
@@ -408,7 +414,7 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "place.position: (0.450, 0.300) m is on or against the walls of fixtures.bin",
     ),
     ("bin: too small", GOOD + _bin("position = [0.5, -0.3]\ninner_size = [0.01, 0.2]"), "fixtures.bin.inner_size[0]"),
-    ("bin: an unknown kind", GOOD + _bin("position = [0.5, -0.3]").replace('"bin"', '"crate"', 1), "fixtures.bin.kind"),
+    ("bin: an unknown kind", GOOD + _bin("position = [0.5, -0.3]").replace('"bin"', '"crate"', 1), "fixtures.bin.kind: 'crate' is not one of"),
     (
         "bin: named as an object",
         GOOD + _bin("position = [0.5, -0.3]", name="cube"),
@@ -418,6 +424,38 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "bin: a wall of no height",
         GOOD + _bin("position = [0.5, -0.3]\nwall_height_m = 0.0"),
         "fixtures.bin.wall_height_m",
+    ),
+    (
+        "model: no such file",
+        GOOD + _model('position = [0.0, 1.05, -0.75]\nfile = "no_such_shelf.sdf"'),
+        "fixtures.shelf.file: ",  # (then the path and "no such file")
+    ),
+    (
+        "model: not XML",
+        GOOD + _model('position = [0.0, 1.05, -0.75]\nfile = "pybullet_data:plane.obj"'),
+        "not a URDF or SDF file (not XML",
+    ),
+    (
+        "model: a collision mesh",
+        GOOD + _model('position = [0.0, 1.05, -0.75]\nfile = "pybullet_data:duck_vhacd.urdf"'),
+        "a <mesh> collision geometry; a model fixture is read as boxes",
+    ),
+    (
+        "model: more than one link",
+        GOOD + _model('position = [0.0, 1.05, -0.75]\nfile = "pybullet_data:r2d2.urdf"'),
+        "links; a model fixture is one rigid body",
+    ),
+    ("model: into the table", GOOD + _model("position = [0.0, 0.9, -0.4]"), "reaches into the table"),
+    ("model: on the robot's base", GOOD + _model("position = [0.0, 0.3, -0.75]"), "stands on the robot's base"),
+    (
+        "model: over the place",
+        GOOD + _model("position = [0.03, 0.72, 0.0]"),  # a post on the place
+        "place.position: (0.450, 0.300) m is inside or against fixtures.shelf",
+    ),
+    (
+        "object: on no fixture's top",
+        _edit("target = true", "target = true\nlevel_m = 0.1"),
+        "objects.cube.level_m: at (0.450, -0.050) m its footprint (35 mm radius) is not wholly on one top",
     ),
 ]
 

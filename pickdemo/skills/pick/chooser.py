@@ -58,7 +58,7 @@ class GraspChooser:
 
     def request(self, pose: Pose, hand_yaws: tuple[float | None, ...]) -> GraspRequest:
         """What the selector is asked: the target at ``pose`` (and, seen as a cloud, its newest view)."""
-        surface = self.belief.surface_z(float(pose.position[0]), float(pose.position[1]))
+        surface = self.belief.surface_z(*(float(v) for v in pose.position))
         cloud, obstacles = self.belief.cloud, self.belief.neighbours
         near = self._fixtures_near(pose)
         if near is not None:

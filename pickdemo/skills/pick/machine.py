@@ -78,7 +78,7 @@ class PickMachine:
         place_tolerance_m: float | None = None,
         open_loop: bool = False,
         params: MachineParams | None = None,
-        surface_z=None,  # noqa: ANN001 - Callable[[float, float], float] | None
+        surface_z=None,  # noqa: ANN001 - Callable[..., float] | None
         selector: GraspSelector | None = None,
         place_z_m: float = 0.0,
         look_at: np.ndarray | None = None,
@@ -87,8 +87,9 @@ class PickMachine:
         grasp_rng: np.random.Generator | None = None,
     ) -> None:
         """``cameras``: the robot's cameras (a fixed one at least; one on the hand looks too whenever
-        the target is wholly in its view). ``surface_z(x, y)``: the height of what a target at (x, y)
-        rests on, as the cell's layout says (a belt's top, or the table at 0). ``selector``: where
+        the target is wholly in its view). ``surface_z(x, y, z)``: the height of what a target at (x, y),
+        its centre at ``z``, rests on, as the cell's layout says (a belt's top, a bin's floor, a shelf's
+        board, or the table at 0). ``selector``: where
         grasps come from (default: a top-down grasp across the target's narrower side).
         ``place_tolerance_m``: the task's; a target the camera sees put down farther than this from
         the place position is picked up again (within ``max_attempts``). ``place_z_m``: the height
@@ -121,7 +122,7 @@ class PickMachine:
         self.sensor_in_tcp = None if np.allclose(sensor, np.eye(3), atol=1e-9) else sensor
         self.counters = Counters()
         self.belief = TargetBelief(
-            model, symmetry_rad, p.tracker, p.gate, surface_z=surface_z or (lambda x, y: 0.0), counters=self.counters
+            model, symmetry_rad, p.tracker, p.gate, surface_z=surface_z or _on_the_table, counters=self.counters
         )
         self.intercept = Interceptor(kin, rng, p, self.belief, self.arm, open_loop=open_loop)
         self.chooser = GraspChooser(
@@ -446,3 +447,8 @@ class PickMachine:
         reason = self.intercept.go_to(pose, self.now_s, limits)
         if reason:
             self.fail(Stage.IK, reason)
+
+
+def _on_the_table(x: float, y: float, z: float | None = None) -> float:
+    """What a target rests on where the cell says nothing: the table."""
+    return 0.0

@@ -276,7 +276,7 @@ def tick_descend(m: PickMachine, obs: Observation) -> Transition:
 # ---- CLOSE: fingers close with this attempt's force; held or missed.
 def enter_close(m: PickMachine, obs: Observation) -> None:
     tp = m.belief.predict(obs.time_s)  # how high its centre rests above what it stands on: so at the place
-    m.rest_height_m = float(tp.position[2]) - m.belief.surface_z(float(tp.position[0]), float(tp.position[1]))
+    m.rest_height_m = float(tp.position[2]) - m.belief.surface_z(*(float(v) for v in tp.position))
     m.grip.close(m.close_force_n)
     m.grip.watch()
     m.watch.start_hold()
