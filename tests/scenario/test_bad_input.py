@@ -414,7 +414,11 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "place.position: (0.450, 0.300) m is on or against the walls of fixtures.bin",
     ),
     ("bin: too small", GOOD + _bin("position = [0.5, -0.3]\ninner_size = [0.01, 0.2]"), "fixtures.bin.inner_size[0]"),
-    ("bin: an unknown kind", GOOD + _bin("position = [0.5, -0.3]").replace('"bin"', '"crate"', 1), "fixtures.bin.kind: 'crate' is not one of"),
+    (
+        "bin: an unknown kind",
+        GOOD + _bin("position = [0.5, -0.3]").replace('"bin"', '"crate"', 1),
+        "fixtures.bin.kind: 'crate' is not one of",
+    ),
     (
         "bin: named as an object",
         GOOD + _bin("position = [0.5, -0.3]", name="cube"),
