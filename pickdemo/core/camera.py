@@ -305,6 +305,9 @@ class RGBDFrame:
     #: The robot's own links where its joint states put them when the frame was taken (padded boxes):
     #: a point inside one is the arm or the hand, not the scene (the self-filter). Empty: not known.
     robot_boxes: tuple[OrientedBox, ...] = ()
+    #: The cell's fixtures (a bin, a shelf), known from the task: a point as near one as the depth noise
+    #: can put a point of its surface is the fixture, not an object on it.
+    fixture_boxes: tuple[OrientedBox, ...] = ()
     camera: str = "camera"  # which camera took it: "camera" (the fixed one) or "wrist_camera"
 
     def calibration_cov_at(self, point_world: np.ndarray) -> np.ndarray | None:

@@ -10,7 +10,8 @@ the palm allows. A candidate is kept when:
   faces the pads meet are within ``friction_cone_deg`` of square to the closing axis;
 - **it collides with nothing**: no point of the object, of what stands near it, or of a fixture
   lies where the open fingers sweep on their way in along the approach axis (from ``approach_m``
-  back), or behind the palm; the finger tips stay above the surface the object rests on. The fingers
+  back), or behind the palm; the finger tips stay above the surface the object rests on; the open
+  hand, from the pregrasp in, meets no fixture's box (:mod:`pickdemo.grasping.clearance`). The fingers
   open wide; where that collides, only ``open_margin_m`` past the object's extent.
 
 Its cost (lowest first), as Drake's ``GraspCandidateCost`` weighs it: the approach's tilt from the
@@ -30,7 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose
+from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
+from pickdemo.grasping.clearance import HAND_DEPTH_M, hand_boxes, hand_meets
 from pickdemo.grasping.top_down import GraspParams, GraspPlan, GraspPlanningError
 from pickdemo.robot.description import Gripper
 
@@ -38,14 +40,20 @@ DOWN = np.array([0.0, 0.0, -1.0])
 #: A normal with less vertical than this is a side's (the fingers close along it); more, a top's (within
 #: 12 deg of level: closing axes across it are sampled instead, as the top-down grasps do)
 SIDE_NORMAL_Z = float(np.sin(np.radians(78.0)))
+#: An end of a grasp's band on a face this far from square to the closing axis (|n . y| below it), at the
+#: edge of the view along the axis, is the edge of what the camera saw: the face the pad meets is unseen
+UNSEEN_FACE_ALIGNMENT = 0.5
+#: The object's points this near what it rests on are left out (m): the depth sensor's mixed pixels where
+#: it meets its support (a shelf's board before it), and no pad holds there (its tips stay above)
+SUPPORT_BAND_M = 0.008
 
 
 @dataclass(frozen=True)
 class AntipodalParams:
     samples: int = 100  # cloud points tried as a contact, drawn evenly over the cloud
     #: rolls of the hand about the closing axis, from the most downward approach it allows (Drake's
-    #: +-60 deg in 7 steps)
-    rolls_deg: tuple[float, ...] = (0.0, -20.0, 20.0, -40.0, 40.0, -60.0, 60.0)
+    #: +-60 deg in 7 steps, and on to level: into a shelf, the hand comes in level)
+    rolls_deg: tuple[float, ...] = (0.0, -20.0, 20.0, -40.0, 40.0, -60.0, 60.0, -75.0, 75.0, -90.0, 90.0)
     max_tilt_deg: float = 90.0  # the approach at most this far from straight down
     top_axes: int = 6  # closing axes across a top face sampled at (over a half turn)
     #: a face the pads meet more than this out of square with the closing axis is refused (GPD's 20 deg;
@@ -123,15 +131,17 @@ def sample_antipodal(
     obstacles: np.ndarray | None = None,
     grasp: GraspParams | None = None,
     params: AntipodalParams | None = None,
+    fixtures: tuple[OrientedBox, ...] = (),
 ) -> list[AntipodalGrasp]:
     """Every collision-free antipodal grasp of the object whose cloud is ``points`` (world, (N, 3))
     found from ``params.samples`` contacts, best (lowest cost) first. ``obstacles``: points of what
     stands near it (other objects, a fixture's faces) the hand keeps out of; ``surface_z``: the height
-    of what the object rests on."""
+    of what the object rests on; ``fixtures``: the boxes of the cell's fixtures near it, which the open
+    hand coming in from the pregrasp (``grasp.pregrasp_height_m`` back) keeps out of."""
     grasp = grasp or GraspParams()
     p = params or AntipodalParams()
     pts = thinned(np.asarray(points, dtype=float), p.voxel_m)
-    pts = pts[pts[:, 2] - surface_z > 0.002]
+    pts = pts[pts[:, 2] - surface_z > SUPPORT_BAND_M]
     if len(pts) < 10:
         return []
     obs = np.zeros((0, 3)) if obstacles is None or len(obstacles) == 0 else np.asarray(obstacles, dtype=float)
@@ -160,6 +170,11 @@ def sample_antipodal(
                 if np.arccos(np.clip(z @ DOWN, -1.0, 1.0)) > max_tilt:
                     continue
                 found = _candidate(pts, obs, contact, y, z, surface_z, gripper, widest, centroid, p)
+                if found is not None and fixtures:
+                    opening = gripper.finger_max_m if found.open_m is None else found.open_m
+                    at = Pose(found.position, found.rotation)
+                    if hand_meets(at, gripper, opening, grasp.pregrasp_height_m, fixtures):
+                        found = None
                 if found is not None:
                     out.append(found)
     out.sort(key=lambda g: g.cost)
@@ -216,12 +231,20 @@ def _candidate(
                 break
         if opening is None:
             return None
-        # antipodal: the faces the pads meet (the band's two extremes) square to the closing axis
+        # antipodal: the faces the pads meet (the band's two extremes) square to the closing axis; an end
+        # where the view of the object ends along the axis, on a face seen turned away from it (a box's
+        # front seen, its side not), is a face the camera did not see: the other end decides
         idx = np.flatnonzero(band)
-        ends = (int(idx[np.argmin(local[band, 1])]), int(idx[np.argmax(local[band, 1])]))
-        aligned = min(abs(float(normal_at(pts, e, p.normal_neighbours, centroid) @ y)) for e in ends)
-        if aligned < np.cos(np.radians(p.friction_cone_deg)):
+        lo_i, hi_i = int(np.argmin(local[band, 1])), int(np.argmax(local[band, 1]))
+        extent = (float(local[:, 1].min()), float(local[:, 1].max()))
+        seen = []
+        for i, far in ((lo_i, extent[0]), (hi_i, extent[1])):
+            a = abs(float(normal_at(pts, int(idx[i]), p.normal_neighbours, centroid) @ y))
+            if not (a < UNSEEN_FACE_ALIGNMENT and abs(float(local[idx[i], 1]) - far) < p.voxel_m):
+                seen.append(a)
+        if not seen or min(seen) < np.cos(np.radians(p.friction_cone_deg)):
             return None  # a face outside the friction cone: squeezed, it slides out between the pads
+        aligned = min(seen)
         square = 1.0 - aligned
         lever = float(np.linalg.norm(_cross(centroid - centre, y)))
         tilt = float(np.arccos(np.clip(z @ DOWN, -1.0, 1.0)))
@@ -249,10 +272,6 @@ def _fingers_hit(
     return bool(np.any(along & across & in_finger))
 
 
-#: The hand's body behind the palm, along the approach (m): what lies farther back is the wrist's.
-HAND_DEPTH_M = 0.12
-
-
 def _palm_hits(local: np.ndarray, gripper: Gripper, clearance_m: float) -> bool:
     """Whether points lie behind the palm, within the hand's body seen along the approach."""
     z = local[:, 2]
@@ -266,26 +285,75 @@ def _palm_hits(local: np.ndarray, gripper: Gripper, clearance_m: float) -> bool:
     )
 
 
+#: A lift that would meet a fixture (a shelf's board above) is tried this much lower, step by step (m) ...
+LIFT_STEP_M = 0.005
+#: ... down to this (m): enough to clear a shelf's lip (1 cm on the kiva shelf) as it comes out
+LEAST_LIFT_M = 0.02
+
+
+def way_out(
+    g: AntipodalGrasp,
+    held: tuple[np.ndarray, np.ndarray],
+    gripper: Gripper,
+    params: GraspParams,
+    fixtures: tuple[OrientedBox, ...],
+) -> tuple[float, float] | None:
+    """How the hand takes the object out from among the fixtures: (the lift, m; how far it then goes
+    back along the approach, m): straight up ``transport_height_m`` where the hand and the object
+    (``held``: its lowest and highest corners in the world) meet no fixture there; else as high as they
+    clear what is above (a shelf's board), then back out the way the hand came in, raised so; None if
+    neither (no lift of ``LEAST_LIFT_M`` clears)."""
+    opening = gripper.finger_max_m if g.open_m is None else g.open_m
+    approach = g.rotation[:, 2]
+
+    def clear(h: float, back: float) -> bool:
+        up = np.array([0.0, 0.0, h])
+        at = Pose(g.position + up, g.rotation)
+        lo, hi = held[0] + up, held[1] + up
+        ends = np.array([lo, hi, lo - approach * back, hi - approach * back])
+        obj = OrientedBox(Pose.identity(), ends.min(axis=0), ends.max(axis=0))
+        return not boxes_meet([*hand_boxes(at, gripper, opening, back), obj], fixtures)
+
+    top = params.transport_height_m
+    if not fixtures or (clear(top, 0.0) and clear(top / 2.0, 0.0)):
+        return top, 0.0
+    back = params.pregrasp_height_m
+    h = top
+    while h >= LEAST_LIFT_M:
+        if clear(h, back) and clear(h / 2.0, 0.0):
+            return h, back
+        h -= LIFT_STEP_M
+    return None
+
+
 def tilted_pick(
-    g: AntipodalGrasp, centre: np.ndarray, surface_z: float, place_xy: tuple[float, float], params: GraspParams
+    g: AntipodalGrasp,
+    centre: np.ndarray,
+    surface_z: float,
+    place_xy: tuple[float, float],
+    params: GraspParams,
+    out: tuple[float, float] | None = None,
 ) -> GraspPlan:
     """Every TCP pose of a pick and place from a grasp from any side: in along its approach axis from
-    ``pregrasp_height_m`` back, lifted straight up, and put down as it stood (the same orientation, the
-    same height over the table) with the object's ``centre`` (x, y) over ``place_xy``; out again along the
-    approach. The hand keeps its orientation throughout (the motion near the object turns it about the
-    vertical only)."""
+    ``pregrasp_height_m`` back, lifted straight up (``out``: as :func:`way_out` says, and back out along
+    the approach), and put down as it stood (the same orientation, the same height over the table) with
+    the object's ``centre`` (x, y) over ``place_xy``; out again along the approach. The hand keeps its
+    orientation throughout (the motion near the object turns it about the vertical only)."""
     R, tcp = g.rotation, g.position
     approach = R[:, 2]
+    lift_m, back_m = out if out is not None else (params.transport_height_m, 0.0)
     offset = tcp[:2] - centre[:2]  # the TCP from the object's centre, held so
     place_p = np.array(
         [place_xy[0] + offset[0], place_xy[1] + offset[1], tcp[2] - surface_z + params.place_clearance_m]
     )
     carry_z = tcp[2] + params.transport_height_m
     pose = lambda p: Pose(np.asarray(p, dtype=float), R)  # noqa: E731
+    lift = np.array([tcp[0], tcp[1], tcp[2] + lift_m])
     return GraspPlan(
         pregrasp=pose(tcp - approach * params.pregrasp_height_m),
         grasp=pose(tcp),
-        lift=pose([tcp[0], tcp[1], carry_z]),
+        lift=pose(lift),
+        withdraw=pose(lift - approach * back_m) if back_m > 0.0 else None,
         place_above=pose([place_p[0], place_p[1], max(carry_z, place_p[2] + 0.05)]),
         place=pose(place_p),
         retreat=pose(place_p - approach * params.retreat_height_m),
@@ -308,11 +376,16 @@ class AnySideGrasps:
     rng: np.random.Generator
     params: GraspParams = GraspParams()
     antipodal: AntipodalParams = AntipodalParams()
-    best: int = 8  # the candidates offered, best first (the skill takes the first the arm reaches)
-    _planned: tuple[int, list[AntipodalGrasp], np.ndarray] | None = field(default=None, repr=False)
+    best: int = 8  # the candidates offered, best first (the skill takes the first the arm reaches) ...
+    #: ... among fixtures (a shelf), where the arm's links rule out more of them (the skill checks them)
+    best_among_fixtures: int = 24
+    _planned: tuple[int, list[tuple[AntipodalGrasp, tuple[float, float]]], np.ndarray] | None = field(
+        default=None, repr=False
+    )
 
-    def _local(self, request) -> tuple[list[AntipodalGrasp], np.ndarray]:  # noqa: ANN001 - a GraspRequest
-        """The grasps in the tracked pose's frame, best first, and the cloud's centre there."""
+    def _local(self, request) -> tuple[list[tuple[AntipodalGrasp, tuple[float, float]]], np.ndarray]:  # noqa: ANN001
+        """The grasps in the tracked pose's frame, best first, each with its way out (:func:`way_out`),
+        and the cloud's centre there."""
         at = request.pose
         if self._planned is None or self._planned[0] != request.plan_id:
             cloud = request.cloud
@@ -322,22 +395,27 @@ class AnySideGrasps:
             found = sample_antipodal(
                 cloud.points, request.surface_z, request.gripper, self.rng,
                 obstacles=np.vstack(obstacles) if obstacles else None, grasp=self.params, params=self.antipodal,
+                fixtures=request.fixtures,
             )  # fmt: skip
-            if not found:
+            held = (cloud.points.min(axis=0), cloud.points.max(axis=0))
+            ways = [(g, way_out(g, held, request.gripper, self.params, request.fixtures)) for g in found]
+            kept = [(g, out) for g, out in ways if out is not None]
+            if not kept:
                 raise GraspPlanningError(
                     "no grasp from any side fits what was seen: wherever the fingers could close, the object is "
                     "wider than the open hand or the hand would meet something"
+                    + (" (or could not take it out)" if found else "")
                 )
             inv = at.rotation.T
             local = [
-                dataclasses.replace(g, position=inv @ (g.position - at.position), rotation=inv @ g.rotation)
-                for g in found[: self.best]
+                (dataclasses.replace(g, position=inv @ (g.position - at.position), rotation=inv @ g.rotation), out)
+                for g, out in kept[: self.best_among_fixtures if request.fixtures else self.best]
             ]
             self._planned = (request.plan_id, local, inv @ (cloud.points.mean(axis=0) - at.position))
         return self._planned[1], self._planned[2]
 
-    def _world(self, request) -> list[tuple[AntipodalGrasp, np.ndarray]]:  # noqa: ANN001 - a GraspRequest
-        """The grasps and the cloud's centre carried with the tracked pose now."""
+    def _world(self, request) -> list[tuple[AntipodalGrasp, np.ndarray, tuple[float, float]]]:  # noqa: ANN001
+        """The grasps and the cloud's centre carried with the tracked pose now, each with its way out."""
         local, centre = self._local(request)
         at = request.pose
         where = at.position + at.rotation @ centre
@@ -347,23 +425,31 @@ class AnySideGrasps:
                     g, position=at.position + at.rotation @ g.position, rotation=at.rotation @ g.rotation
                 ),
                 where,
+                out,
             )
-            for g in local
+            for g, out in local
         ]
 
     def hand_yaws(self, request) -> list[float]:  # noqa: ANN001 - a GraspRequest
         """The candidates' hand angles, best first (each a grasp of its own: a grasp from the side is not
         the same turned about the vertical)."""
         return [
-            tilted_pick(g, c, request.surface_z, request.place_xy, self.params).hand_yaw_rad
-            for g, c in self._world(request)
+            tilted_pick(g, c, request.surface_z, request.place_xy, self.params, out).hand_yaw_rad
+            for g, c, out in self._world(request)
         ]
 
     def candidates(self, request) -> Iterator[GraspPlan]:  # noqa: ANN001 - a GraspRequest
         """For each hand angle asked, the best candidate at the nearest angle (None: the best)."""
-        plans = [tilted_pick(g, c, request.surface_z, request.place_xy, self.params) for g, c in self._world(request)]
-        for near in request.hand_yaws:
+        plans = [
+            tilted_pick(g, c, request.surface_z, request.place_xy, self.params, out)
+            for g, c, out in self._world(request)
+        ]
+        offered: set[int] = set()
+        for near in request.hand_yaws:  # (two asks at one angle: its best, then its next best)
+            left = [k for k in range(len(plans)) if k not in offered] or list(range(len(plans)))
             if near is None:
-                yield plans[0]
+                k = left[0]
             else:
-                yield min(plans, key=lambda plan: abs(float(np.angle(np.exp(1j * (plan.hand_yaw_rad - near))))))
+                k = min(left, key=lambda i: abs(float(np.angle(np.exp(1j * (plans[i].hand_yaw_rad - near))))))
+            offered.add(k)
+            yield plans[k]

@@ -11,6 +11,7 @@ described) another, and :class:`TopDownFirst` those or, where none fits, grasps 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -18,9 +19,10 @@ from typing import Protocol
 import numpy as np
 
 from pickdemo.core.camera import RGBDFrame
-from pickdemo.core.geometry import Pose, wrap_angle
+from pickdemo.core.geometry import OrientedBox, Pose, wrap_angle
 from pickdemo.core.shapes import Unknown
 from pickdemo.grasping.antipodal import AnySideGrasps
+from pickdemo.grasping.clearance import plan_meets
 from pickdemo.grasping.cloud import CloudGrasps, hand_hits
 from pickdemo.grasping.top_down import (
     GraspParams,
@@ -55,6 +57,9 @@ class GraspRequest:
     misses: int = field(default=0, kw_only=True)
     #: the target stands still (a moving one is met from above: a tilted hand is re-seated at rest)
     still: bool = field(default=True, kw_only=True)
+    #: the boxes of the cell's fixtures near the target (a shelf's boards, a bin's walls), known from the
+    #: task: the open hand keeps out of them from the pregrasp in (:mod:`pickdemo.grasping.clearance`)
+    fixtures: tuple[OrientedBox, ...] = field(default=(), kw_only=True)
 
 
 class GraspSelector(Protocol):
@@ -166,7 +171,11 @@ class TopDownFirst:
             if not request.still:
                 order = (self.top, self.top)
             try:
-                order[0].hand_yaws(request)
+                yaws = order[0].hand_yaws(request)
+                if order[0] is self.top and request.fixtures:  # (a shelf: from above, the hand meets the board)
+                    plans = order[0].candidates(dataclasses.replace(request, hand_yaws=tuple(yaws)))
+                    if all(plan_meets(plan, request.gripper, request.fixtures) for plan in plans):
+                        raise GraspPlanningError("every top-down grasp would meet a fixture")
                 chosen: GraspSelector = order[0]
             except GraspPlanningError:
                 chosen = order[1]

@@ -76,6 +76,9 @@ class GraspPlan:
     #: each finger's opening from the middle on the way in (m; None: wide open): a grasp whose wide-open
     #: fingers would meet a wall or a neighbour opens only as far as it needs
     open_m: float | None = None
+    #: lifted (to ``lift``) under something (a shelf's board), the hand takes the target back out along its
+    #: approach to here before it carries it (None: from the lift straight on)
+    withdraw: Pose | None = None
 
 
 def top_down(position: np.ndarray, yaw_rad: float) -> Pose:

@@ -35,10 +35,12 @@ from pickdemo.perception.segmentation import (
     unoccluded,
     world_heights,
 )
-from pickdemo.perception.unknown import estimate_unknown
+from pickdemo.perception.unknown import Support, estimate_unknown
 
 
-def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None) -> PoseEstimate:
+def estimate_pose(
+    frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None, support: Support | None = None
+) -> PoseEstimate:
     """The target's pose from one frame (see the module docstring for the method).
 
     Raises :class:`PerceptionError` with the reason when the target cannot be measured, a degenerate
@@ -47,7 +49,7 @@ def estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParams
     :func:`~pickdemo.perception.unknown.estimate_unknown`.
     """
     if isinstance(model.geometry, Unknown):
-        return estimate_unknown(frame, model, params)
+        return estimate_unknown(frame, model, params, support)
     try:
         return _estimate_pose(frame, model, params or PerceptionParams())
     except (np.linalg.LinAlgError, cv2.error, ValueError, IndexError) as exc:

@@ -56,14 +56,44 @@ def color_match(rgb: np.ndarray, color: tuple[float, float, float], cos_min: flo
     return (dot > 0.0) & (dot * dot >= np.float32(cos_min * cos_min) * norm2) & (norm2 > 400.0)
 
 
+#: A point this near a fixture's surface, or as near as its depth noise reaches (in sigmas of one
+#: pixel's), is the fixture's (m): the table's rule (:func:`~pickdemo.perception.unknown.segment_objects`:
+#: 4 sigmas of the 3x3 mixture's noise) for a fixture
+FIXTURE_MARGIN_M = 0.006
+FIXTURE_NOISE_SIGMAS = 1.5
+
+
+def fixture_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
+    """Which of the ``candidates`` (an (H, W) mask) are the cell's fixtures: their points lie within
+    ``FIXTURE_MARGIN_M``, or ``FIXTURE_NOISE_SIGMAS`` of their depth's noise, of one of the frame's
+    :attr:`~pickdemo.core.camera.RGBDFrame.fixture_boxes`."""
+    out = np.zeros(candidates.shape, dtype=bool)
+    ys, xs = np.nonzero(candidates)
+    z = frame.depth_m[ys, xs]
+    ok = np.isfinite(z) & (z > 0)
+    ys, xs, z = ys[ok], xs[ok], z[ok]
+    if len(z) == 0:
+        return out
+    pts = frame.T_world_cam.transform_points(backproject(np.column_stack([xs, ys]).astype(float), z, frame.intrinsics))
+    margin = np.maximum(FIXTURE_MARGIN_M, FIXTURE_NOISE_SIGMAS * np.sqrt(frame.depth_variance(z)))
+    near = np.zeros(len(z), dtype=bool)
+    for box in frame.fixture_boxes:
+        local = (pts - box.pose.position) @ box.pose.rotation
+        near |= np.linalg.norm(local - np.clip(local, box.lo, box.hi), axis=1) <= margin
+    out[ys[near], xs[near]] = True
+    return out
+
+
 def robot_pixels(frame: RGBDFrame, candidates: np.ndarray) -> np.ndarray:
     """Which of the ``candidates`` (an (H, W) mask) are the robot's own body: their points lie in one
     of the frame's :attr:`~pickdemo.core.camera.RGBDFrame.robot_boxes` (the links where the joint states
-    put them). A box wholly in front of the camera is tested only on the candidates within its
-    image's bounding box (a point in the box projects inside the hull of its corners'
-    projections): none if that misses the frame."""
+    put them); and which are the cell's fixtures (:func:`fixture_pixels`). A box wholly in front of
+    the camera is tested only on the candidates within its image's bounding box (a point in the box
+    projects inside the hull of its corners' projections): none if that misses the frame."""
     out = np.zeros(candidates.shape, dtype=bool)
     boxes = frame.robot_boxes
+    if frame.fixture_boxes and candidates.any():
+        out |= fixture_pixels(frame, candidates)
     if not boxes or not candidates.any():
         return out
     K, T = frame.intrinsics, frame.T_world_cam

@@ -26,8 +26,9 @@ Pure: arrays in, dataclasses out; no simulator. Steps:
    from above (the object is taken to stand as it rests: no roll or pitch), with the variance of a
    principal axis from that many independent points (a round object has none to speak of). Its
    position: the middle of its footprint along those axes (the far side's top edge bounds it) at
-   half its height (it stands on the table up to its top seen): what the camera sees from any side
-   alike, where the visible surface's mean moves with the view.
+   half its height (it stands on the table up to its top seen, or on what the cell's ``support``
+   says is under it: a shelf's board): what the camera sees from any side alike, where the visible
+   surface's mean moves with the view.
 5. Whether it is seen whole: something nearer the camera bordering its silhouette (the hand as it
    comes down, another object) hides part of it, and its centre seen is then off (the controller
    does not act on such a view).
@@ -39,6 +40,7 @@ Pure: arrays in, dataclasses out; no simulator. Steps:
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -212,17 +214,36 @@ class NoneAsTall(PerceptionError):
     """No cluster in view stands as tall as the target's named size."""
 
 
+#: What an object at (x, y), its lowest points seen at z, stands on (m above the table): the cell's
+#: shelves and bins, as the task knows them (None: the table, z = 0).
+Support = Callable[[float, float, float], float]
+
+
+def base_z(points: np.ndarray, support: Support | None) -> float:
+    """The height of what the object whose points these are stands on (0: the table)."""
+    if support is None or len(points) == 0:
+        return 0.0
+    low = float(np.quantile(points[:, 2], FOOTPRINT_QUANTILE))
+    return float(support(float(points[:, 0].mean()), float(points[:, 1].mean()), low))
+
+
 def _choose(
-    frame: RGBDFrame, clusters: Clusters, model: TargetModel, min_px: int, centre_uv: np.ndarray | None, pts: np.ndarray
+    frame: RGBDFrame,
+    clusters: Clusters,
+    model: TargetModel,
+    min_px: int,
+    centre_uv: np.ndarray | None,
+    pts: np.ndarray,
+    support: Support | None = None,
 ) -> tuple[Clusters, int]:
     """The clusters and the target's label (:func:`choose_cluster`); none as tall as named, the
     clusters split where the depth or the colour steps first (a nearer, taller object seen against the
     target joins it in one cluster), as a heap's are."""
     try:
-        return clusters, choose_cluster(frame, clusters, model, min_px, centre_uv=centre_uv, pts=pts)
+        return clusters, choose_cluster(frame, clusters, model, min_px, centre_uv=centre_uv, pts=pts, support=support)
     except NoneAsTall:
         split = split_heap(frame, clusters, min_px)
-        return split, choose_cluster(frame, split, model, min_px, centre_uv=centre_uv, pts=pts)
+        return split, choose_cluster(frame, split, model, min_px, centre_uv=centre_uv, pts=pts, support=support)
 
 
 def choose_cluster(
@@ -233,9 +254,11 @@ def choose_cluster(
     *,
     centre_uv: np.ndarray | None,
     pts: np.ndarray | None = None,
+    support: Support | None = None,
 ) -> int:
     """The label of the target's cluster (see the module docstring); raises :class:`PerceptionError`
-    when no cluster is large enough. ``pts``: the frame's world points (for a size the task names)."""
+    when no cluster is large enough. ``pts``: the frame's world points (for a size the task names);
+    ``support``: what an object stands on (its height is measured from there)."""
     big = [k + 1 for k, a in enumerate(clusters.areas) if a >= min_px]
     if not big:
         raise PerceptionError(
@@ -254,14 +277,14 @@ def choose_cluster(
     cue = getattr(model.geometry, "size_cue_m", None)
     if cue is not None and pts is not None:
         if not getattr(model.geometry, "heap", False):  # (a heap's objects stand on one another)
-            tall = [k for k in big if _as_tall(pts[clusters.labels == k], cue[0])]
+            tall = [k for k in big if _as_tall(pts[clusters.labels == k], cue[0], support)]
             if not tall:
                 raise NoneAsTall(
                     f"nothing in view stands {cue[0] * 1e3:.0f} mm tall, the target's size as named (another "
                     "object is not the target)"
                 )
             big = tall
-        return big[int(np.argmin([_size_mismatch(pts[clusters.labels == k], cue) for k in big]))]
+        return big[int(np.argmin([_size_mismatch(pts[clusters.labels == k], cue, support) for k in big]))]
     return big[int(np.argmax([clusters.areas[k - 1] for k in big]))]
 
 
@@ -274,14 +297,15 @@ def height_tolerance_m(height_m: float) -> float:
     return max(0.01, 0.15 * height_m)
 
 
-def _as_tall(points: np.ndarray, height_m: float) -> bool:
+def _as_tall(points: np.ndarray, height_m: float, support: Support | None = None) -> bool:
     p = points[np.all(np.isfinite(points), axis=1)]
     if len(p) < 3:
         return False
-    return abs(float(np.quantile(p[:, 2], 1.0 - FOOTPRINT_QUANTILE)) - height_m) <= height_tolerance_m(height_m)
+    top = float(np.quantile(p[:, 2], 1.0 - FOOTPRINT_QUANTILE)) - base_z(p, support)
+    return abs(top - height_m) <= height_tolerance_m(height_m)
 
 
-def _size_mismatch(points: np.ndarray, cue: tuple[float, float, float]) -> float:
+def _size_mismatch(points: np.ndarray, cue: tuple[float, float, float], support: Support | None = None) -> float:
     """How far a cluster's size seen (its height, and its footprint's extents along its principal axes)
     is from the size the task names (height, longer and shorter side), as a sum of log ratios."""
     p = points[np.all(np.isfinite(points), axis=1)]
@@ -291,7 +315,7 @@ def _size_mismatch(points: np.ndarray, cue: tuple[float, float, float]) -> float
     _, axes = np.linalg.eigh(np.cov(xy.T))
     along = xy @ axes
     extents = np.quantile(along, 1.0 - FOOTPRINT_QUANTILE, axis=0) - np.quantile(along, FOOTPRINT_QUANTILE, axis=0)
-    seen = np.array([np.quantile(p[:, 2], 1.0 - FOOTPRINT_QUANTILE), extents.max(), extents.min()])
+    seen = np.array([np.quantile(p[:, 2], 1.0 - FOOTPRINT_QUANTILE) - base_z(p, support), extents.max(), extents.min()])
     return float(np.sum(np.abs(np.log(np.maximum(seen, 1e-3) / np.maximum(np.asarray(cue), 1e-3)))))
 
 
@@ -332,18 +356,23 @@ def principal_yaw(cov_xy: np.ndarray, n: int) -> tuple[float, float]:
     return yaw, float(var)
 
 
-def estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None) -> PoseEstimate:
-    """The pose of an object nobody described (see the module docstring). Raises
-    :class:`PerceptionError` with the reason when it cannot be measured."""
+def estimate_unknown(
+    frame: RGBDFrame, model: TargetModel, params: PerceptionParams | None = None, support: Support | None = None
+) -> PoseEstimate:
+    """The pose of an object nobody described (see the module docstring); ``support``: what an object
+    stands on (None: the table). Raises :class:`PerceptionError` with the reason when it cannot be
+    measured."""
     params = params or PerceptionParams()
     try:
-        return _estimate_unknown(frame, model, params)
+        return _estimate_unknown(frame, model, params, support)
     except (np.linalg.LinAlgError, cv2.error, ValueError, IndexError) as exc:
         reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
         raise PerceptionError(f"degenerate estimate ({type(exc).__name__}: {reason})") from None
 
 
-def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionParams) -> PoseEstimate:
+def _estimate_unknown(
+    frame: RGBDFrame, model: TargetModel, params: PerceptionParams, support: Support | None
+) -> PoseEstimate:
     heap = getattr(model.geometry, "heap", False)
     if heap and frame.roi is not None:  # a region about one object of a heap: all of it at full resolution
         x0, y0, x1, y1 = 0, 0, frame.rgb.shape[1], frame.rgb.shape[0]  # (small objects vanish in a strided one)
@@ -356,7 +385,7 @@ def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPa
         clusters = split_heap(f, clusters, params.min_target_px)
     h, w = frame.rgb.shape[:2]
     centre = None if frame.roi is None else np.array([w / 2.0 - x0, h / 2.0 - y0])
-    clusters, label = _choose(f, clusters, model, params.min_target_px, centre, pts)
+    clusters, label = _choose(f, clusters, model, params.min_target_px, centre, pts, support)
     mask = clusters.labels == label
 
     depth = f.depth_m  # holes are NaN in a crop
@@ -409,9 +438,10 @@ def _estimate_unknown(frame: RGBDFrame, model: TargetModel, params: PerceptionPa
     along = (seen[:, :2] - mean[:2]) @ axes
     lo, hi = np.quantile(along, FOOTPRINT_QUANTILE, axis=0), np.quantile(along, 1.0 - FOOTPRINT_QUANTILE, axis=0)
     extents = hi - lo
-    # Its height: it stands on the table (z = 0) up to its top seen; its centre halfway.
-    top = float(np.quantile(surface[:, 2], 1.0 - FOOTPRINT_QUANTILE))
-    centre = np.array([*(mean[:2] + axes @ (0.5 * (lo + hi))), 0.5 * top])
+    # Its height: it stands on the table (z = 0), or what is under it, up to its top seen; its centre halfway.
+    base = base_z(seen, support)
+    top = float(np.quantile(surface[:, 2], 1.0 - FOOTPRINT_QUANTILE)) - base
+    centre = np.array([*(mean[:2] + axes @ (0.5 * (lo + hi))), base + 0.5 * top])
     # What the view hides of its shape (its far side below its top edge, its base) moves the centre
     # seen, the more the taller it is: along the line of sight, across it and up.
     view = centre[:2] - f.T_world_cam.position[:2]

@@ -66,7 +66,7 @@ from pickdemo.runtime.results import LoopCounts, episode_result
 from pickdemo.runtime.tasks import episode_task
 from pickdemo.runtime.view import EpisodeView
 from pickdemo.runtime.world import World
-from pickdemo.scenario.fixtures import fixture_boxes
+from pickdemo.scenario.fixtures import seen_boxes
 from pickdemo.scenario.layout import LayoutError
 from pickdemo.scenario.load import Scenario
 from pickdemo.sim.controller import RobotInterface
@@ -495,9 +495,8 @@ class Episode:
             boxes = robot_body(world.robot).boxes(obs.arm_q, obs.fingers_m)
             if world.tray is not None:  # the cell's tray, and what is in it, is no object on the table
                 boxes = (*boxes, world.tray.box())
-            if self.scenario.fixtures:  # nor are its fixtures, as far as an object on a table is seen above it
-                boxes = (*boxes, *fixture_boxes(self.scenario.fixtures, self.options.perception.min_height_m))
-            frame = dataclasses.replace(frame, robot_boxes=boxes)
+            # nor are its fixtures, as near them as the depth noise reaches
+            frame = dataclasses.replace(frame, robot_boxes=boxes, fixture_boxes=seen_boxes(self.scenario.fixtures))
         if request.survey:  # a clear round's look at the whole table
             with self.timer("perceive"):
                 survey = survey_objects(frame, self.options.perception)

@@ -69,8 +69,12 @@ class EpisodeTask(Protocol):
         ...
 
 
-def _paper(perception: PerceptionParams) -> Estimator:
-    return lambda frame, model: estimate_pose(frame, model, perception)
+def _paper(perception: PerceptionParams, scenario: Scenario | None = None) -> Estimator:
+    """The paper's method; an object nobody described stands on what the cell's models have under it
+    (a shelf's board: ``Scenario.surface_z``), where the scenario has a model, else on the table."""
+    models = scenario is not None and any(f.kind == "model" for f in scenario.fixtures)
+    support = scenario.surface_z if models else None
+    return lambda frame, model: estimate_pose(frame, model, perception, support)
 
 
 class PickTask:
@@ -103,7 +107,7 @@ class PickTask:
                 Stage.PERCEPTION, f"the target is a mesh nobody described: perception {method!r} needs its model"
             )
         if method == "paper":  # (an object nobody described: estimate_pose sends it to estimate_unknown)
-            return Told(name, model, _paper(perception))
+            return Told(name, model, _paper(perception, scenario))
         try:
             return Told(name, model, resolve_estimator(method))
         except EstimatorError as exc:
@@ -123,7 +127,8 @@ class PickTask:
             place_tolerance_m=scenario.success.place_tolerance,
             open_loop=open_loop,
             surface_z=scenario.surface_z,
-            fixtures=fixture_boxes(scenario.fixtures),
+            fixtures=fixture_boxes(tuple(f for f in scenario.fixtures if f.kind == "bin")),
+            solids=fixture_boxes(scenario.fixtures),
             **common,
         )
 
@@ -150,7 +155,7 @@ class ClearTask:
             )
         if open_loop:
             raise EpisodeFailure(Stage.ERROR, "a clear round runs closed loop only (--open-loop is for a pick)")
-        return Told("", TargetModel(Unknown(), color=None), _paper(perception))
+        return Told("", TargetModel(Unknown(), color=None), _paper(perception, scenario))
 
     def referee(self, scenario: Scenario, world: World, told: Told) -> ClearReferee:
         return ClearReferee(scenario, world)
@@ -164,7 +169,8 @@ class ClearTask:
             max_consecutive_failures=scenario.clear.max_consecutive_failures,
             on_pick_end=referee.pick_ended,  # truth: for scoring only
             surface_z=scenario.surface_z,
-            fixtures=fixture_boxes(scenario.fixtures),
+            fixtures=fixture_boxes(tuple(f for f in scenario.fixtures if f.kind == "bin")),
+            solids=fixture_boxes(scenario.fixtures),
             **common,
         )
 

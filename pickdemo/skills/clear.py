@@ -104,14 +104,16 @@ class ClearSequencer:
         on_pick_end: Callable[[PickRecord], None] | None = None,
         surface_z: Callable[..., float] | None = None,
         fixtures: tuple[OrientedBox, ...] = (),
+        solids: tuple[OrientedBox, ...] = (),
         grasp_rng: np.random.Generator | None = None,
     ) -> None:
         """``surface_z(x, y, z)``: the height of what an object at (x, y), its centre at ``z``, rests on (a
         bin's floor, the table);
         ``fixtures``: the cell's fixtures (a bin's walls), known from the task: the grasps keep clear of them;
+        ``solids``: every fixture's boxes, which each pick's open hand and arm keep out of;
         ``grasp_rng``: the draw of grasps from any side (:class:`~pickdemo.skills.pick.PickMachine`'s)."""
         self.kin = kin
-        self.surface_z, self.fixtures, self.grasp_rng = surface_z, fixtures, grasp_rng
+        self.surface_z, self.fixtures, self.solids, self.grasp_rng = surface_z, fixtures, solids, grasp_rng
         self.tray = tray
         # A clear round looks through its fixed camera alone (not yet through one on the hand).
         self.cameras = [c for c in cameras if not c.on_hand][:1]
@@ -298,6 +300,7 @@ class ClearSequencer:
             place_tolerance_m=None,
             surface_z=self.surface_z,
             fixtures=self.fixtures,
+            solids=self.solids,
             grasp_rng=self.grasp_rng,
             **kw,
         )

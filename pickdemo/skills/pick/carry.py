@@ -66,6 +66,7 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
         lift[2] = m.plan.grasp.position[2] + m.p.payload.lift_off_m
     motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
     m.scale.start()
+    m.withdrawing = False
 
 
 def tick_lift(m: PickMachine, obs: Observation) -> Transition:
@@ -83,6 +84,10 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
         m.lifted_off = True
         lift = m.arm.move.x4(m.plan.lift)
         m.arm.motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
+        return None
+    if m.plan.withdraw is not None and not m.withdrawing:  # under a shelf's board: back out the way it came in
+        m.withdrawing = True
+        m.arm.move.to(m.plan.withdraw, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
         return None
     return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
 

@@ -9,14 +9,16 @@ import dataclasses
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose, wrap_angle
+from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet, wrap_angle
 from pickdemo.core.result import Failure, Stage
+from pickdemo.grasping.clearance import near as boxes_near
 from pickdemo.grasping.selection import GraspRequest, GraspSelector
 from pickdemo.grasping.top_down import GraspPlan, GraspPlanningError
 from pickdemo.motion.ik_goals import along_line, goal_candidates, line_reach, line_speed_scale
 from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import TargetModel
 from pickdemo.robot.kinematics import IKParams, Kinematics
+from pickdemo.robot.self_geometry import robot_body
 from pickdemo.skills.pick.arm import ArmDriver
 from pickdemo.skills.pick.intercept import Interceptor, leaves_reach
 from pickdemo.skills.pick.params import MachineParams
@@ -24,6 +26,10 @@ from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.tracking.belief import TargetBelief
 
 DESCENT_OUT_OF_REACH = "the straight descent onto the grasp is out of reach"
+#: A fixture's boxes this near the target are the grasps' concern (m): the open hand about it, from its pregrasp
+SOLIDS_NEAR_M = 0.3
+#: ... and the arm's (m): its links from the hand to the elbow
+ARM_NEAR_M = 0.8
 
 
 class GraspChooser:
@@ -41,11 +47,13 @@ class GraspChooser:
         arm: ArmDriver,
         intercept: Interceptor,
         fixture_points: np.ndarray | None = None,
+        solids: tuple[OrientedBox, ...] = (),
     ) -> None:
         """``fixture_points``: points on the cell's fixtures' faces (a bin's walls), known from the task:
-        the hand keeps out of them as it does out of what the camera sees beside the target."""
+        the hand keeps out of them as it does out of what the camera sees beside the target; ``solids``:
+        every fixture's boxes (a shelf's too), which the open hand and the arm keep out of."""
         self.kin, self.rng, self.p, self.model, self.place_xy = kin, rng, params, model, place_xy
-        self.fixture_points = fixture_points
+        self.fixture_points, self.solids = fixture_points, solids
         #: this target's grasps that held nothing or let it slip: the selector's grasps from any side
         #: come first after one (:class:`~pickdemo.grasping.selection.TopDownFirst`)
         self.misses = 0
@@ -77,6 +85,7 @@ class GraspChooser:
             gripper=self.kin.robot.gripper,
             misses=self.misses,
             still=self.still,
+            fixtures=boxes_near(self.solids, pose.position, SOLIDS_NEAR_M) if self.solids else (),
         )
 
     def _fixtures_near(self, pose: Pose) -> np.ndarray | None:
@@ -256,6 +265,22 @@ class GraspChooser:
                 return low
         return None
 
+    def arm_meets_fixture(self, plan: GraspPlan, q_grasp: np.ndarray) -> str:
+        """Where the arm, its links bounded by boxes, would meet a fixture on this plan's way in and out:
+        at the grasp (its IK solution ``q_grasp``), the pregrasp, and where it takes the target out to
+        ("" if nowhere)."""
+        solids = boxes_near(self.solids, plan.grasp.position, ARM_NEAR_M)
+        if not solids:
+            return ""
+        poses = [("pregrasp", plan.pregrasp)] + ([("way out", plan.withdraw)] if plan.withdraw is not None else [])
+        if boxes_meet(_arm_boxes(self.kin, q_grasp), solids):
+            return "the arm would meet a fixture at the grasp"
+        for name, pose in poses:
+            res = self.kin.solve(pose, q_grasp, self.rng, IKParams())
+            if res.success and boxes_meet(_arm_boxes(self.kin, res.q), solids):
+                return f"the arm would meet a fixture at the {name}"
+        return ""
+
     def unreachable(self, plan: GraspPlan, now_s: float) -> str | Failure:
         """Why the arm cannot do this plan's pick and place ("" if it can; a failure to end the episode
         at once: a moving target that cannot be met at all)."""
@@ -270,6 +295,10 @@ class GraspChooser:
                 if name not in ("grasp", "place"):  # a moving target's
                     return leaves_reach(name)
                 return f"{name} pose out of reach: {res.reason}"
+            if name == "grasp" and self.solids:
+                meets = self.arm_meets_fixture(plan, res.q)
+                if meets:
+                    return meets
             if name == "grasp" and line_speed_scale(self.kin, res.q, plan.grasp, plan.pregrasp, self.p.goals) < floor:
                 # The descent follows the vertical line from the pregrasp (a small arm's hand points down
                 # only low near its base, and a jaw's TCP is beside the object, on the side its angle
@@ -291,6 +320,12 @@ class GraspChooser:
         if all(line_speed_scale(self.kin, q, start, end, self.p.goals) < floor for q, start, end in above):
             return "the straight lowering onto the place passes too near a singular posture"
         return ""
+
+
+def _arm_boxes(kin: Kinematics, q: np.ndarray) -> tuple[OrientedBox, ...]:
+    """The arm's links at ``q``, the hand open, each bounded by a box (unpadded)."""
+    g = kin.robot.gripper
+    return robot_body(kin.robot).boxes(q, np.full(2, g.finger_max_m), pad_m=0.0)
 
 
 def lower_pregrasp(plan: GraspPlan, drop_m: float) -> GraspPlan:

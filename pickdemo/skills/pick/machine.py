@@ -84,6 +84,7 @@ class PickMachine:
         look_at: np.ndarray | None = None,
         look_from_here: bool = False,
         fixtures: tuple[OrientedBox, ...] = (),
+        solids: tuple[OrientedBox, ...] = (),
         grasp_rng: np.random.Generator | None = None,
     ) -> None:
         """``cameras``: the robot's cameras (a fixed one at least; one on the hand looks too whenever
@@ -96,10 +97,11 @@ class PickMachine:
         above the table the target's bottom is let go at (a tray's rim: it drops in). ``look_at``:
         where the target was seen last (a survey of the table chose it among others): the first look
         is at a region around it; ``look_from_here``: from where the arm is (it hides nothing of the
-        table from the camera), not from home. ``fixtures``: the cell's fixtures (a bin's walls), known
-        from the task: the grasps keep the hand out of them. ``grasp_rng``: the draw of grasps from any
-        side, for an object nobody described that no top-down grasp fits, where the robot's hand can
-        take them (None: top-down only)."""
+        table from the camera), not from home. ``fixtures``: the cell's fixtures seen as the points of
+        their faces (a bin's walls), known from the task: the grasps keep the hand out of them;
+        ``solids``: every fixture's boxes (a shelf's too): the open hand and the arm keep out of them.
+        ``grasp_rng``: the draw of grasps from any side, for an object nobody described that no top-down
+        grasp fits, where the robot's hand can take them (None: top-down only)."""
         self.p = p = params or MachineParams()
         self.kin, self.model, self.symmetry, self.place_xy, self.rng = kin, model, symmetry_rad, place_xy, rng
         self.max_attempts, self.place_tolerance_m, self.open_loop = max_attempts, place_tolerance_m, open_loop
@@ -127,7 +129,7 @@ class PickMachine:
         self.intercept = Interceptor(kin, rng, p, self.belief, self.arm, open_loop=open_loop)
         self.chooser = GraspChooser(
             kin, rng, p, model, place_xy, selector, self.belief, self.arm, self.intercept,
-            fixture_points=box_surface_points(fixtures) if fixtures else None,
+            fixture_points=box_surface_points(fixtures) if fixtures else None, solids=solids,
         )  # fmt: skip
         self.watch = MoveWatch(kin, p, model, self.belief, self.hand_cameras, open_loop=open_loop)
         self.place_finder = PlaceFinder(
@@ -166,6 +168,7 @@ class PickMachine:
         self.weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
         self.forced_open = False  # releasing: the fingers were told to open with full force
         self.lifted_off = False  # lifting: past the pause just off the table where it is weighed
+        self.withdrawing = False  # lifted under a shelf's board: going back out along the approach
         self.attempt_start_s = 0.0
         # Per state.
         self.entered = False

@@ -44,6 +44,8 @@ def turned_plan(plan: GraspPlan, *, pick: bool, place: bool) -> GraspPlan:
     turn: dict[str, object] = {}
     if pick:
         turn.update(pregrasp=half_turn(plan.pregrasp), grasp=half_turn(plan.grasp), lift=half_turn(plan.lift))
+        if plan.withdraw is not None:
+            turn["withdraw"] = half_turn(plan.withdraw)
     if place:
         ox, oy = plan.place_offset_xy
         shift = np.array([-2.0 * ox, -2.0 * oy, 0.0]) if not pick else np.zeros(3)
