@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
+from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet, top_below
 from pickdemo.grasping.clearance import HAND_DEPTH_M, hand_boxes, hand_meets
 from pickdemo.grasping.top_down import GraspParams, GraspPlan, GraspPlanningError
 from pickdemo.robot.description import Gripper
@@ -46,14 +46,20 @@ UNSEEN_FACE_ALIGNMENT = 0.5
 #: The object's points this near what it rests on are left out (m): the depth sensor's mixed pixels where
 #: it meets its support (a shelf's board before it), and no pad holds there (its tips stay above)
 SUPPORT_BAND_M = 0.008
+#: From a top face, a hand tilted this far or more from straight down (deg) holds the object just below its
+#: top: the pads' half height and this (m) down
+SHALLOW_ROLL_DEG = 75.0
+SHALLOW_PAD_MARGIN_M = 0.004
 
 
 @dataclass(frozen=True)
 class AntipodalParams:
     samples: int = 100  # cloud points tried as a contact, drawn evenly over the cloud
     #: rolls of the hand about the closing axis, from the most downward approach it allows (Drake's
-    #: +-60 deg in 7 steps, and on to level: into a shelf, the hand comes in level)
-    rolls_deg: tuple[float, ...] = (0.0, -20.0, 20.0, -40.0, 40.0, -60.0, 60.0, -75.0, 75.0, -90.0, 90.0)
+    #: +-60 deg in 7 steps) ...
+    rolls_deg: tuple[float, ...] = (0.0, -20.0, 20.0, -40.0, 40.0, -60.0, 60.0)
+    #: ... and on to level, where a fixture stands over the object (a shelf's board): the hand comes in level
+    level_rolls_deg: tuple[float, ...] = (-75.0, 75.0, -90.0, 90.0)
     max_tilt_deg: float = 90.0  # the approach at most this far from straight down
     top_axes: int = 6  # closing axes across a top face sampled at (over a half turn)
     #: a face the pads meet more than this out of square with the closing axis is refused (GPD's 20 deg;
@@ -154,18 +160,24 @@ def sample_antipodal(
     out: list[AntipodalGrasp] = []
     top = float(pts[:, 2].max())
     depth = min((top - surface_z) / 2.0, gripper.palm_above_tcp_m - grasp.palm_clearance_m)
+    # a hand coming in level or nearly has its palm beside the object, not over it: its pads just below the top
+    shallow = min(depth, gripper.pad_half_height_m + SHALLOW_PAD_MARGIN_M)
+    over = top_below(fixtures, float(centroid[0]), float(centroid[1]), top + 2.0) if fixtures else None
+    rolls = p.rolls_deg + (p.level_rolls_deg if over is not None and over > top else ())
     for i in picks:
         n = normal_at(pts, int(i), p.normal_neighbours, centroid)
-        if abs(n[2]) < SIDE_NORMAL_Z:  # a side: the fingers close along its normal, at its depth
+        on_top = abs(n[2]) >= SIDE_NORMAL_Z
+        if not on_top:  # a side: the fingers close along its normal, at its depth
             axes, contact = [n], pts[i]
         else:  # the top (or a face near level): closing axes across it, the pads as deep as the palm allows
             psi = np.arange(p.top_axes) * (np.pi / p.top_axes)
             axes = [np.array([np.cos(a), np.sin(a), 0.0]) for a in psi]
-            contact = pts[i] + DOWN * depth
         for y in axes:
             z0 = DOWN - y * (DOWN @ y)  # the most downward approach square to the closing axis
             z0 /= np.linalg.norm(z0)
-            for roll in p.rolls_deg:
+            for roll in rolls:
+                if on_top:
+                    contact = pts[i] + DOWN * (shallow if abs(roll) >= SHALLOW_ROLL_DEG else depth)
                 z = _rotate(z0, y, np.radians(roll))
                 if np.arccos(np.clip(z @ DOWN, -1.0, 1.0)) > max_tilt:
                     continue
@@ -199,10 +211,15 @@ def _candidate(
     R = np.column_stack([x, y, z])
     hh, hw = gripper.pad_half_height_m, gripper.pad_half_width_m
     step = hh / max(p.depth_steps, 1)
+    # coming in level or nearly, the pads close where the sides fall from the top seen: what stands above
+    # them bounds the object there too (a single view shows the top and one side, not the far side)
+    level = float(z @ DOWN) <= np.cos(np.radians(SHALLOW_ROLL_DEG)) + 1e-9
     for k in range(p.depth_steps + 1):
         tcp = contact - z * (k * step)
         local = (pts - tcp) @ R
         band = (np.abs(local[:, 0]) < hw) & (np.abs(local[:, 2]) < hh)
+        if level:
+            band |= (np.abs(local[:, 2]) < hh) & (pts[:, 2] > tcp[2])
         if band.sum() < 3:
             return None
         lo, hi = local[band, 1].min(), local[band, 1].max()
@@ -289,6 +306,12 @@ def _palm_hits(local: np.ndarray, gripper: Gripper, clearance_m: float) -> bool:
 LIFT_STEP_M = 0.005
 #: ... down to this (m): enough to clear a shelf's lip (1 cm on the kiva shelf) as it comes out
 LEAST_LIFT_M = 0.02
+#: Taken out, the hand goes back along the approach this much at a time (m) ...
+OUT_STEP_M = 0.025
+#: ... at most this far (m)
+MAX_OUT_M = 0.4
+#: ... until the object, this much larger every way (m), meets nothing as it rises
+OUT_MARGIN_M = 0.02
 
 
 def way_out(
@@ -301,8 +324,9 @@ def way_out(
     """How the hand takes the object out from among the fixtures: (the lift, m; how far it then goes
     back along the approach, m): straight up ``transport_height_m`` where the hand and the object
     (``held``: its lowest and highest corners in the world) meet no fixture there; else as high as they
-    clear what is above (a shelf's board), then back out the way the hand came in, raised so; None if
-    neither (no lift of ``LEAST_LIFT_M`` clears)."""
+    clear what is above (a shelf's board), then back out the way the hand came in, raised so, until the
+    hand and the object are clear of every fixture with room to rise (``OUT_STEP_M`` at a time, from
+    the pregrasp's distance); None if neither."""
     opening = gripper.finger_max_m if g.open_m is None else g.open_m
     approach = g.rotation[:, 2]
 
@@ -314,14 +338,28 @@ def way_out(
         obj = OrientedBox(Pose.identity(), ends.min(axis=0), ends.max(axis=0))
         return not boxes_meet([*hand_boxes(at, gripper, opening, back), obj], fixtures)
 
+    def out_at(h: float, back: float) -> bool:  # drawn back so far, the hand and the object may rise freely
+        up = np.array([0.0, 0.0, h])
+        lo, hi = held[0] + up - approach * back, held[1] + up - approach * back
+        rise = np.array([0.0, 0.0, params.transport_height_m])
+        obj = OrientedBox(Pose.identity(), lo - OUT_MARGIN_M, hi + rise + OUT_MARGIN_M)
+        at = Pose(g.position + up - approach * back, g.rotation)
+        raised = Pose(at.position + rise, g.rotation)
+        return not boxes_meet(
+            [*hand_boxes(at, gripper, opening, 0.0), *hand_boxes(raised, gripper, opening, 0.0), obj], fixtures
+        )
+
     top = params.transport_height_m
     if not fixtures or (clear(top, 0.0) and clear(top / 2.0, 0.0)):
         return top, 0.0
-    back = params.pregrasp_height_m
     h = top
     while h >= LEAST_LIFT_M:
-        if clear(h, back) and clear(h / 2.0, 0.0):
-            return h, back
+        if clear(h / 2.0, 0.0) and clear(h, 0.0):
+            back = params.pregrasp_height_m
+            while back <= MAX_OUT_M:
+                if clear(h, back) and out_at(h, back):
+                    return h, back
+                back += OUT_STEP_M
         h -= LIFT_STEP_M
     return None
 

@@ -311,7 +311,11 @@ class ArmDriver:
         if share >= 1.0:
             return plan
         z = here[2] + share * (plan.lift.position[2] - here[2])
-        return dataclasses.replace(plan, lift=Pose(np.array([*plan.lift.position[:2], z]), plan.lift.rotation))
+        lower = dataclasses.replace(plan, lift=Pose(np.array([*plan.lift.position[:2], z]), plan.lift.rotation))
+        if plan.withdraw is not None:  # taken out of a shelf as much lower
+            dz = np.array([0.0, 0.0, z - float(plan.lift.position[2])])
+            lower = dataclasses.replace(lower, withdraw=Pose(plan.withdraw.position + dz, plan.withdraw.rotation))
+        return lower
 
     def straight_carry_ok(self, plan: GraspPlan, lift_scale: float) -> bool:
         """Whether the arm, carried along a straight line to above the place (the per-tick IK keeps

@@ -27,7 +27,7 @@ from pickdemo.tracking.belief import TargetBelief
 
 DESCENT_OUT_OF_REACH = "the straight descent onto the grasp is out of reach"
 #: A fixture's boxes this near the target are the grasps' concern (m): the open hand about it, from its pregrasp
-SOLIDS_NEAR_M = 0.3
+SOLIDS_NEAR_M = 0.5
 #: ... and the arm's (m): its links from the hand to the elbow
 ARM_NEAR_M = 0.8
 

@@ -26,6 +26,18 @@ def half_turn(pose: Pose, shift: np.ndarray | None = None) -> Pose:
     return top_down(at, float(pose.rpy[2]) + np.pi)
 
 
+#: A half turn about the vertical.
+ABOUT_VERTICAL = np.diag([-1.0, -1.0, 1.0])
+
+
+def turned_about_vertical(pose: Pose, centre_xy: np.ndarray) -> Pose:
+    """A TCP pose turned half a turn about the vertical through ``centre_xy`` (m): a tilted hand holding
+    an object there, turned so, holds it upright still (turned about its approach, it would turn the
+    object over)."""
+    c = np.array([centre_xy[0], centre_xy[1], 0.0])
+    return Pose(c + ABOUT_VERTICAL @ (pose.position - c), ABOUT_VERTICAL @ pose.rotation)
+
+
 def moved_place(plan: GraspPlan, dxy: tuple[float, float]) -> GraspPlan:
     """The plan put down ``dxy`` (m, across the table) from where it was to be put down."""
     d = np.array([dxy[0], dxy[1], 0.0])
@@ -46,7 +58,16 @@ def turned_plan(plan: GraspPlan, *, pick: bool, place: bool) -> GraspPlan:
         turn.update(pregrasp=half_turn(plan.pregrasp), grasp=half_turn(plan.grasp), lift=half_turn(plan.lift))
         if plan.withdraw is not None:
             turn["withdraw"] = half_turn(plan.withdraw)
-    if place:
+    if place and hand_frame(plan.place.rotation) is not None and not pick:  # tilted: about the object's vertical
+        ox, oy = plan.place_offset_xy
+        centre = plan.place.position[:2] - np.array([ox, oy])
+        turn.update(
+            place_above=turned_about_vertical(plan.place_above, centre),
+            place=turned_about_vertical(plan.place, centre),
+            retreat=turned_about_vertical(plan.retreat, centre),
+            place_offset_xy=(-ox, -oy),
+        )
+    elif place:
         ox, oy = plan.place_offset_xy
         shift = np.array([-2.0 * ox, -2.0 * oy, 0.0]) if not pick else np.zeros(3)
         turn.update(
