@@ -46,8 +46,8 @@ UNSEEN_FACE_ALIGNMENT = 0.5
 #: The object's points this near what it rests on are left out (m): the depth sensor's mixed pixels where
 #: it meets its support (a shelf's board before it), and no pad holds there (its tips stay above)
 SUPPORT_BAND_M = 0.008
-#: From a top face, a hand tilted this far or more from straight down (deg) holds the object just below its
-#: top: the pads' half height and this (m) down
+#: From a top face, a hand tilted this far or more from straight down (deg) holds the object below its top:
+#: a pad's height and this (m) down
 SHALLOW_ROLL_DEG = 75.0
 SHALLOW_PAD_MARGIN_M = 0.004
 
@@ -160,8 +160,9 @@ def sample_antipodal(
     out: list[AntipodalGrasp] = []
     top = float(pts[:, 2].max())
     depth = min((top - surface_z) / 2.0, gripper.palm_above_tcp_m - grasp.palm_clearance_m)
-    # a hand coming in level or nearly has its palm beside the object, not over it: its pads just below the top
-    shallow = min(depth, gripper.pad_half_height_m + SHALLOW_PAD_MARGIN_M)
+    # a hand coming in level or nearly has its palm beside the object, not over it: its pads a pad's height
+    # below the top (clear of the top's edge, where the faces' normals blur into one another)
+    shallow = min(depth, 2.0 * gripper.pad_half_height_m + SHALLOW_PAD_MARGIN_M)
     over = top_below(fixtures, float(centroid[0]), float(centroid[1]), top + 2.0) if fixtures else None
     rolls = p.rolls_deg + (p.level_rolls_deg if over is not None and over > top else ())
     for i in picks:
@@ -217,9 +218,9 @@ def _candidate(
     for k in range(p.depth_steps + 1):
         tcp = contact - z * (k * step)
         local = (pts - tcp) @ R
-        band = (np.abs(local[:, 0]) < hw) & (np.abs(local[:, 2]) < hh)
+        slab = band = (np.abs(local[:, 0]) < hw) & (np.abs(local[:, 2]) < hh)  # where the pads meet it
         if level:
-            band |= (np.abs(local[:, 2]) < hh) & (pts[:, 2] > tcp[2])
+            band = slab | ((np.abs(local[:, 2]) < hh) & (pts[:, 2] > tcp[2]))
         if band.sum() < 3:
             return None
         lo, hi = local[band, 1].min(), local[band, 1].max()
@@ -250,14 +251,18 @@ def _candidate(
             return None
         # antipodal: the faces the pads meet (the band's two extremes) square to the closing axis; an end
         # where the view of the object ends along the axis, on a face seen turned away from it (a box's
-        # front seen, its side not), is a face the camera did not see: the other end decides
-        idx = np.flatnonzero(band)
-        lo_i, hi_i = int(np.argmin(local[band, 1])), int(np.argmax(local[band, 1]))
+        # front seen, its side not), is a face the camera did not see: the other end decides. Where the
+        # band holds what stands above the pads, an end is the pads' own points there (none: unseen)
         extent = (float(local[:, 1].min()), float(local[:, 1].max()))
+        ends = (float(local[band, 1].min()), float(local[band, 1].max()))
         seen = []
-        for i, far in ((lo_i, extent[0]), (hi_i, extent[1])):
-            a = abs(float(normal_at(pts, int(idx[i]), p.normal_neighbours, centroid) @ y))
-            if not (a < UNSEEN_FACE_ALIGNMENT and abs(float(local[idx[i], 1]) - far) < p.voxel_m):
+        for end, far in zip(ends, extent, strict=True):
+            near_end = np.flatnonzero(slab & (np.abs(local[:, 1] - end) < 2.0 * p.voxel_m))
+            if len(near_end) == 0:
+                continue
+            e = int(near_end[np.argmax(np.abs(local[near_end, 1] - 0.5 * (ends[0] + ends[1])))])
+            a = abs(float(normal_at(pts, e, p.normal_neighbours, centroid) @ y))
+            if not (a < UNSEEN_FACE_ALIGNMENT and abs(float(local[e, 1]) - far) < p.voxel_m):
                 seen.append(a)
         if not seen or min(seen) < np.cos(np.radians(p.friction_cone_deg)):
             return None  # a face outside the friction cone: squeezed, it slides out between the pads

@@ -9,7 +9,7 @@ import dataclasses
 
 import numpy as np
 
-from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet, wrap_angle
+from pickdemo.core.geometry import OrientedBox, Pose, wrap_angle
 from pickdemo.core.result import Failure, Stage
 from pickdemo.grasping.clearance import near as boxes_near
 from pickdemo.grasping.selection import GraspRequest, GraspSelector
@@ -18,7 +18,7 @@ from pickdemo.motion.ik_goals import along_line, goal_candidates, line_reach, li
 from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import TargetModel
 from pickdemo.robot.kinematics import IKParams, Kinematics
-from pickdemo.robot.self_geometry import robot_body
+from pickdemo.robot.self_geometry import arm_meets
 from pickdemo.skills.pick.arm import ArmDriver
 from pickdemo.skills.pick.intercept import Interceptor, leaves_reach
 from pickdemo.skills.pick.params import MachineParams
@@ -273,11 +273,11 @@ class GraspChooser:
         if not solids:
             return ""
         poses = [("pregrasp", plan.pregrasp)] + ([("way out", plan.withdraw)] if plan.withdraw is not None else [])
-        if boxes_meet(_arm_boxes(self.kin, q_grasp), solids):
+        if arm_meets(self.kin.robot, q_grasp, solids):
             return "the arm would meet a fixture at the grasp"
         for name, pose in poses:
             res = self.kin.solve(pose, q_grasp, self.rng, IKParams())
-            if res.success and boxes_meet(_arm_boxes(self.kin, res.q), solids):
+            if res.success and arm_meets(self.kin.robot, res.q, solids):
                 return f"the arm would meet a fixture at the {name}"
         return ""
 
@@ -320,12 +320,6 @@ class GraspChooser:
         if all(line_speed_scale(self.kin, q, start, end, self.p.goals) < floor for q, start, end in above):
             return "the straight lowering onto the place passes too near a singular posture"
         return ""
-
-
-def _arm_boxes(kin: Kinematics, q: np.ndarray) -> tuple[OrientedBox, ...]:
-    """The arm's links at ``q``, the hand open, each bounded by a box (unpadded)."""
-    g = kin.robot.gripper
-    return robot_body(kin.robot).boxes(q, np.full(2, g.finger_max_m), pad_m=0.0)
 
 
 def lower_pregrasp(plan: GraspPlan, drop_m: float) -> GraspPlan:

@@ -116,6 +116,7 @@ class PickMachine:
         self.selector = selector
         # The parts.
         self.arm = ArmDriver(kin, q0, dt_s, p, rng)
+        self.arm.solids = solids
         self.grip = Grip(p.grip, dt_s, kin.robot.gripper)
         self.scale = Scale(p.payload)
         # The wrist's sensor reads in its joint's frame; where that is turned from the TCP's (the SO-101's

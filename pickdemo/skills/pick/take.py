@@ -152,7 +152,9 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
     if turned:
         m.plan = turned_plan(m.plan, pick=True, place=True)
     down = lambda: (m.arm.cartesian(), m.go_to(m.plan.pregrasp, limits=m.p.free))  # noqa: E731
-    note = m.arm.over_the_top(q, m.p.transfer_scale, m.p.free, rise=False, above=m.plan.pregrasp, down=down)
+    note = m.arm.around_fixtures(q, m.p.transfer_scale, m.plan.pregrasp, down)
+    if note is None:
+        note = m.arm.over_the_top(q, m.p.transfer_scale, m.p.free, rise=False, above=m.plan.pregrasp, down=down)
     m.note(note)
     if note is None:
         m.arm.transfer_to(q, m.p.transfer_scale)
