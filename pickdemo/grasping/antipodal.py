@@ -319,6 +319,16 @@ MAX_OUT_M = 0.4
 OUT_MARGIN_M = 0.02
 
 
+def out_direction(rotation: np.ndarray) -> np.ndarray:
+    """Where a hand with this orientation goes in, level: the approach's part across the table (the hand
+    takes an object out of a shelf level, whatever its tilt: back along a tilted approach it would rise
+    into the board above), or the approach itself if it is near vertical."""
+    a = rotation[:, 2]
+    across = np.array([a[0], a[1], 0.0])
+    n = float(np.linalg.norm(across))
+    return across / n if n > 0.3 else a
+
+
 def way_out(
     g: AntipodalGrasp,
     held: tuple[np.ndarray, np.ndarray],
@@ -333,15 +343,19 @@ def way_out(
     hand and the object are clear of every fixture with room to rise (``OUT_STEP_M`` at a time, from
     the pregrasp's distance); None if neither."""
     opening = gripper.finger_max_m if g.open_m is None else g.open_m
-    approach = g.rotation[:, 2]
+    approach = out_direction(g.rotation)
 
-    def clear(h: float, back: float) -> bool:
+    def clear(h: float, back: float) -> bool:  # lifted h, and on the way back so far (the hand every 5 cm)
         up = np.array([0.0, 0.0, h])
-        at = Pose(g.position + up, g.rotation)
         lo, hi = held[0] + up, held[1] + up
         ends = np.array([lo, hi, lo - approach * back, hi - approach * back])
         obj = OrientedBox(Pose.identity(), ends.min(axis=0), ends.max(axis=0))
-        return not boxes_meet([*hand_boxes(at, gripper, opening, back), obj], fixtures)
+        hands = [
+            b
+            for s in np.linspace(0.0, back, max(int(np.ceil(back / 0.05)), 0) + 1)
+            for b in hand_boxes(Pose(g.position + up - approach * s, g.rotation), gripper, opening, 0.0)
+        ]
+        return not boxes_meet([*hands, obj], fixtures)
 
     def out_at(h: float, back: float) -> bool:  # drawn back so far, the hand and the object may rise freely
         up = np.array([0.0, 0.0, h])
@@ -396,7 +410,7 @@ def tilted_pick(
         pregrasp=pose(tcp - approach * params.pregrasp_height_m),
         grasp=pose(tcp),
         lift=pose(lift),
-        withdraw=pose(lift - approach * back_m) if back_m > 0.0 else None,
+        withdraw=pose(lift - out_direction(R) * back_m) if back_m > 0.0 else None,
         place_above=pose([place_p[0], place_p[1], max(carry_z, place_p[2] + 0.05)]),
         place=pose(place_p),
         retreat=pose(place_p - approach * params.retreat_height_m),

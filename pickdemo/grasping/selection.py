@@ -172,10 +172,11 @@ class TopDownFirst:
                 order = (self.top, self.top)
             try:
                 yaws = order[0].hand_yaws(request)
-                if order[0] is self.top and request.fixtures:  # (a shelf: from above, the hand meets the board)
+                over = _over(request)  # a shelf's board: from above, the hand meets it
+                if order[0] is self.top and over:
                     plans = order[0].candidates(dataclasses.replace(request, hand_yaws=tuple(yaws)))
-                    if all(plan_meets(plan, request.gripper, request.fixtures) for plan in plans):
-                        raise GraspPlanningError("every top-down grasp would meet a fixture")
+                    if all(plan_meets(plan, request.gripper, over) for plan in plans):
+                        raise GraspPlanningError("every top-down grasp would meet a fixture over the target")
                 chosen: GraspSelector = order[0]
             except GraspPlanningError:
                 chosen = order[1]
@@ -187,6 +188,13 @@ class TopDownFirst:
 
     def candidates(self, request: GraspRequest) -> Iterator[GraspPlan]:
         return self._pick(request).candidates(request)
+
+
+def _over(request: GraspRequest) -> tuple[OrientedBox, ...]:
+    """The request's fixture boxes wholly above the target's centre (a shelf's board over it; a bin's
+    walls, which the top-down grasps keep clear of as points, are not)."""
+    z = float(request.pose.position[2])
+    return tuple(b for b in request.fixtures if float(b.corners()[:, 2].min()) > z)
 
 
 def selector_for(
