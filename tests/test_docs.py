@@ -59,8 +59,13 @@ def _reference_tables() -> dict[str, dict[str, str]]:
 
 
 def _is_table(annotation: object) -> bool:
-    args = getattr(annotation, "__args__", ()) or ()
-    return any(isinstance(a, type) and issubclass(a, BaseModel) for a in (annotation, *args))
+    """A table or an array of tables (of one model, or of several told apart by a key: ``[[fixtures]]``)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return True
+    inner = list(getattr(annotation, "__args__", ()) or ())
+    if hasattr(annotation, "__metadata__"):  # Annotated[X, ...]
+        inner.append(annotation.__origin__)
+    return any(_is_table(a) for a in inner if a is not Ellipsis)
 
 
 def _plain(value: object) -> object:

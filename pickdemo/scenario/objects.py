@@ -263,9 +263,6 @@ class PlaceSpec(Model):
 
     position: Vec2 | None = None  # m, x, y on the table
     position_range: tuple[Vec2, Vec2] | None = None  # ((x_min, x_max), (y_min, y_max)) in m
-    #: it stands on the highest top of a fixture under it at most this high (m above the table's top: a
-    #: shelf's board); None: on the table, a belt or a bin's floor
-    level_m: Coord | None = None
     #: a tray's URDF ("pybullet_data:tray/traybox.urdf", or a path relative to the scenario file)
     tray: Annotated[str, Field(min_length=1, max_length=500)] | None = None
     tray_scale: Scale = 0.5  # times the URDF's own size (pybullet_data's traybox is 0.6 m square at 1)
