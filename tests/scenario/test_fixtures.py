@@ -65,3 +65,23 @@ def test_the_simulated_bin_stands_where_the_robot_is_told_and_the_camera_does_no
         near = [c for c in centres if abs(c[0] - b.position[0]) < ox + 0.03 and abs(c[1] - b.position[1]) < oy + 0.03]
         assert 1 <= len(near) <= 5, centres
         assert all(b.inside(float(x), float(y)) for x, y, _ in near), near
+
+
+def test_the_simulated_shelf_stands_where_its_boxes_say_and_its_item_on_its_board() -> None:
+    """A model fixture: the simulator loads its file where the scenario puts its frame (PyBullet places
+    a body by its inertial frame, 1.2 m up the kiva shelf), and its item stands on the board under it."""
+    sc = load_scenario("pick_shelf")
+    (shelf,) = sc.fixtures
+    assert shelf.kind == "model"
+    with World.build(sc, 0) as world:
+        scene = world.scene
+        (body,) = scene.fixture_bodies["shelf"]
+        lo, hi = (np.array(v) for v in scene.client.getAABB(body))
+        corners = np.vstack([box.corners() for box in shelf.boxes()])
+        assert np.allclose(lo, corners.min(axis=0), atol=0.02) and np.allclose(hi, corners.max(axis=0), atol=0.02)
+        item = world.placement(next(o.name for o in sc.objects if o.target))
+        board = sc.surface_z(float(item.pose.position[0]), float(item.pose.position[1]), 0.1)
+        assert abs(board - (0.814 - 0.75)) < 1e-3
+        scene.settle(240)
+        p = world.true_pose(item.name).position
+        assert abs(p[2] - item.pose.position[2]) < 0.005  # it stood on the board, as placed

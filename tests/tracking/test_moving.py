@@ -17,7 +17,9 @@ BELT = MachineParams().on_a_belt()
 
 def _belief(params: MachineParams = BELT) -> TargetBelief:
     model = TargetModel(Box((0.05, 0.05, 0.05)), color=(0.85, 0.1, 0.1))
-    return TargetBelief(model, np.pi / 2, params.tracker, GateParams(), surface_z=lambda x, y: 0.0, counters=Counters())
+    return TargetBelief(
+        model, np.pi / 2, params.tracker, GateParams(), surface_z=lambda x, y, z=None: 0.0, counters=Counters()
+    )
 
 
 def _feed(b: TargetBelief, times: np.ndarray, ys: np.ndarray, rng: np.random.Generator, noise_m: float = 1e-3) -> None:
