@@ -13,6 +13,7 @@ Pure: no simulator.
 
 from __future__ import annotations
 
+import functools
 from typing import Annotated, Literal, Union
 
 import numpy as np
@@ -100,9 +101,13 @@ class BinSpec(Model):
         local = np.array([[-ox, -oy, 0.0], [ox, -oy, 0.0], [ox, oy, 0.0], [-ox, oy, 0.0]])
         return self.pose.transform_points(local)[:, :2]
 
+    @functools.cached_property
+    def _solid(self) -> tuple[OrientedBox, ...]:
+        return self.boxes()
+
     def support_z(self, x: float, y: float, z: float) -> float | None:
         """The top of its part under (x, y) at or below ``z`` (its floor inside it), or None."""
-        return top_below(self.boxes(), x, y, z)
+        return top_below(self._solid, x, y, z)
 
 
 class ModelSpec(Model):
@@ -162,17 +167,19 @@ class ModelSpec(Model):
 
     def footprint(self) -> np.ndarray:
         """The corners of its boxes' bounding rectangle in its own frame, on the table (4, 2)."""
-        corners = np.vstack([b.pose.transform_points(np.where(_CORNERS, b.hi, b.lo)) for b in self._local()[0]])
+        corners = np.vstack([b.corners() for b in self._local()[0]])
         (x0, y0), (x1, y1) = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
         local = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
         return self.pose.transform_points(local)[:, :2]
 
+    @functools.cached_property
+    def _solid(self) -> tuple[OrientedBox, ...]:
+        return self.boxes()
+
     def support_z(self, x: float, y: float, z: float) -> float | None:
         """The highest top of its boxes under (x, y) at or below ``z`` (a shelf's board), or None."""
-        return top_below(self.boxes(), x, y, z)
+        return top_below(self._solid, x, y, z)
 
-
-_CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=bool)
 
 #: A fixture of any kind (``kind`` says which).
 FixtureSpec = Annotated[Union[BinSpec, ModelSpec], Field(discriminator="kind")]  # noqa: UP007 - a pydantic union
