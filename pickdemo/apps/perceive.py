@@ -17,14 +17,13 @@ from typing import Any, TypeAlias
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose
-from pickdemo.core.shapes import Mesh, Unknown
+from pickdemo.core.shapes import Unknown
 from pickdemo.core.stats import describe
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.perception.estimators import BUILTIN, resolve_estimator
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.runtime.evaluation import pose_errors
-from pickdemo.runtime.metrics import position_nees
+from pickdemo.runtime.metrics import position_nees, seen_truth
 from pickdemo.runtime.world import World
 from pickdemo.scenario.load import Scenario
 from pickdemo.scenario.task import target_model
@@ -74,7 +73,9 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
         robot = world.robot
         fingers = [robot.gripper.finger_max_m] * 2
         frame = dataclasses.replace(frame, robot_boxes=robot_body(robot).boxes(robot.home_q, fingers))
-        truths = {t.name: _seen_truth(world, t.name) for t in scenario.targets}  # truth: scoring only
+        truths = {  # truth: scoring only
+            t.name: seen_truth(world.true_pose(t.name), world.placement(t.name).geometry) for t in scenario.targets
+        }
     distance = float(np.linalg.norm(camera.T_world_cam.position - np.asarray(scenario.camera.look_at)))
     samples = []
     fns = {name: resolve_estimator(name) for name in methods}  # a built-in, or module:function
@@ -103,16 +104,6 @@ def perceive_seed(scenario: Scenario, seed: int, methods: list[str], *, repeat: 
                 sample["reference"] = spec.reference.model_dump()
             samples.append(sample)
     return samples
-
-
-def _seen_truth(world, name: str) -> Pose:  # noqa: ANN001 - a World
-    """An object's true pose; a mesh's at its centre (:attr:`~pickdemo.core.shapes.Mesh.box_centre`), which an
-    object nobody described is seen by."""
-    truth = world.true_pose(name)
-    geometry = world.placement(name).geometry
-    if isinstance(geometry, Mesh):
-        return Pose(truth.transform_points(geometry.box_centre[None, :])[0], truth.rotation)
-    return truth
 
 
 def _score(est: PoseEstimate, truth, model: TargetModel, *, oriented: bool) -> dict[str, Any]:

@@ -354,16 +354,22 @@ class Mesh:
 
     @property
     def box_centre(self) -> np.ndarray:
-        """Its centre in its body frame (m): the middle of its footprint along its principal axes seen
-        from above, at half its height. Where a place puts "it", and what an object nobody described
-        is seen by (its file's origin and its centre of mass may lie anywhere); unlike the middle of
-        a bounding box in the world, it turns with the object."""
-        v = self.vertices
+        """Its centre in its body frame (m), standing upright: :meth:`centre_turned` with no turn."""
+        return self.centre_turned(np.eye(3))
+
+    def centre_turned(self, rotation: np.ndarray) -> np.ndarray:
+        """Its centre in its body frame (m) when the body is turned by ``rotation``: the middle of its
+        footprint along its principal axes seen from above, at half its height. Where a place puts "it",
+        and what an object nobody described is seen by (its file's origin and its centre of mass may lie
+        anywhere). It turns with the object about the vertical; an object resting on an edge is seen,
+        and scored, by the middle of what it covers as it rests, not of what it would cover upright."""
+        R = np.asarray(rotation, dtype=float)
+        v = self.vertices @ R.T
         xy = v[:, :2] - v[:, :2].mean(axis=0)
         _, axes = np.linalg.eigh(np.cov(xy.T))
         along = xy @ axes
         mid = axes @ (0.5 * (along.min(axis=0) + along.max(axis=0))) + v[:, :2].mean(axis=0)
-        return np.array([mid[0], mid[1], 0.5 * (v[:, 2].min() + v[:, 2].max())])
+        return R.T @ np.array([mid[0], mid[1], 0.5 * (v[:, 2].min() + v[:, 2].max())])
 
     @property
     def footprint_radius_m(self) -> float:

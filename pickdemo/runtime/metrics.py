@@ -16,6 +16,14 @@ from pickdemo.perception import PoseEstimate
 from pickdemo.runtime.evaluation import pose_errors
 
 
+def seen_truth(truth: Pose, shape: Shape) -> Pose:
+    """What an estimate is scored against: the true pose, a mesh's moved to its centre as it rests
+    (:meth:`~pickdemo.core.shapes.Mesh.centre_turned`), which an object nobody described is seen by."""
+    if not isinstance(shape, Mesh):
+        return truth
+    return Pose(truth.transform_points(shape.centre_turned(truth.rotation)[None, :])[0], truth.rotation)
+
+
 def position_nees(estimate: PoseEstimate, true: Pose) -> float:
     """Normalised estimation error squared of the 3-D position (expected value 3 when honest)."""
     e = estimate.pose.position - true.position
@@ -65,8 +73,9 @@ def score_place(
     ``shape``: the target's :class:`~pickdemo.core.shapes.Shape`."""
     height_m = float(shape.height_m)
     lifted = max_z_m - float(start.position[2])
-    # A mesh's centre: its bounding box's (its file's origin and its centre of mass may lie anywhere).
-    centre = final.transform_points(shape.box_centre[None, :])[0] if isinstance(shape, Mesh) else final.position
+    # A mesh's centre: the middle of its footprint as it ended (its file's origin and its centre of mass
+    # may lie anywhere).
+    centre = seen_truth(final, shape).position
     err = float(np.hypot(centre[0] - place_xy[0], centre[1] - place_xy[1]))
     tilt, extent = shape.resting_face(final.rotation)
     if isinstance(shape, Mesh):  # its centre of mass at the height it rests at, turned as it ended

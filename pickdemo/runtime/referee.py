@@ -16,7 +16,7 @@ from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.core.result import EpisodeFailure, Failure, PerceptionScore, Stage
 from pickdemo.core.shapes import Mesh
 from pickdemo.perception import PerceptionError, PoseEstimate
-from pickdemo.runtime.metrics import score_perception, score_place
+from pickdemo.runtime.metrics import score_perception, score_place, seen_truth
 from pickdemo.runtime.world import World
 from pickdemo.scenario.load import Scenario
 
@@ -70,13 +70,7 @@ class Referee:
         return geometry if isinstance(geometry, Mesh) else None
 
     def _seen_truth(self) -> Pose:
-        """What an estimate is scored against: the target's pose (a mesh's: at its bounding box's
-        centre, which an object nobody described is seen by)."""
-        truth = self._truth()
-        mesh = self._mesh
-        if mesh is None:
-            return truth
-        return Pose(truth.transform_points(mesh.box_centre[None, :])[0], truth.rotation)
+        return seen_truth(self._truth(), self.world.placement(self.target).geometry)
 
     def started(self) -> None:
         """The objects are at rest and the robot is about to move: where the target starts."""

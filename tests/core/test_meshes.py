@@ -119,3 +119,27 @@ def test_the_cube_is_picked_among_meshes() -> None:
 
     rs = episodes("pick_among_meshes", tuple(range(6)))
     at_least(rs, 5)
+
+
+def test_a_mesh_on_its_edge_is_scored_by_the_middle_of_what_it_covers() -> None:
+    """A wedge (a right triangle 6 x 10 cm, 3 cm thick) leaning 30 deg: its centre is the middle of its
+    footprint as it rests, at half its height (what the camera sees of it), which its upright footprint's
+    middle turned with it is not; turned about the vertical only, the two are the same."""
+    tri = np.array([[0.0, 0.0], [0.06, 0.0], [0.0, 0.1]])  # (x, z)
+    v = np.array([[x, y, z] for x, z in tri for y in (0.0, 0.03)]) - [0.02, 0.015, 0.03]
+    wedge = Mesh("wedge", 1.0, v)
+    R = Pose.from_xyz_rpy(np.zeros(3), pitch=np.radians(30.0), yaw=np.radians(20.0)).rotation
+    world = v @ R.T
+    lo, hi = world.min(axis=0), world.max(axis=0)
+    centre = R @ wedge.centre_turned(R)
+    # the footprint: a rectangle turned 20 deg (the wedge is symmetric across its thickness), whose
+    # middle is its extents' middle along its sides
+    a = np.radians(20.0)
+    sides = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])  # columns: its sides' directions
+    along = world[:, :2] @ sides
+    middle = sides @ ((along.min(axis=0) + along.max(axis=0)) / 2.0)
+    assert centre[:2] == pytest.approx(middle, abs=1e-3)
+    assert centre[2] == pytest.approx((lo[2] + hi[2]) / 2.0)
+    assert np.linalg.norm((R @ wedge.box_centre)[:2] - centre[:2]) > 0.005  # (upright's middle: elsewhere)
+    yaw = Pose.from_xyz_rpy(np.zeros(3), yaw=np.radians(35.0)).rotation
+    assert wedge.centre_turned(yaw) == pytest.approx(wedge.box_centre)
