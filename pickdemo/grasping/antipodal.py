@@ -436,13 +436,10 @@ class AnySideGrasps:
     best: int = 8  # the candidates offered, best first (the skill takes the first the arm reaches) ...
     #: ... among fixtures (a shelf), where the arm's links rule out more of them (the skill checks them)
     best_among_fixtures: int = 24
-    _planned: tuple[int, list[tuple[AntipodalGrasp, tuple[float, float]]], np.ndarray] | None = field(
-        default=None, repr=False
-    )
+    _planned: tuple[int, list[tuple[AntipodalGrasp, tuple[float, float]]]] | None = field(default=None, repr=False)
 
-    def _local(self, request) -> tuple[list[tuple[AntipodalGrasp, tuple[float, float]]], np.ndarray]:  # noqa: ANN001
-        """The grasps in the tracked pose's frame, best first, each with its way out (:func:`way_out`),
-        and the cloud's centre there."""
+    def _local(self, request) -> list[tuple[AntipodalGrasp, tuple[float, float]]]:  # noqa: ANN001
+        """The grasps in the tracked pose's frame, best first, each with its way out (:func:`way_out`)."""
         at = request.pose
         if self._planned is None or self._planned[0] != request.plan_id:
             cloud = request.cloud
@@ -468,14 +465,15 @@ class AnySideGrasps:
                 (dataclasses.replace(g, position=inv @ (g.position - at.position), rotation=inv @ g.rotation), out)
                 for g, out in kept[: self.best_among_fixtures if request.fixtures else self.best]
             ]
-            self._planned = (request.plan_id, local, inv @ (cloud.points.mean(axis=0) - at.position))
-        return self._planned[1], self._planned[2]
+            self._planned = (request.plan_id, local)
+        return self._planned[1]
 
     def _world(self, request) -> list[tuple[AntipodalGrasp, np.ndarray, tuple[float, float]]]:  # noqa: ANN001
-        """The grasps and the cloud's centre carried with the tracked pose now, each with its way out."""
-        local, centre = self._local(request)
+        """The grasps carried with the tracked pose now, each with the object's centre (the tracked
+        position: what the place puts over the place and the camera checks there) and its way out."""
+        local = self._local(request)
         at = request.pose
-        where = at.position + at.rotation @ centre
+        where = at.position
         return [
             (
                 dataclasses.replace(

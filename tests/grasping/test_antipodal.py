@@ -1,12 +1,16 @@
 """6-DoF antipodal grasps on a cloud (no simulator): from above where that holds, tilted where the
-object leans, never into a wall beside it, none where nothing fits; the same draw gives the same grasps."""
+object leans, never into a wall beside it, none where nothing fits; the same draw gives the same grasps;
+a tilted place puts the tracked centre over the place."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from pickdemo.core.geometry import Pose
-from pickdemo.grasping.antipodal import DOWN, sample_antipodal
+from pickdemo.core.shapes import Unknown
+from pickdemo.grasping.antipodal import DOWN, AnySideGrasps, sample_antipodal
+from pickdemo.grasping.selection import GraspRequest
+from pickdemo.perception import ObjectCloud, TargetModel
 from pickdemo.robot import robot_named
 
 GRIPPER = robot_named().gripper
@@ -79,3 +83,24 @@ def test_the_same_draw_gives_the_same_grasps() -> None:
         np.array_equal(x.position, y.position) and np.array_equal(x.rotation, y.rotation)
         for x, y in zip(a, b, strict=True)
     )
+
+
+def test_a_tilted_place_puts_the_tracked_centre_over_the_place() -> None:
+    """The place's TCP is offset from the place by where the hand holds the object from its tracked
+    centre (the middle of its footprint, which the camera checks at the place), not from the mean of
+    the points seen, which crowd on the faces the camera sees."""
+    cloud = box_cloud((0.09, 0.09, 0.015), roll_deg=50.0)
+    seen = cloud[cloud[:, 1] < 0.02]  # one side seen more: the points' mean is off the middle
+    lo, hi = cloud.min(axis=0), cloud.max(axis=0)
+    pose = Pose(np.array([(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, hi[2] / 2.0]), np.eye(3))
+    request = GraspRequest(
+        pose, TargetModel(Unknown(), (0.5, 0.5, 0.5)), (0.4, 0.3),
+        cloud=ObjectCloud(seen, np.zeros((0, 3)), 0.0), gripper=GRIPPER,
+    )  # fmt: skip
+    plans = list(AnySideGrasps(np.random.default_rng(0)).candidates(request))
+    assert plans
+    for plan in plans:
+        offset = plan.grasp.position[:2] - pose.position[:2]
+        assert np.allclose(plan.place_offset_xy, offset, atol=1e-9)
+        assert np.allclose(plan.place.position[:2] - offset, (0.4, 0.3), atol=1e-9)
+    assert np.linalg.norm(seen.mean(axis=0)[:2] - pose.position[:2]) > 0.005  # (the case the rule is for)
