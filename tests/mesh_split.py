@@ -82,7 +82,8 @@ def main() -> int:
            "--min-success", "0", "--out", str(out / "bench"), "--no-progress"]  # fmt: skip
     if args.resume:
         cmd.append("--resume")
-    subprocess.run(cmd, check=False, stdout=subprocess.DEVNULL)
+    if subprocess.run(cmd, check=False, stdout=subprocess.DEVNULL).returncode != 0:  # (no old run's figures)
+        raise SystemExit("mesh_split: the bench failed (see above)")
     rows = [json.loads(line) for line in (out / "bench" / "episodes.jsonl").read_text().splitlines() if line.strip()]
     by_obj: dict[str, list[dict]] = collections.defaultdict(list)
     for r in rows:

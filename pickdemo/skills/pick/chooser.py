@@ -213,7 +213,24 @@ class GraspChooser:
     ) -> GraspPlan | Failure:
         """An attempt's first plan: the best of the equivalent hand angles by IK
         (:meth:`ranked_hand_yaws`) that the whole pick and place can reach; the other faces before
-        those of the angles in ``avoid`` (it missed there, or a finger touched something beside it)."""
+        those of the angles in ``avoid`` (it missed there, or a finger touched something beside it).
+        After a miss, when the grasps the selector puts first then (from any side) give no plan the arm
+        can do, the plan is asked for again as before any miss (from above, another angle): a grasp
+        that may hold before a failure that is certain."""
+        plan = self._first_plan(pose, v, avoid, now_s)
+        if isinstance(plan, Failure) and self.misses and plan.stage in (Stage.IK, Stage.GRASP_PLANNING):
+            misses, self.misses = self.misses, 0
+            try:
+                again = self._first_plan(pose, v, avoid, now_s)
+            finally:
+                self.misses = misses
+            if not isinstance(again, Failure):
+                return again
+        return plan
+
+    def _first_plan(
+        self, pose: Pose, v: np.ndarray | None, avoid: tuple[float, ...], now_s: float
+    ) -> GraspPlan | Failure:
         held = None if v is None else pose.position[:2] + v * self.p.grasp_time_s
         self.still = v is None
         self.plan_id += 1  # a first plan: the selector plans afresh
