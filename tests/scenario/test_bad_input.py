@@ -457,6 +457,15 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "place.position: (0.450, 0.300) m is inside or against fixtures.shelf",
     ),
     (
+        "model: what stands on it out of reach",
+        _edit(
+            "position_range = [[0.45, 0.55], [-0.05, 0.05]]\ntarget = true",
+            "position_range = [[-0.02, 0.02], [1.15, 1.19]]\ntarget = true\nlevel_m = 0.1",
+        )
+        + _model("position = [0.0, 1.5, -0.75]"),
+        "objects.cube at (-0.02, 1.15): out of the arm's reach",
+    ),  # fmt: skip
+    (
         "object: on no fixture's top",
         _edit("target = true", "target = true\nlevel_m = 0.1"),
         "objects.cube.level_m: at (0.450, -0.050) m its footprint (35 mm radius) is not wholly on one top",
