@@ -57,6 +57,7 @@ from pickdemo.runtime.observers import (
     VIDEO_CROP_PX,
     DebugDrawer,
     Observer,
+    ObserverHub,
     TraceRecorder,
     VideoRecorder,
 )
@@ -157,14 +158,6 @@ class _Timer:
             self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - t0
 
 
-_HOOKS = ("tick", "frame", "estimate", "phase", "end")
-
-
-def _overrides(observer: Observer, hook: str) -> bool:
-    """Whether the observer does something on this hook (the others are not called at all)."""
-    return getattr(type(observer), hook) is not getattr(Observer, hook)
-
-
 @dataclass(frozen=True)
 class _InFlight:
     """A frame's result on its way to the controller (perception's latency)."""
@@ -232,7 +225,7 @@ class Episode:
         self.target_name: str = ""
         self.estimator: Callable[..., PoseEstimate] | None = None
         self.referee: Referee | None = None
-        self.observers: list[Observer] = []
+        self.hub = ObserverHub([], self.timer)  # the observers, called on their hooks
         self.trace = TraceRecorder() if self.options.record_trace else None  # (an empty trace if it never ran)
         self.pushes: list = []  # the disturbances, drawn at the first look
         self.counts = LoopCounts()
@@ -243,7 +236,6 @@ class Episode:
         self.video_ticks = 1  # control ticks between video frames (and debug drawings)
         self.tick = 0  # the control tick now (counted from 0)
         self.observation: Observation | None = None  # the robot's newest observation
-        self._hooks: dict[str, list[tuple[str | None, Callable[..., None]]]] = {}
         self._pending: deque[_InFlight] = deque()
         self._last_frame_tick = -(10**9)
         self._events_logged = 0
@@ -399,27 +391,18 @@ class Episode:
         """The observers the options ask for, in this order: the trace, the video, the debug
         drawing, the rerun recording; then the caller's."""
         opts = self.options
-        if self.trace is not None:
-            self.observers.append(self.trace)
+        observers: list[Observer] = [] if self.trace is None else [self.trace]
         if opts.video_path is not None:
             fps = round(1.0 / (self.video_ticks * self.dt_ctl))
-            self.observers.append(VideoRecorder(opts.video_path, self.video_ticks, fps))
+            observers.append(VideoRecorder(opts.video_path, self.video_ticks, fps))
         if opts.gui or opts.debug_draw:
-            self.observers.append(DebugDrawer(self.view, self.video_ticks))
+            observers.append(DebugDrawer(self.view, self.video_ticks))
         if opts.rerun_path is not None:
-            self.observers.append(RerunRecorder(self.view, opts.rerun_path))
-        self.observers.extend(self.extra_observers)
-        self._hooks = {
-            hook: [(ob.timer, getattr(ob, hook)) for ob in self.observers if _overrides(ob, hook)] for hook in _HOOKS
-        }
+            observers.append(RerunRecorder(self.view, opts.rerun_path))
+        self.hub = ObserverHub([*observers, *self.extra_observers], self.timer)
 
     def _notify(self, hook: str, *args) -> None:
-        for timer, call in self._hooks.get(hook, ()):
-            if timer is None:
-                call(self.view, *args)
-            else:
-                with self.timer(timer):
-                    call(self.view, *args)
+        self.hub.notify(hook, self.view, *args)
 
     # ==================================================================================== loop
     def _tick(self) -> bool:
@@ -557,14 +540,8 @@ class Episode:
             self._close()
 
     def _close(self) -> None:
-        observers, self.observers, self._hooks = self.observers, [], {}
         try:
-            for ob in observers:
-                if ob.timer is None:
-                    ob.close()
-                else:
-                    with self.timer(ob.timer):
-                        ob.close()
+            self.hub.close()
         finally:
             if self.world is not None:
                 self.world.close()

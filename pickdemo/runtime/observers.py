@@ -12,6 +12,8 @@ The rerun recording is a fourth observer, in :mod:`pickdemo.runtime.recording`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import Any
 
@@ -66,6 +68,43 @@ class Observer:
 
     def close(self) -> None:
         """The episode is over (also after an error): release what it holds."""
+
+
+_HOOKS = ("tick", "frame", "estimate", "phase", "end")
+
+
+def _overrides(observer: Observer, hook: str) -> bool:
+    """Whether the observer does something on this hook (the others are not called at all)."""
+    return getattr(type(observer), hook) is not getattr(Observer, hook)
+
+
+class ObserverHub:
+    """An episode's observers, in order: each hook calls those that override it (timed under the
+    observer's ``timer`` name by ``timer``, a context manager factory), and ``close`` closes them all."""
+
+    def __init__(self, observers: list[Observer], timer: Callable[[str], AbstractContextManager]) -> None:
+        self.observers, self.timer = observers, timer
+        self._hooks = {
+            hook: [(ob.timer, getattr(ob, hook)) for ob in observers if _overrides(ob, hook)] for hook in _HOOKS
+        }
+
+    def notify(self, hook: str, view: EpisodeView, *args: Any) -> None:
+        for timer, call in self._hooks.get(hook, ()):
+            if timer is None:
+                call(view, *args)
+            else:
+                with self.timer(timer):
+                    call(view, *args)
+
+    def close(self) -> None:
+        """Close every observer (once: the hub is empty after)."""
+        observers, self.observers, self._hooks = self.observers, [], {}
+        for ob in observers:
+            if ob.timer is None:
+                ob.close()
+            else:
+                with self.timer(ob.timer):
+                    ob.close()
 
 
 # ============================================================================================ trace
