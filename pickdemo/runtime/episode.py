@@ -87,6 +87,9 @@ __all__ = [
 ]
 
 PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each note), as it happens
+#: (the task's controller, what it was told) -> the controller the loop drives: an agent's, which may
+#: keep the task's to look for it (:mod:`pickdemo.envs`)
+ControllerWrap = Callable[[Controller, dict], Controller]
 
 CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
 
@@ -197,7 +200,8 @@ class Episode:
     ``reset`` returns ``None`` when the episode ends before its first tick (a scenario it cannot
     build, an unknown perception method); ``step`` returns True from then on and ``result`` says why.
     Never raises for an episode that goes wrong. ``observers``: more :class:`~pickdemo.runtime.observers.Observer`
-    to watch the loop (after the ones the options ask for).
+    to watch the loop (after the ones the options ask for); ``wrap_controller``: the controller in the
+    loop made from the task's (an agent's: :mod:`pickdemo.envs`).
     """
 
     def __init__(
@@ -208,12 +212,14 @@ class Episode:
         *,
         on_phase: PhaseCallback | None = None,
         observers: tuple[Observer, ...] = (),
+        wrap_controller: ControllerWrap | None = None,
     ) -> None:
         self.scenario = scenario
         self.seed = seed
         self.options = options or EpisodeOptions()
         self.on_phase = on_phase
         self.extra_observers = tuple(observers)
+        self.wrap_controller = wrap_controller
         self._clear()
 
     def _clear(self) -> None:
@@ -385,7 +391,10 @@ class Episode:
             grasp_rng=world.rngs["grasps"],
             params=machine_params(sc, opts.machine),
         )
-        self.machine = self.view.controller = task.controller(sc, world, told, self.referee, opts.open_loop, common)
+        controller = task.controller(sc, world, told, self.referee, opts.open_loop, common)
+        if self.wrap_controller is not None:
+            controller = self.wrap_controller(controller, common)
+        self.machine = self.view.controller = controller
 
     def _add_observers(self) -> None:
         """The observers the options ask for, in this order: the trace, the video, the debug
@@ -416,13 +425,7 @@ class Episode:
             return False
         now = scene.sim_time_s
         obs = self.observation = self.robot.observe()
-        while self._pending and self._pending[0].arrival_s <= now + 1e-9:
-            f = self._pending.popleft()
-            status = machine.on_estimate(f.result, f.taken_s, f.camera)
-            if isinstance(f.result, PlaceView):  # (no estimate of the target: nothing to score or show)
-                continue
-            self.referee.delivered(f.result, f.error_mm, status)
-            self._notify("estimate", now, f.taken_s, f.result, status)
+        self.deliver()
         t0 = time.perf_counter()
         cmd = machine.update(obs)
         counts.tick_ms.append((time.perf_counter() - t0) * 1e3)
@@ -451,10 +454,21 @@ class Episode:
                     push.step(scene)
                 scene.step()
         # truth: how high it was carried, what came into a tray: for scoring only
-        self.referee.tick(carrying=machine.state in CARRY_STATES)
+        self.referee.tick(carrying=machine.carrying if self.wrap_controller else machine.state in CARRY_STATES)
         self.tick += 1
         self.view.tick = self.tick
         return True
+
+    def deliver(self) -> None:
+        """Hand the controller the estimates whose latency has passed by now (each tick does, first)."""
+        now = self.world.scene.sim_time_s
+        while self._pending and self._pending[0].arrival_s <= now + 1e-9:
+            f = self._pending.popleft()
+            status = self.machine.on_estimate(f.result, f.taken_s, f.camera)
+            if isinstance(f.result, PlaceView):  # (no estimate of the target: nothing to score or show)
+                continue
+            self.referee.delivered(f.result, f.error_mm, status)
+            self._notify("estimate", now, f.taken_s, f.result, status)
 
     def _end_loop(self) -> None:
         """After the last tick: the last events, the observers' end; the machine's failure raised."""

@@ -108,12 +108,15 @@ def resolve_scenario_path(name_or_path: str | Path) -> Path:
     raise ScenarioError(f"{text}: unknown scenario ({hint}known: {', '.join(known) or 'none found'})")
 
 
-def load_scenario(name_or_path: str | Path, *, check: bool = True, default_task: str = "pick") -> Scenario:
+def load_scenario(
+    name_or_path: str | Path, *, check: bool = True, default_task: str = "pick", robot: str | None = None
+) -> Scenario:
     """Load and validate a scenario by name or path; raises :class:`ScenarioError` on bad input.
 
     With ``check`` (the default) it also runs what can be checked without running it
     (:func:`pickdemo.scenario.checks.check_scenario`: geometry, reach, the camera's view). ``default_task``:
-    the task of a file that has no ``task`` key (see :func:`parse_scenario`).
+    the task of a file that has no ``task`` key (see :func:`parse_scenario`); ``robot``: another robot
+    than the file's (its ``robot`` key: a shipped robot's name or a robot file), checked as the file's.
     """
     path = resolve_scenario_path(name_or_path)
     try:
@@ -138,6 +141,8 @@ def load_scenario(name_or_path: str | Path, *, check: bool = True, default_task:
         raise ScenarioError(f"{path}: invalid TOML: {printable(str(exc), 120)}") from None
     except RecursionError:
         raise ScenarioError(f"{path}: invalid TOML: nested too deeply") from None
+    if robot is not None:
+        data["robot"] = robot
     scenario = parse_scenario(data, source=str(path), default_task=default_task)
     if check:
         try:
