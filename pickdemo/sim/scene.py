@@ -302,6 +302,41 @@ class Scene:
             if self.gui:  # pace the window for a human; never affects the simulation's outcome
                 time.sleep(self.time_step_s)
 
+    # ------------------------------------------------------------------------------ its state
+    def state(self) -> np.ndarray:
+        """The simulator's state as numbers, for a demonstration's exact replay: every body's base pose
+        and velocity, every joint's position and velocity (not the solver's warm start: a replay set from
+        states steps on as the original did, to within the contact solver's tolerance)."""
+        c, parts = self.client, []
+        for i in range(c.getNumBodies()):
+            body = c.getBodyUniqueId(i)
+            pos, orn = c.getBasePositionAndOrientation(body)
+            lin, ang = c.getBaseVelocity(body)
+            parts.append(np.array([*pos, *orn, *lin, *ang]))
+            n = c.getNumJoints(body)
+            if n:
+                js = c.getJointStates(body, range(n))
+                parts.append(np.array([v for j in js for v in j[:2]]))
+        return np.concatenate([[self.steps], *parts])
+
+    def set_state(self, state: np.ndarray) -> None:
+        """Put the simulator in a state :meth:`state` gave (of this scene: the same bodies)."""
+        state = np.asarray(state, dtype=float)
+        if int(state[0]) != self.steps:
+            raise ValueError(f"a state of step {int(state[0])} set at step {self.steps}: replay in order")
+        c, k = self.client, 1
+        for i in range(c.getNumBodies()):
+            body = c.getBodyUniqueId(i)
+            v = state[k : k + 13]
+            c.resetBasePositionAndOrientation(body, v[:3].tolist(), v[3:7].tolist())
+            c.resetBaseVelocity(body, v[7:10].tolist(), v[10:13].tolist())
+            k += 13
+            for j in range(c.getNumJoints(body)):
+                c.resetJointState(body, j, float(state[k]), float(state[k + 1]))
+                k += 2
+        if k != len(state):
+            raise ValueError(f"a state of {len(state)} numbers; this scene's has {k}")
+
     def start_belt(self) -> None:
         """Start the conveyor (if there is one): what rests on it rides along from now. World set-up."""
         if self.belt is None:

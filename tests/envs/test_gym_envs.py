@@ -10,9 +10,9 @@ import pytest
 
 gym = pytest.importorskip("gymnasium")
 
-import pickdemo.envs  # noqa: E402,F401 - registers the ids
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
+import pickdemo.envs  # noqa: E402,F401 - registers the ids
 from pickdemo.envs import ENV_IDS, OBS_MODES, ExpertPolicy  # noqa: E402
 
 pytestmark = pytest.mark.sim

@@ -1,0 +1,131 @@
+"""The command line's arguments: every command's parser, its options and their help
+(:func:`build_parser`); :mod:`pickdemo.apps.cli` runs what they ask for."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from pickdemo.apps.bench import DEFAULT_MIN_SUCCESS
+
+PERCEPTION_HELP = (
+    "perception in the loop: paper (default), icp, centroid, pixel, or module:function for your own "
+    "estimator (frame, target model) -> PoseEstimate"
+)
+
+
+class UsageError(Exception):
+    """Bad command-line input; the message is one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit 2, instead of argparse's usage dump
+        raise UsageError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="pickdemo", description="A simulated Franka Panda picks an object it has only seen.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    run = sub.add_parser("run", help="run one episode of a scenario")
+    run.add_argument("scenario", help="a scenario name (see `pickdemo list`) or a path to a .toml file")
+    run.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
+    run.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="directory to write result.json, motion.png and report.html into (and episode.mp4 with --video)",
+    )
+    run.add_argument("--gui", action="store_true", help="open the PyBullet window (needs a display)")
+    run.add_argument("--quiet", action="store_true", help="print only the summary line")
+    run.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
+    run.add_argument("--perception", default="paper", metavar="METHOD", help=PERCEPTION_HELP)
+    run.add_argument(
+        "--video",
+        action="store_true",
+        help="with --out: write DIR/episode.mp4 (needs pip install -c .ci/constraints.txt '.[video]' in the checkout)",
+    )
+    run.add_argument(
+        "--rerun",
+        type=Path,
+        metavar="FILE.rrd",
+        help="write a rerun recording of the episode (open it with `rerun FILE.rrd`; needs the rerun extra: "
+        "pip install -c .ci/constraints.txt '.[rerun]')",
+    )
+    bench = sub.add_parser(
+        "bench",
+        help="run many seeded episodes in parallel and gate on the success rate",
+        description="Runs every scenario x seed as an episode in parallel workers, streams each result to "
+        "DIR/episodes.jsonl, prints a summary and writes it to DIR/summary.json, DIR/bench.png and DIR/report.html "
+        f"(and JUnit XML with --junit). Exit 1 when a scenario's success rate is below --min-success (default "
+        f"{DEFAULT_MIN_SUCCESS:g}; --min-success 0 turns the gate off).",
+    )
+    bench.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="names or paths (default: the suite)")
+    bench.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-199 or 0-9,20 (default 0-19)")
+    bench.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)")
+    bench.add_argument(
+        "--min-success",
+        type=float,
+        default=DEFAULT_MIN_SUCCESS,
+        metavar="RATE",
+        help=f"exit 1 if a scenario's success rate is below RATE (default {DEFAULT_MIN_SUCCESS:g}; 0: no gate)",
+    )
+    bench.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="directory for episodes.jsonl, summary.json, bench.png and report.html",
+    )
+    bench.add_argument("--junit", type=Path, help="write JUnit XML (one test case per episode) to this file")
+    bench.add_argument(
+        "--resume",
+        action="store_true",
+        help="skip the episodes already in DIR/episodes.jsonl (it may hold only episodes this run asks for)",
+    )
+    bench.add_argument("--executor", choices=("local", "ray"), default="local", help="worker processes or Ray tasks")
+    bench.add_argument("--address", help="Ray cluster address (default: RAY_ADDRESS, else a local Ray instance)")
+    bench.add_argument(
+        "--episode-timeout", type=float, default=300.0, help="wall-clock guard per episode, s (default 300)"
+    )
+    bench.add_argument("--no-progress", action="store_true", help="no progress bar")
+    bench.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
+    bench.add_argument("--perception", default="paper", metavar="METHOD", help=PERCEPTION_HELP)
+    perceive = sub.add_parser(
+        "perceive",
+        help="perception only: every method on the same frames, errors against the truth",
+        description="Renders each seed's scene (no arm motion), runs each perception method on that frame and "
+        "prints position, yaw, pitch and roll errors per method, the covariance's calibration (NEES) and the "
+        "time per frame. --out DIR writes perception.json, perception.png and report.html. A file without a "
+        "`task` key is read as a perception task.",
+    )
+    perceive.add_argument("scenario", help="a scenario name or path")
+    perceive.add_argument("--seeds", default="0-19", help="seeds, e.g. 0-99 (default 0-19)")
+    perceive.add_argument(
+        "--methods", default=None, help="comma-separated (default: all that apply to the scenario's targets)"
+    )
+    perceive.add_argument(
+        "--out", type=Path, metavar="DIR", help="directory for perception.json, perception.png and report.html"
+    )
+    perceive.add_argument("--repeat", type=int, default=1, help="time each method N times per frame (median)")
+    prof = sub.add_parser(
+        "profile",
+        help="where an episode's wall time goes, stage by stage, beside the bare physics",
+        description="Runs the seeds' episodes one after another in this process, each stage of the loop timed "
+        "(physics, robot I/O, render, perception, tracker, skill, motion, kinematics, observers), and first the "
+        "bare physics of the same cell (its robot and table, no objects) as the reference: the loop's real-time "
+        "factor is printed as a share of the reference's, measured in the same run.",
+    )
+    prof.add_argument("scenario", help="a scenario name or path")
+    prof.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-9 (default 0-2)")
+    prof.add_argument("--json", action="store_true", help="print the figures as JSON instead")
+    validate = sub.add_parser(
+        "validate",
+        help="check scenarios without running them",
+        description="Loads each scenario and checks everything that can be checked without running it: the "
+        "schema, the geometry (objects on the table, apart, out of the robot), reach of the pick and place "
+        "regions, the camera's view of the target. Prints `ok NAME` or the error; exit 0 if all are ok, else 2.",
+    )
+    validate.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="names or paths")
+    listing = sub.add_parser("list", help="list the shipped scenarios with their descriptions")
+    listing.add_argument("--names", action="store_true", help="only the names, one a line (for scripts)")
+    return parser
