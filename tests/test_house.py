@@ -13,7 +13,11 @@ MAX_MODULE_LINES = 600
 MAX_CLASS_LINES = 400
 #: The one import inside a function: the package's Episode, loaded on first use so that the pure
 #: layers (the skill, perception, the schema) import without the simulator.
-LAZY = {("pickdemo", "pickdemo.runtime.episode"), ("pickdemo", "pickdemo.runtime")}
+LAZY = {
+    ("pickdemo", "pickdemo.runtime.episode"),
+    ("pickdemo", "pickdemo.runtime"),
+    ("pickdemo.apps.cli", "pickdemo.apps.demos"),  # (an extra's: gymnasium, pyarrow, PyAV, h5py)
+}
 #: The Panda's names and constants: in its robot file (pickdemo/robot/robots/panda.toml), no module.
 PANDA_NAMES = re.compile(r"\b(HOME_Q|FINGER_MAX_M|PALM_ABOVE_TCP_M|MAX_VELOCITY_RAD_S|MAX_ACCELERATION_RAD_S2|"
                          r"MAX_JERK_RAD_S3|MIN_POSITION_RAD|MAX_POSITION_RAD|panda_hand|panda_link\d|panda_joint\d|"

@@ -401,6 +401,40 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return EXIT_BAD_INPUT if bad else EXIT_OK
 
 
+def _cmd_demos(args: argparse.Namespace) -> int:
+    """``demos`` and ``replay``: the extra's modules imported only here."""
+    try:
+        from pickdemo.apps import demos
+        from pickdemo.apps.datasets import DatasetError
+    except ImportError as exc:
+        raise UsageError(
+            f"`pickdemo {args.command}` needs the demos extra ({exc.name} is missing): "
+            "pip install -c .ci/constraints.txt '.[demos]'"
+        ) from None
+    try:
+        if args.command == "replay":
+            r = demos.run_replay(args.dir, args.episode)
+            s, a = r["from_states"], r["from_actions"]
+            was = "success" if r["recorded_success"] else "failure"
+            print(f"episode {r['episode']} (seed {r['seed']}, recorded {was}):"
+                  f" from states {'SUCCESS' if s['success'] else 'FAILED ' + str(s['failure'])},"
+                  f" from actions {'SUCCESS' if a['success'] else 'FAILED ' + str(a['failure'])}"
+                  f" ({'identical states' if a['identical'] else 'states differ'})")  # fmt: skip
+            return EXIT_OK if s["success"] and a["success"] else EXIT_FAILED
+        seeds = bench.parse_seeds(args.seeds)
+        _writable_dir(args.out, "--out")
+        _pick_scenario(args.scenario)
+        r = demos.run_demos(
+            args.scenario, seeds, args.out, fmt=args.format, fps=args.fps, only_success=args.only_success,
+            resume=args.resume, progress=not args.no_progress, robot=args.robot,
+        )  # fmt: skip
+    except (DatasetError, bench.BenchError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
+    print(f"{args.scenario}: {r['successes']}/{r['episodes']} episodes succeeded; {r['kept']} in the {args.format} "
+          f"dataset {args.out} ({r['recorded']} recorded in {r['wall_s']:.1f} s)")  # fmt: skip
+    return EXIT_OK
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
@@ -417,6 +451,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_validate(args)
         if args.command == "list":
             return _cmd_list(args)
+        if args.command in ("demos", "replay"):
+            return _cmd_demos(args)
         parser.print_help()
         return EXIT_BAD_INPUT
     except (ScenarioError, UsageError) as exc:

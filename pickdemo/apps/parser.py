@@ -126,6 +126,33 @@ def build_parser() -> argparse.ArgumentParser:
         "regions, the camera's view of the target. Prints `ok NAME` or the error; exit 0 if all are ok, else 2.",
     )
     validate.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="names or paths")
+    demos = sub.add_parser(
+        "demos",
+        help="record the expert's episodes as a dataset (LeRobot v3 or HDF5)",
+        description="Runs pickdemo's closed-loop skill as the expert policy of the Gymnasium environment, seed "
+        "after seed, and records each episode: per frame the state observation, the action, every control "
+        "tick's action and the simulator's state (for an exact replay), and each camera's images. Needs the "
+        "demos extra (pip install -c .ci/constraints.txt '.[demos]').",
+    )
+    demos.add_argument("scenario", help="a scenario name or path (its task: pick or clear)")
+    demos.add_argument("--seeds", default="0-9", help="seeds, e.g. 0-99 (default 0-9)")
+    demos.add_argument("--out", type=Path, metavar="DIR", required=True, help="the dataset's directory")
+    demos.add_argument("--format", choices=("lerobot", "hdf5"), default="lerobot", help="default: lerobot")
+    demos.add_argument("--fps", type=float, default=10.0, help="dataset frames per second (default 10)")
+    demos.add_argument("--robot", help="another robot than the scenario's (a shipped robot's name or a robot file)")
+    demos.add_argument("--only-success", action="store_true", help="keep only the episodes that succeed")
+    demos.add_argument("--resume", action="store_true", help="go on with a recording in DIR that was stopped")
+    demos.add_argument("--no-progress", action="store_true", help="no progress bar")
+    replay = sub.add_parser(
+        "replay",
+        help="replay a recorded episode from its states and from its actions",
+        description="Plays an episode of a `pickdemo demos` dataset again: set to its simulator states frame by "
+        "frame, and from its actions alone; says whether each succeeds again and whether the replay from actions "
+        "went through the recorded states bit for bit (it does on the machine that recorded it). Exit 0 when both "
+        "succeed, 1 otherwise.",
+    )
+    replay.add_argument("dir", type=Path, metavar="DIR", help="a dataset written by `pickdemo demos`")
+    replay.add_argument("--episode", type=int, default=0, help="the episode's number in the dataset (default 0)")
     listing = sub.add_parser("list", help="list the shipped scenarios with their descriptions")
     listing.add_argument("--names", action="store_true", help="only the names, one a line (for scripts)")
     return parser

@@ -272,6 +272,11 @@ class PickEnv(gym.Env):
             out["target_true_pose"], out["objects_true_pose"] = self._true_poses()
         return out
 
+    def camera_images(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Each camera's whole frame now, as its sensor gives it: (RGB, depth in m with 0 for no return)."""
+        images = self._images()
+        return {name: (images[f"{name}_rgb"], images[f"{name}_depth"]) for name in self.episode.world.cameras}
+
     def _images(self) -> dict[str, np.ndarray]:
         ep = self.episode
         out = {}

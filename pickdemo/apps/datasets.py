@@ -1,0 +1,445 @@
+"""Demonstration datasets on disk: HDF5 (one file, robomimic's layout) and LeRobot's v3 format
+(Parquet tables, an MP4 per camera, ``meta/``), written episode by episode and read back for replay.
+
+Each episode is first written whole into ``DIR/.staging/`` (into a temporary name, renamed when it is
+complete: a killed run leaves no half episode there), with its record (``seed-N.json``). The dataset
+itself is made from the staging by :func:`finalize`, after every episode and again at the end: a run
+killed and started again with ``--resume`` records only the seeds not staged yet, and an episode is
+never in the dataset twice. Episodes are numbered in seed order.
+
+- **HDF5** (``DIR/demos.hdf5``): ``data/demo_K`` per episode with ``obs/state``, ``obs/<camera>_rgb``,
+  ``obs/<camera>_depth``, ``actions``, ``action_ticks`` (every control tick's action, NaN-padded),
+  ``states`` (the simulator's, per frame); attributes ``seed``, ``success``, ``failure``,
+  ``num_samples``; ``data`` has ``env_args`` (JSON) and ``total``.
+- **LeRobot v3**: ``data/chunk-000/file-K.parquet`` and ``videos/observation.images.<camera>/chunk-000/
+  file-K.mp4`` per episode (H.264), ``meta/info.json``, ``meta/stats.json``, ``meta/tasks.parquet``,
+  ``meta/episodes/chunk-000/file-000.parquet``; pickdemo's own columns beside LeRobot's
+  (``observation.sim_state``, ``action.ticks``, ``next.success``) and ``meta/pickdemo.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pickdemo.envs.record import Recorded, Row
+
+STAGING = ".staging"
+FORMATS = ("lerobot", "hdf5")
+
+
+class DatasetError(Exception):
+    """A dataset directory that cannot be used; the message is one line naming the file."""
+
+
+# ================================================================================== staging
+def staged(out: Path) -> dict[int, dict]:
+    """The episodes staged in ``out``: seed -> its record (``seed-N.json``, written last)."""
+    stage = out / STAGING
+    records = {}
+    for path in sorted(stage.glob("seed-*.json")) if stage.is_dir() else ():
+        record = json.loads(path.read_text())
+        records[int(record["seed"])] = record
+    return records
+
+
+def write_record(out: Path, recorded: Recorded, extra: dict) -> None:
+    path = out / STAGING / f"seed-{recorded.seed}.json"
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps({**asdict(recorded), **extra}) + "\n")
+    os.replace(tmp, path)
+
+
+def _pad_ticks(ticks: list[np.ndarray], stride: int) -> np.ndarray:
+    out = np.full((stride, len(ticks[0])), np.nan)
+    out[: len(ticks)] = ticks
+    return out
+
+
+# ===================================================================================== HDF5
+class Hdf5Episode:
+    """One episode's rows into ``.staging/seed-N.h5`` (renamed from a temporary name by :meth:`close`)."""
+
+    def __init__(self, out: Path, seed: int, stride: int) -> None:
+        import h5py  # the demos extra
+
+        self.path = out / STAGING / f"seed-{seed}.h5"
+        self.tmp = self.path.with_suffix(".h5.tmp")
+        self.file = h5py.File(self.tmp, "w")
+        self.stride = stride
+        self.n = 0
+
+    def _append(self, name: str, value: np.ndarray, **kw: Any) -> None:
+        value = np.asarray(value)
+        if name not in self.file:
+            self.file.create_dataset(name, shape=(0, *value.shape), maxshape=(None, *value.shape), dtype=value.dtype,
+                                     chunks=(1, *value.shape), **kw)  # fmt: skip
+        d = self.file[name]
+        d.resize(d.shape[0] + 1, axis=0)
+        d[-1] = value
+
+    def row(self, row: Row) -> None:
+        self._append("obs/state", row.state)
+        self._append("actions", row.action)
+        self._append("action_ticks", _pad_ticks(row.ticks, self.stride))
+        self._append("states", row.sim_state)
+        self._append("timestamps", np.array(row.time_s))
+        for cam, (rgb, depth) in row.images.items():
+            self._append(f"obs/{cam}_rgb", rgb, compression="lzf")
+            self._append(f"obs/{cam}_depth", depth, compression="lzf")
+        self.n += 1
+
+    def close(self, keep: bool) -> None:
+        self.file.close()
+        if keep:
+            os.replace(self.tmp, self.path)
+        else:
+            self.tmp.unlink()
+
+
+def finalize_hdf5(out: Path, records: dict[int, dict], meta: dict, *, only_success: bool) -> int:
+    """``out/demos.hdf5`` from the staged episodes (rewritten whole); how many episodes it holds."""
+    import h5py
+
+    kept = [r for _, r in sorted(records.items()) if r["kept"] and (r["success"] or not only_success)]
+    tmp = out / "demos.hdf5.tmp"
+    with h5py.File(tmp, "w") as f:
+        data = f.create_group("data")
+        data.attrs["env_args"] = json.dumps(meta)
+        total = 0
+        for k, r in enumerate(kept):
+            with h5py.File(out / STAGING / f"seed-{r['seed']}.h5", "r") as src:
+                g = data.create_group(f"demo_{k}")
+                for name in src:
+                    src.copy(src[name], g, name=name)
+            g.attrs.update(seed=r["seed"], success=r["success"], failure=r["failure"] or "", num_samples=r["frames"])
+            total += r["frames"]
+        data.attrs["total"] = total
+    os.replace(tmp, out / "demos.hdf5")
+    return len(kept)
+
+
+def read_hdf5(out: Path, episode: int) -> tuple[dict, dict, np.ndarray, np.ndarray]:
+    """(meta, the episode's attributes, every tick's action (T x stride, A), the states (T, Z))."""
+    import h5py
+
+    path = out / "demos.hdf5"
+    if not path.is_file():
+        raise DatasetError(f"{path}: no such file (record with `pickdemo demos ... --format hdf5`)")
+    with h5py.File(path, "r") as f:
+        meta = json.loads(f["data"].attrs["env_args"])
+        name = f"demo_{episode}"
+        if name not in f["data"]:
+            raise DatasetError(f"{path}: no episode {episode} (it has {len(f['data'])})")
+        g = f["data"][name]
+        attrs = {k: (v.item() if hasattr(v, "item") else v) for k, v in g.attrs.items()}
+        return meta, attrs, np.asarray(g["action_ticks"]), np.asarray(g["states"])
+
+
+# =================================================================================== LeRobot
+CHUNK = "chunk-000"
+#: tasks.parquet's pandas metadata: LeRobot reads the task strings as the table's (pandas) index
+TASKS_PANDAS = {
+    "index_columns": ["task"],
+    "column_indexes": [],
+    "columns": [
+        {
+            "name": "task_index",
+            "field_name": "task_index",
+            "pandas_type": "int64",
+            "numpy_type": "int64",
+            "metadata": None,
+        },
+        {"name": "task", "field_name": "task", "pandas_type": "unicode", "numpy_type": "object", "metadata": None},
+    ],
+}
+IMAGE_KEY = "observation.images.{}"
+
+
+class LeRobotEpisode:
+    """One episode into ``.staging/seed-N/``: its rows' table and an H.264 MP4 per camera."""
+
+    def __init__(self, out: Path, seed: int, stride: int, fps: float) -> None:
+        self.dir = out / STAGING / f"seed-{seed}"
+        self.tmp = out / STAGING / f"seed-{seed}.tmp"
+        if self.tmp.exists():
+            _remove_tree(self.tmp)
+        self.tmp.mkdir(parents=True)
+        self.stride, self.fps = stride, fps
+        self.rows: dict[str, list] = {"state": [], "action": [], "ticks": [], "sim_state": []}
+        self.videos: dict[str, Any] = {}
+
+    def _video(self, cam: str, rgb: np.ndarray) -> Any:
+        if cam not in self.videos:
+            import av  # the demos extra (PyAV)
+
+            container = av.open(str(self.tmp / f"{cam}.mp4"), "w")
+            stream = container.add_stream("libx264", rate=int(round(self.fps)))
+            stream.width, stream.height = rgb.shape[1], rgb.shape[0]
+            stream.pix_fmt = "yuv420p"
+            stream.options = {"crf": "23", "g": "2", "bf": "0", "preset": "veryfast"}  # a key frame every other
+            self.videos[cam] = (container, stream)
+        return self.videos[cam]
+
+    def row(self, row: Row) -> None:
+        import av
+
+        self.rows["state"].append(row.state.astype(np.float32))
+        self.rows["action"].append(row.action.astype(np.float32))
+        self.rows["ticks"].append(_pad_ticks(row.ticks, self.stride).ravel())
+        self.rows["sim_state"].append(row.sim_state)
+        for cam, (rgb, _depth) in row.images.items():
+            container, stream = self._video(cam, rgb)
+            frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(rgb), format="rgb24")
+            frame.pts = len(self.rows["state"]) - 1  # frame k at k / fps exactly: LeRobot finds frames by time
+            frame.time_base = Fraction(1, int(round(self.fps)))
+            for packet in stream.encode(frame):
+                container.mux(packet)
+
+    def close(self, keep: bool) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        for container, stream in self.videos.values():
+            for packet in stream.encode():
+                container.mux(packet)
+            container.close()
+        if keep:
+            n = len(self.rows["state"])
+
+            def vectors(rows: list[np.ndarray], dtype: Any) -> Any:  # LeRobot's Sequence(length=N): a fixed-size list
+                return pa.array(list(rows), type=pa.list_(dtype, len(rows[0])))
+
+            table = pa.table(
+                {
+                    "observation.state": vectors(self.rows["state"], pa.float32()),
+                    "action": vectors(self.rows["action"], pa.float32()),
+                    "observation.sim_state": vectors(self.rows["sim_state"], pa.float64()),
+                    "action.ticks": vectors(self.rows["ticks"], pa.float64()),
+                    "frame_index": pa.array(np.arange(n), type=pa.int64()),
+                }
+            )
+            pq.write_table(table, self.tmp / "frames.parquet")
+            if self.dir.exists():
+                _remove_tree(self.dir)
+            os.replace(self.tmp, self.dir)
+        else:
+            _remove_tree(self.tmp)
+
+
+def _remove_tree(path: Path) -> None:
+    for p in sorted(path.rglob("*"), reverse=True):
+        p.rmdir() if p.is_dir() else p.unlink()
+    path.rmdir()
+
+
+def _stats(values: np.ndarray) -> dict[str, list]:
+    """LeRobot's per-feature statistics over the frames (a scalar feature's as one-element lists)."""
+    v = np.asarray(values, dtype=np.float64)
+    v = v.reshape(len(v), -1)
+    out = {"min": v.min(0), "max": v.max(0), "mean": v.mean(0), "std": v.std(0)}
+    out |= {f"q{int(q * 100):02d}": np.quantile(v, q, axis=0) for q in (0.01, 0.10, 0.50, 0.90, 0.99)}
+    return {k: x.tolist() for k, x in out.items()} | {"count": [int(len(v))]}
+
+
+def _image_stats(path: Path) -> dict[str, list]:
+    """Per channel, of the pixels in [0, 1], as LeRobot keeps them (shape (3, 1, 1)); from every
+    fourth frame decoded."""
+    import av
+
+    sums, sq, lo, hi, n, frames = np.zeros(3), np.zeros(3), np.ones(3), np.zeros(3), 0, 0
+    with av.open(str(path)) as container:
+        for i, frame in enumerate(container.decode(video=0)):
+            if i % 4:
+                continue
+            x = frame.to_ndarray(format="rgb24").reshape(-1, 3) / 255.0
+            sums += x.sum(0)
+            sq += (x**2).sum(0)
+            lo, hi = np.minimum(lo, x.min(0)), np.maximum(hi, x.max(0))
+            n += len(x)
+            frames += 1
+    mean = sums / max(n, 1)
+    std = np.sqrt(np.maximum(sq / max(n, 1) - mean**2, 0.0))
+
+    def col(v: np.ndarray) -> list:
+        return [[[float(c)]] for c in v]
+
+    return {"min": col(lo), "max": col(hi), "mean": col(mean), "std": col(std), "count": [frames]}
+
+
+def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_success: bool) -> int:
+    """LeRobot v3's layout in ``out`` from the staged episodes (its tables and meta rewritten, each
+    episode's MP4 linked in); how many episodes it holds."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    kept = [r for _, r in sorted(records.items()) if r["kept"] and (r["success"] or not only_success)]
+    fps = meta["fps"]
+    cams = list(meta["cameras"])
+    (out / "meta" / "episodes" / CHUNK).mkdir(parents=True, exist_ok=True)
+    (out / "data" / CHUNK).mkdir(parents=True, exist_ok=True)
+    for old in (out / "data" / CHUNK).glob("file-*.parquet"):
+        old.unlink()
+    episodes: list[dict] = []
+    index = 0
+    states, actions = [], []
+    image_stats: dict[str, list] = {c: [] for c in cams}
+    for k, r in enumerate(kept):
+        src = out / STAGING / f"seed-{r['seed']}"
+        table = pq.read_table(src / "frames.parquet")
+        n = table.num_rows
+        frame_index = np.arange(n, dtype=np.int64)
+        done = np.zeros(n, dtype=bool)
+        done[-1] = True
+        table = (
+            table.drop_columns(["frame_index"])
+            .append_column("timestamp", pa.array((frame_index / fps).astype(np.float32)))
+            .append_column("frame_index", pa.array(frame_index))
+            .append_column("episode_index", pa.array(np.full(n, k, dtype=np.int64)))
+            .append_column("index", pa.array(np.arange(index, index + n, dtype=np.int64)))
+            .append_column("task_index", pa.array(np.zeros(n, dtype=np.int64)))
+            .append_column("next.done", pa.array(done))
+            .append_column("next.success", pa.array(done & bool(r["success"])))
+        )
+        pq.write_table(table, out / "data" / CHUNK / f"file-{k:03d}.parquet")
+        states.append(np.stack(table.column("observation.state").to_numpy(zero_copy_only=False)))
+        actions.append(np.stack(table.column("action").to_numpy(zero_copy_only=False)))
+        ep = {
+            "episode_index": k,
+            "tasks": [meta["task"]],
+            "length": n,
+            "data/chunk_index": 0,
+            "data/file_index": k,
+            "dataset_from_index": index,
+            "dataset_to_index": index + n,
+            "meta/episodes/chunk_index": 0,
+            "meta/episodes/file_index": 0,
+            "pickdemo/seed": r["seed"],
+            "pickdemo/success": bool(r["success"]),
+            "pickdemo/failure": r["failure"] or "",
+        }
+        for cam in cams:
+            key = IMAGE_KEY.format(cam)
+            dst = out / "videos" / key / CHUNK / f"file-{k:03d}.mp4"
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            if dst.exists():
+                dst.unlink()
+            os.link(src / f"{cam}.mp4", dst)
+            image_stats[cam].append(_image_stats(dst))
+            ep |= {f"videos/{key}/chunk_index": 0, f"videos/{key}/file_index": k,
+                   f"videos/{key}/from_timestamp": 0.0, f"videos/{key}/to_timestamp": n / fps}  # fmt: skip
+        episodes.append(ep)
+        index += n
+    pq.write_table(pa.Table.from_pylist(episodes), out / "meta" / "episodes" / CHUNK / "file-000.parquet")
+    tasks = pa.table({"task_index": pa.array([0], pa.int64()), "task": pa.array([meta["task"]], pa.string())})
+    pq.write_table(tasks.replace_schema_metadata({"pandas": json.dumps(TASKS_PANDAS)}), out / "meta" / "tasks.parquet")
+    stats: dict[str, Any] = {}
+    if states:
+        stats["observation.state"] = _stats(np.concatenate(states))
+        stats["action"] = _stats(np.concatenate(actions))
+        lengths = [int(e["length"]) for e in episodes]
+        frame_index = np.concatenate([np.arange(n) for n in lengths])
+        stats["timestamp"] = _stats(frame_index / fps)
+        stats["frame_index"] = _stats(frame_index)
+        stats["episode_index"] = _stats(np.repeat(np.arange(len(lengths)), lengths))
+        stats["index"] = _stats(np.arange(index))
+        stats["task_index"] = _stats(np.zeros(index))
+    for cam, per in image_stats.items():
+        if per:
+            w = np.array([p["count"][0] for p in per], dtype=float)
+            stats[IMAGE_KEY.format(cam)] = {
+                "min": np.min([p["min"] for p in per], axis=0).tolist(),
+                "max": np.max([p["max"] for p in per], axis=0).tolist(),
+                "mean": np.average([p["mean"] for p in per], axis=0, weights=w).tolist(),
+                "std": np.average([p["std"] for p in per], axis=0, weights=w).tolist(),
+                "count": [int(w.sum())],
+            }
+    (out / "meta" / "stats.json").write_text(json.dumps(stats, indent=1) + "\n")
+    sim_size = len(table.column("observation.sim_state")[0]) if kept else 0
+    (out / "meta" / "info.json").write_text(json.dumps(_info(meta, len(kept), index, sim_size), indent=2) + "\n")
+    (out / "meta" / "pickdemo.json").write_text(json.dumps(meta, indent=2) + "\n")
+    return len(kept)
+
+
+def _info(meta: dict, episodes: int, frames: int, sim_size: int) -> dict:
+    fps = int(round(meta["fps"]))
+    S, A = len(meta["state_names"]), len(meta["action_names"])
+    features: dict[str, Any] = {
+        "observation.state": {"dtype": "float32", "shape": [S], "names": meta["state_names"]},
+        "action": {"dtype": "float32", "shape": [A], "names": meta["action_names"]},
+        "observation.sim_state": {"dtype": "float64", "shape": [sim_size], "names": None},
+        "action.ticks": {"dtype": "float64", "shape": [meta["stride"] * A], "names": None},
+    }
+    for cam, (w, h) in meta["cameras"].items():
+        features[IMAGE_KEY.format(cam)] = {
+            "dtype": "video",
+            "shape": [h, w, 3],
+            "names": ["height", "width", "channels"],
+            "info": {"video.height": h, "video.width": w, "video.codec": "h264", "video.pix_fmt": "yuv420p",
+                     "video.fps": fps, "video.channels": 3, "has_audio": False, "is_depth_map": False},
+        }  # fmt: skip
+    for name, dtype in (("timestamp", "float32"), ("frame_index", "int64"), ("episode_index", "int64"),
+                        ("index", "int64"), ("task_index", "int64")):  # fmt: skip
+        features[name] = {"dtype": dtype, "shape": [1], "names": None}
+    features["next.done"] = {"dtype": "bool", "shape": [1], "names": None}
+    features["next.success"] = {"dtype": "bool", "shape": [1], "names": None}
+    return {
+        "codebase_version": "v3.0",
+        "robot_type": meta["robot_name"],
+        "total_episodes": episodes,
+        "total_frames": frames,
+        "total_tasks": 1,
+        "chunks_size": 1000,
+        "data_files_size_in_mb": 100,
+        "video_files_size_in_mb": 500,
+        "fps": fps,
+        "splits": {"train": f"0:{episodes}"},
+        "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
+        "video_path": "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4",
+        "features": features,
+    }
+
+
+def read_lerobot(out: Path, episode: int) -> tuple[dict, np.ndarray, np.ndarray]:
+    """(the episode's attributes, every tick's action (T, stride x A), the states (T, Z)) from its table."""
+    import pyarrow.parquet as pq
+
+    eps_path = out / "meta" / "episodes" / CHUNK / "file-000.parquet"
+    if not eps_path.is_file():
+        raise DatasetError(f"{eps_path}: no such file (record with `pickdemo demos ... --format lerobot`)")
+    eps = pq.read_table(eps_path).to_pylist()
+    if not 0 <= episode < len(eps):
+        raise DatasetError(f"{eps_path}: no episode {episode} (it has {len(eps)})")
+    ep = eps[episode]
+    table = pq.read_table(out / "data" / CHUNK / f"file-{ep['data/file_index']:03d}.parquet")
+    ticks = np.stack(table.column("action.ticks").to_numpy(zero_copy_only=False))
+    states = np.stack(table.column("observation.sim_state").to_numpy(zero_copy_only=False))
+    attrs = {"seed": ep["pickdemo/seed"], "success": ep["pickdemo/success"], "failure": ep["pickdemo/failure"]}
+    return attrs, ticks, states
+
+
+# ================================================================================ by format
+def open_episode(fmt: str, out: Path, seed: int, stride: int, meta: dict) -> Hdf5Episode | LeRobotEpisode:
+    if fmt == "hdf5":
+        return Hdf5Episode(out, seed, stride)
+    return LeRobotEpisode(out, seed, stride, meta["fps"])
+
+
+def finalize(fmt: str, out: Path, records: dict[int, dict], meta: dict, *, only_success: bool) -> int:
+    if fmt == "hdf5":
+        return finalize_hdf5(out, records, meta, only_success=only_success)
+    return finalize_lerobot(out, records, meta, only_success=only_success)
+
+
+def read_episode(fmt: str, out: Path, episode: int) -> tuple[dict, np.ndarray, np.ndarray]:
+    """(the episode's attributes: seed, success, failure; every tick's action; the simulator's states)."""
+    if fmt == "hdf5":
+        _meta, attrs, ticks, states = read_hdf5(out, episode)
+        return attrs, ticks, states
+    return read_lerobot(out, episode)

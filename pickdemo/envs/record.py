@@ -1,0 +1,162 @@
+"""Recording the expert's episodes through the environment, at a dataset's frame rate.
+
+:func:`record_episode` runs :class:`~pickdemo.envs.expert.ExpertPolicy` in a
+:class:`~pickdemo.envs.pick_env.PickEnv` (``joint_pos``, one action a control tick) and hands a sink
+one row per dataset frame (every ``stride`` control ticks): the state observation, the action a
+policy at the dataset's rate would send (the joint goal at the row's last tick, and the gripper),
+every tick's action of the row (for an exact replay), the simulator's state at the row's start (for a
+replay from states), and each camera's RGB and depth. :func:`replay_episode` plays a recorded episode
+again in a fresh environment, from its actions alone or set to its states row by row, and says
+whether it succeeds again. A part of the environments: no file formats here (:mod:`pickdemo.apps.datasets`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from pickdemo.envs.expert import ExpertPolicy
+from pickdemo.envs.pick_env import PickEnv
+
+#: The state observation's parts, in the order of a dataset's ``observation.state``.
+STATE_KEYS = ("joint_pos", "joint_vel", "fingers", "finger_contacts", "wrist_force", "target_pose", "target_tracked")
+
+
+def state_names(env: PickEnv) -> list[str]:
+    """One name per number of ``observation.state``."""
+    n = env.robot.dof
+    names = [f"joint_pos.{i}" for i in range(n)] + [f"joint_vel.{i}" for i in range(n)]
+    names += ["finger.0", "finger.1", "contacts.0", "contacts.1", "wrist_force.x", "wrist_force.y", "wrist_force.z"]
+    return names + ["target.x", "target.y", "target.z", "target.yaw", "target.tracked"]
+
+
+def action_names(env: PickEnv) -> list[str]:
+    return [f"joint_goal.{i}" for i in range(env.robot.dof)] + ["gripper"]
+
+
+def state_vector(obs: dict[str, np.ndarray]) -> np.ndarray:
+    return np.concatenate([np.ravel(obs[k]) for k in STATE_KEYS])
+
+
+@dataclass
+class Row:
+    """One dataset frame."""
+
+    time_s: float
+    state: np.ndarray  # (S,) the state observation (:data:`STATE_KEYS`)
+    sim_state: np.ndarray  # the simulator's state at the frame's first tick
+    images: dict[str, tuple[np.ndarray, np.ndarray]]  # camera -> (RGB (H, W, 3) uint8, depth (H, W) float32 m)
+    ticks: list[np.ndarray]  # every tick's action of the frame (1 .. stride of them)
+
+    @property
+    def action(self) -> np.ndarray:
+        return self.ticks[-1]
+
+
+class Sink(Protocol):
+    def row(self, row: Row) -> None: ...
+
+
+@dataclass
+class Recorded:
+    """What an episode came to."""
+
+    seed: int
+    frames: int
+    ticks: int
+    success: bool
+    failure: str | None  # the failed stage
+    reason: str
+    result: dict[str, Any]  # the referee's EpisodeResult, as result.json has it
+
+
+def make_env(scenario: str, robot: str | None = None, *, cameras: bool = True) -> PickEnv:
+    """The environment demonstrations are recorded and replayed in."""
+    return PickEnv(scenario, robot=robot, obs_mode="state", control_mode="joint_pos", agent_rate_hz=None)
+
+
+def stride_for(env: PickEnv, fps: float) -> int:
+    control = env.scenario.control.control_rate_hz
+    stride = control / fps
+    if fps <= 0 or abs(stride - round(stride)) > 1e-9:
+        raise ValueError(f"--fps {fps:g}: the control tick ({control:g} Hz) divided by a whole number")
+    return int(round(stride))
+
+
+def record_episode(env: PickEnv, seed: int, stride: int, sink: Sink, *, images: bool = True) -> Recorded:
+    """Run the expert for ``seed``, one :class:`Row` to ``sink`` every ``stride`` control ticks."""
+    expert = ExpertPolicy(env)
+    obs, info = env.reset(seed=seed)
+    row: Row | None = None
+    k = 0
+    while True:
+        if k % stride == 0:
+            scene = env.episode.world.scene
+            shots = env.camera_images() if images else {}
+            row = Row(float(obs["time"][0]), state_vector(obs), scene.state(), shots, [])
+        action = expert(obs)
+        row.ticks.append(action)
+        obs, reward, terminated, truncated, info = env.step(action)
+        k += 1
+        if k % stride == 0 or terminated or truncated:
+            sink.row(row)
+        if terminated or truncated:
+            break
+    result = info["result"]
+    f = result.failure
+    return Recorded(
+        seed=seed,
+        frames=(k + stride - 1) // stride,
+        ticks=k,
+        success=result.success,
+        failure=None if f is None else f.stage.value,
+        reason="" if f is None else f.reason,
+        result=result.to_dict(),
+    )
+
+
+@dataclass
+class Replayed:
+    success: bool
+    failure: str | None
+    identical: bool | None  # from actions: every state the same, bit for bit, as recorded (None: not compared)
+    ticks: int
+
+
+def replay_episode(
+    env: PickEnv, seed: int, ticks: list[np.ndarray], stride: int, states: list[np.ndarray], *, from_states: bool
+) -> Replayed:
+    """Play ``ticks`` (every tick's action, in order) from the seed's first state. ``from_states``: the
+    simulator is set to each row's recorded state (one every ``stride`` ticks) before its ticks; else
+    from the actions alone, each row's state compared with the recorded one (``identical``). The
+    episode ends as the environment ends it; when the actions run out first, the last is held for up to
+    two simulated seconds."""
+    env.reset(seed=seed)
+    scene = env.episode.world.scene
+    info: dict = {}
+    terminated = truncated = False
+    identical = True
+    k = 0
+    for k, action in enumerate(ticks):
+        if k % stride == 0:
+            recorded = states[k // stride]
+            if from_states:
+                scene.set_state(recorded)
+            else:
+                now = scene.state()
+                identical = identical and now.shape == recorded.shape and bool(np.array_equal(now, recorded))
+        _, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    extra = int(2.0 * env.scenario.control.control_rate_hz)
+    while not (terminated or truncated) and extra > 0:
+        _, _, terminated, truncated, info = env.step(ticks[-1])
+        extra -= 1
+    same = None if from_states else identical and k + 1 == len(ticks)
+    if not (terminated or truncated):
+        env.close()
+        return Replayed(False, "unfinished", same, k + 1)
+    result = info["result"]
+    return Replayed(result.success, None if result.failure is None else result.failure.stage.value, same, k + 1)
