@@ -33,13 +33,14 @@ def run_demos(
     resume: bool,
     progress: bool,
     robot: str | None = None,
+    image_width: int = 224,
 ) -> dict:
     """Record the seeds not staged yet and make the dataset; the run's figures."""
     from tqdm import tqdm
 
     if fmt == "lerobot" and fps != int(fps):
         raise DatasetError(f"--fps {fps:g}: LeRobot datasets have a whole number of frames per second")
-    env = make_env(scenario, robot)
+    env = make_env(scenario, robot, image_width=image_width)
     stride = stride_for(env, fps)
     meta = {
         "format": fmt,

@@ -139,6 +139,9 @@ def build_parser() -> argparse.ArgumentParser:
     demos.add_argument("--out", type=Path, metavar="DIR", required=True, help="the dataset's directory")
     demos.add_argument("--format", choices=("lerobot", "hdf5"), default="lerobot", help="default: lerobot")
     demos.add_argument("--fps", type=float, default=10.0, help="dataset frames per second (default 10)")
+    demos.add_argument(
+        "--image-width", type=int, default=224, help="the cameras' images' width in pixels (default 224; same view)"
+    )
     demos.add_argument("--robot", help="another robot than the scenario's (a shipped robot's name or a robot file)")
     demos.add_argument("--only-success", action="store_true", help="keep only the episodes that succeed")
     demos.add_argument("--resume", action="store_true", help="go on with a recording in DIR that was stopped")

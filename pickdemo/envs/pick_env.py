@@ -42,6 +42,8 @@ from pickdemo.sim.render import render_rgb
 from pickdemo.skills.controller import Controller
 
 OBS_MODES = ("state", "rgbd", "privileged")
+#: The observation's images' depth noise: a random stream of its own, beside the episode's (from the seed).
+IMAGE_STREAM = 0x1A6E
 REWARD_MODES = ("sparse", "dense")
 
 
@@ -67,10 +69,12 @@ class PickEnv(gym.Env):
         terminate_on_failure: bool = True,
         task: str | None = None,
         options: EpisodeOptions | None = None,
+        image_width: int | None = None,
     ) -> None:
         """``scenario``: a shipped scenario's name, a file, or a loaded one; ``robot``: another robot than
         its own (a shipped one's name or a robot file); ``agent_rate_hz`` None: every control tick;
-        ``task``: the task the scenario must have (the id's: ``pick`` or ``clear``)."""
+        ``task``: the task the scenario must have (the id's: ``pick`` or ``clear``); ``image_width``: the
+        ``rgbd`` images' width in pixels (the same field of view; default: each camera's own)."""
         for what, value, allowed in (
             ("obs_mode", obs_mode, OBS_MODES),
             ("control_mode", control_mode, tuple(MODES)),
@@ -86,6 +90,9 @@ class PickEnv(gym.Env):
         self.obs_mode, self.control_mode, self.render_mode = obs_mode, control_mode, render_mode
         self.reward_mode, self.terminate_on_failure = reward_mode, terminate_on_failure
         self.robot = sc.robot_description
+        if image_width is not None and not 16 <= image_width <= 4096:
+            raise ValueError(f"image_width={image_width}: 16 to 4096 pixels")
+        self.image_width = image_width
         control_hz = sc.control.control_rate_hz
         rate = control_hz if agent_rate_hz is None else float(agent_rate_hz)
         ticks = control_hz / rate
@@ -145,9 +152,14 @@ class PickEnv(gym.Env):
         return len(self.scenario.objects) + (clear.count if clear is not None else 0)
 
     def _camera_sizes(self) -> dict[str, tuple[int, int]]:
-        sizes = {FIXED_CAMERA: (self.scenario.camera.width, self.scenario.camera.height)}
+        """Each camera's images' (width, height) in the observation."""
+        specs = {FIXED_CAMERA: self.scenario.camera}
         if self.scenario.wrist_camera is not None:
-            sizes[WRIST_CAMERA] = (self.scenario.wrist_camera.width, self.scenario.wrist_camera.height)
+            specs[WRIST_CAMERA] = self.scenario.wrist_camera
+        sizes = {}
+        for name, spec in specs.items():
+            w = self.image_width or spec.width
+            sizes[name] = (w, max(1, round(w * spec.height / spec.width)))
         return sizes
 
     # ================================================================================ episodes
@@ -181,6 +193,7 @@ class PickEnv(gym.Env):
             failure = result.failure
             raise RuntimeError(f"{self.scenario.name} seed {seed}: {failure.stage.value}: {failure.reason}")
         self.seed_used = int(seed)
+        self._image_rng = np.random.default_rng([int(seed), IMAGE_STREAM])
         return self._observe(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
@@ -273,22 +286,22 @@ class PickEnv(gym.Env):
         return out
 
     def camera_images(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Each camera's whole frame now, as its sensor gives it: (RGB, depth in m with 0 for no return)."""
-        images = self._images()
-        return {name: (images[f"{name}_rgb"], images[f"{name}_depth"]) for name in self.episode.world.cameras}
+        """Each camera's whole view now: (RGB, depth in m with 0 for no return), at ``image_width``. Their
+        depth noise has its own random stream (from the seed): looking leaves the episode as it was."""
+        ep = self.episode
+        if ep.done or ep.world is None or ep.world.scene is None:  # (the scene is closed: the last again)
+            return self._last_images
+        sizes = self._camera_sizes()
+        self._last_images = {
+            name: rig.snapshot(ep.world.scene, sizes[name][0], self._image_rng)
+            for name, rig in ep.world.cameras.items()
+        }
+        return self._last_images
 
     def _images(self) -> dict[str, np.ndarray]:
-        ep = self.episode
         out = {}
-        for name, rig in ep.world.cameras.items():
-            if ep.done:  # (the scene is closed: the last images again)
-                out[f"{name}_rgb"], out[f"{name}_depth"] = self._last_images[name]
-                continue
-            T = ep.machine.kin.forward(ep.observation.arm_q) if rig.on_hand else None
-            frame = rig.take(ep.world.scene, None, T)
-            depth = np.nan_to_num(frame.depth_m, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
-            out[f"{name}_rgb"], out[f"{name}_depth"] = frame.rgb, depth
-        self._last_images = {n: (out[f"{n}_rgb"], out[f"{n}_depth"]) for n in ep.world.cameras}
+        for name, (rgb, depth) in self.camera_images().items():
+            out[f"{name}_rgb"], out[f"{name}_depth"] = rgb, depth
         return out
 
     def _true_poses(self) -> tuple[np.ndarray, np.ndarray]:

@@ -72,9 +72,11 @@ class Recorded:
     result: dict[str, Any]  # the referee's EpisodeResult, as result.json has it
 
 
-def make_env(scenario: str, robot: str | None = None, *, cameras: bool = True) -> PickEnv:
-    """The environment demonstrations are recorded and replayed in."""
-    return PickEnv(scenario, robot=robot, obs_mode="state", control_mode="joint_pos", agent_rate_hz=None)
+def make_env(scenario: str, robot: str | None = None, *, image_width: int | None = None) -> PickEnv:
+    """The environment demonstrations are recorded and replayed in (its images ``image_width`` across)."""
+    return PickEnv(
+        scenario, robot=robot, obs_mode="state", control_mode="joint_pos", agent_rate_hz=None, image_width=image_width
+    )
 
 
 def stride_for(env: PickEnv, fps: float) -> int:

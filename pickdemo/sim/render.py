@@ -155,6 +155,31 @@ class Camera:
         rgb, _, _ = self._render(scene, roi)
         return rgb, crop_intrinsics(K, roi)
 
+    def snapshot(self, scene: Scene, width: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """The whole view at ``width`` pixels across (a dataset's image; the same field of view), from
+        where the camera truly is now: RGB and depth (m; 0 where there is no return), the depth with the
+        sensor's noise drawn from ``rng`` (the camera's own random stream, and perception's frames, untouched)."""
+        sp = self.spec
+        height = max(1, round(width * sp.height / sp.width))
+        K = rendered_intrinsics(width, height, sp.fov_deg[0], sp.fov_deg[1])
+        T = scene.true_tcp_pose() @ self.T_tcp_cam_true if self.on_hand else self.T_world_cam_true
+        _, _, rgba, zbuf, _ = scene.client.getCameraImage(
+            width,
+            height,
+            viewMatrix=opengl_view_matrix(T),
+            projectionMatrix=opengl_projection_matrix(K, sp.near_m, sp.far_m),
+            shadow=0,
+            lightDirection=list(LIGHT_DIRECTION),
+            renderer=p.ER_TINY_RENDERER,
+        )
+        rgb = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+        depth = depth_from_buffer(np.asarray(zbuf).reshape(height, width), sp.near_m, sp.far_m)
+        seen = depth < sp.far_m * 0.999
+        if sp.depth_noise != "none":
+            depth[seen] = add_kinect_noise(depth[seen], rng)
+        depth[~seen] = 0.0
+        return rgb, depth.astype(np.float32)
+
     def capture_labels(self, scene: Scene) -> tuple[RGBDFrame, np.ndarray]:
         """A noise-free frame and its segmentation (body ids): for tests and labels, never for control."""
         rgb, depth, seg = self._render(scene)
