@@ -74,7 +74,8 @@ class PickEnv(gym.Env):
         """``scenario``: a shipped scenario's name, a file, or a loaded one; ``robot``: another robot than
         its own (a shipped one's name or a robot file); ``agent_rate_hz`` None: every control tick;
         ``task``: the task the scenario must have (the id's: ``pick`` or ``clear``); ``image_width``: the
-        ``rgbd`` images' width in pixels (the same field of view; default: each camera's own)."""
+        ``rgbd`` images' width in pixels (the same field of view, both sides rounded to even; default: each
+        camera's own)."""
         for what, value, allowed in (
             ("obs_mode", obs_mode, OBS_MODES),
             ("control_mode", control_mode, tuple(MODES)),
@@ -157,9 +158,9 @@ class PickEnv(gym.Env):
         if self.scenario.wrist_camera is not None:
             specs[WRIST_CAMERA] = self.scenario.wrist_camera
         sizes = {}
-        for name, spec in specs.items():
-            w = self.image_width or spec.width
-            sizes[name] = (w, max(1, round(w * spec.height / spec.width)))
+        for name, spec in specs.items():  # (even: a video's chroma is half the size)
+            w = 2 * max(1, (self.image_width or spec.width) // 2)
+            sizes[name] = (w, 2 * max(1, round(w * spec.height / spec.width / 2)))
         return sizes
 
     # ================================================================================ episodes
@@ -293,8 +294,7 @@ class PickEnv(gym.Env):
             return self._last_images
         sizes = self._camera_sizes()
         self._last_images = {
-            name: rig.snapshot(ep.world.scene, sizes[name][0], self._image_rng)
-            for name, rig in ep.world.cameras.items()
+            name: rig.snapshot(ep.world.scene, *sizes[name], self._image_rng) for name, rig in ep.world.cameras.items()
         }
         return self._last_images
 

@@ -155,12 +155,13 @@ class Camera:
         rgb, _, _ = self._render(scene, roi)
         return rgb, crop_intrinsics(K, roi)
 
-    def snapshot(self, scene: Scene, width: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """The whole view at ``width`` pixels across (a dataset's image; the same field of view), from
+    def snapshot(
+        self, scene: Scene, width: int, height: int, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The whole view in ``width`` x ``height`` pixels (a dataset's image; the same field of view), from
         where the camera truly is now: RGB and depth (m; 0 where there is no return), the depth with the
         sensor's noise drawn from ``rng`` (the camera's own random stream, and perception's frames, untouched)."""
         sp = self.spec
-        height = max(1, round(width * sp.height / sp.width))
         K = rendered_intrinsics(width, height, sp.fov_deg[0], sp.fov_deg[1])
         T = scene.true_tcp_pose() @ self.T_tcp_cam_true if self.on_hand else self.T_world_cam_true
         _, _, rgba, zbuf, _ = scene.client.getCameraImage(
