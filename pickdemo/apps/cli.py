@@ -401,6 +401,26 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return EXIT_BAD_INPUT if bad else EXIT_OK
 
 
+def _replay(demos, args: argparse.Namespace) -> int:  # noqa: ANN001 - the module pickdemo.apps.demos
+    """Each episode asked for, replayed: a line each, then how many succeeded again."""
+    episodes = demos.episodes_in(args.dir, args.episode)
+    again = recorded = 0
+    for k in episodes:
+        r = demos.run_replay(args.dir, k)
+        s, a = r["from_states"], r["from_actions"]
+        was = "success" if r["recorded_success"] else "failure"
+        print(f"episode {k} (seed {r['seed']}, recorded {was}):"
+              f" from states {'SUCCESS' if s['success'] else 'FAILED ' + str(s['failure'])},"
+              f" from actions {'SUCCESS' if a['success'] else 'FAILED ' + str(a['failure'])}"
+              f" ({'identical states' if a['identical'] else 'states differ'})", flush=True)  # fmt: skip
+        recorded += r["recorded_success"]
+        again += r["recorded_success"] and s["success"] and a["success"] and bool(a["identical"])
+    if len(episodes) > 1:
+        print(f"{again} of {recorded} successful episodes succeed again from their states and their actions, "
+              "through the recorded states")  # fmt: skip
+    return EXIT_OK if again == recorded else EXIT_FAILED
+
+
 def _cmd_demos(args: argparse.Namespace) -> int:
     """``demos`` and ``replay``: the extra's modules imported only here."""
     try:
@@ -413,14 +433,7 @@ def _cmd_demos(args: argparse.Namespace) -> int:
         ) from None
     try:
         if args.command == "replay":
-            r = demos.run_replay(args.dir, args.episode)
-            s, a = r["from_states"], r["from_actions"]
-            was = "success" if r["recorded_success"] else "failure"
-            print(f"episode {r['episode']} (seed {r['seed']}, recorded {was}):"
-                  f" from states {'SUCCESS' if s['success'] else 'FAILED ' + str(s['failure'])},"
-                  f" from actions {'SUCCESS' if a['success'] else 'FAILED ' + str(a['failure'])}"
-                  f" ({'identical states' if a['identical'] else 'states differ'})")  # fmt: skip
-            return EXIT_OK if s["success"] and a["success"] else EXIT_FAILED
+            return _replay(demos, args)
         seeds = bench.parse_seeds(args.seeds)
         _writable_dir(args.out, "--out")
         _pick_scenario(args.scenario)

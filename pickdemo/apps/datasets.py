@@ -437,6 +437,22 @@ def finalize(fmt: str, out: Path, records: dict[int, dict], meta: dict, *, only_
     return finalize_lerobot(out, records, meta, only_success=only_success)
 
 
+def count_episodes(fmt: str, out: Path) -> int:
+    """How many episodes the dataset in ``out`` holds."""
+    if fmt == "hdf5":
+        import h5py
+
+        path = out / "demos.hdf5"
+        if not path.is_file():
+            raise DatasetError(f"{path}: no such file")
+        with h5py.File(path, "r") as f:
+            return len(f["data"])
+    path = out / "meta" / "info.json"
+    if not path.is_file():
+        raise DatasetError(f"{path}: no such file")
+    return int(json.loads(path.read_text())["total_episodes"])
+
+
 def read_episode(fmt: str, out: Path, episode: int) -> tuple[dict, np.ndarray, np.ndarray]:
     """(the episode's attributes: seed, success, failure; every tick's action; the simulator's states)."""
     if fmt == "hdf5":

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from pickdemo.apps import datasets
+from pickdemo.apps.bench import parse_seeds
 from pickdemo.apps.datasets import STAGING, DatasetError
 from pickdemo.envs.record import action_names, make_env, record_episode, replay_episode, state_names, stride_for
 
@@ -95,12 +96,29 @@ def run_demos(
             "recorded": len(todo), "wall_s": wall}  # fmt: skip
 
 
-def run_replay(out: Path, episode: int) -> dict:
-    """Replay episode ``episode`` of the dataset in ``out`` from its states and from its actions."""
+def replay_meta(out: Path) -> dict:
     meta_path = out / STAGING / "meta.json"
     if not meta_path.is_file():
         raise DatasetError(f"{out}: not a pickdemo demos directory (no {STAGING}/meta.json)")
-    meta = json.loads(meta_path.read_text())
+    return json.loads(meta_path.read_text())
+
+
+def episodes_in(out: Path, which: str) -> list[int]:
+    """``all``, or episode numbers as seeds are written (``3``, ``0-9``, ``0-9,20``)."""
+    meta = replay_meta(out)
+    n = datasets.count_episodes(meta["format"], out)
+    if which == "all":
+        return list(range(n))
+    chosen = parse_seeds(which)
+    beyond = [k for k in chosen if k >= n]
+    if beyond:
+        raise DatasetError(f"{out}: no episode {beyond[0]} (it has {n}: 0-{n - 1})")
+    return chosen
+
+
+def run_replay(out: Path, episode: int) -> dict:
+    """Replay episode ``episode`` of the dataset in ``out`` from its states and from its actions."""
+    meta = replay_meta(out)
     attrs, ticks, states = datasets.read_episode(meta["format"], out, episode)
     stride = int(meta["stride"])
     actions = [row for row in ticks.reshape(-1, len(meta["action_names"])) if not np.isnan(row).any()]

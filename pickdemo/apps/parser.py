@@ -151,11 +151,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="replay a recorded episode from its states and from its actions",
         description="Plays an episode of a `pickdemo demos` dataset again: set to its simulator states frame by "
         "frame, and from its actions alone; says whether each succeeds again and whether the replay from actions "
-        "went through the recorded states bit for bit (it does on the machine that recorded it). Exit 0 when both "
-        "succeed, 1 otherwise.",
+        "went through the recorded states bit for bit (it does on the machine that recorded it). Exit 0 when every "
+        "replay of a successful episode succeeds, 1 otherwise.",
     )
     replay.add_argument("dir", type=Path, metavar="DIR", help="a dataset written by `pickdemo demos`")
-    replay.add_argument("--episode", type=int, default=0, help="the episode's number in the dataset (default 0)")
+    replay.add_argument(
+        "--episode", default="0", help="the episode's number in the dataset (default 0), several (0-9,20) or all"
+    )
     listing = sub.add_parser("list", help="list the shipped scenarios with their descriptions")
     listing.add_argument("--names", action="store_true", help="only the names, one a line (for scripts)")
     return parser
