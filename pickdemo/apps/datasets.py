@@ -239,38 +239,35 @@ def _remove_tree(path: Path) -> None:
     path.rmdir()
 
 
+QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)
+
+
 def _stats(values: np.ndarray) -> dict[str, list]:
-    """LeRobot's per-feature statistics over the frames (a scalar feature's as one-element lists)."""
+    """LeRobot's per-feature statistics over the frames (a scalar feature's as one-element lists; NaN,
+    a short last frame's missing ticks, left out)."""
     v = np.asarray(values, dtype=np.float64)
     v = v.reshape(len(v), -1)
-    out = {"min": v.min(0), "max": v.max(0), "mean": v.mean(0), "std": v.std(0)}
-    out |= {f"q{int(q * 100):02d}": np.quantile(v, q, axis=0) for q in (0.01, 0.10, 0.50, 0.90, 0.99)}
+    out = {"min": np.nanmin(v, 0), "max": np.nanmax(v, 0), "mean": np.nanmean(v, 0), "std": np.nanstd(v, 0)}
+    out |= {f"q{int(q * 100):02d}": np.nanquantile(v, q, axis=0) for q in QUANTILES}
     return {k: x.tolist() for k, x in out.items()} | {"count": [int(len(v))]}
 
 
-def _image_stats(path: Path) -> dict[str, list]:
-    """Per channel, of the pixels in [0, 1], as LeRobot keeps them (shape (3, 1, 1)); from every
-    fourth frame decoded."""
+def _image_stats(paths: list[Path]) -> dict[str, list]:
+    """Per channel, of the pixels in [0, 1], as LeRobot keeps them (shape (3, 1, 1)): from every fourth
+    frame of the episodes' videos, every 16th pixel of it."""
     import av
 
-    sums, sq, lo, hi, n, frames = np.zeros(3), np.zeros(3), np.ones(3), np.zeros(3), 0, 0
-    with av.open(str(path)) as container:
-        for i, frame in enumerate(container.decode(video=0)):
-            if i % 4:
-                continue
-            x = frame.to_ndarray(format="rgb24").reshape(-1, 3) / 255.0
-            sums += x.sum(0)
-            sq += (x**2).sum(0)
-            lo, hi = np.minimum(lo, x.min(0)), np.maximum(hi, x.max(0))
-            n += len(x)
-            frames += 1
-    mean = sums / max(n, 1)
-    std = np.sqrt(np.maximum(sq / max(n, 1) - mean**2, 0.0))
-
-    def col(v: np.ndarray) -> list:
-        return [[[float(c)]] for c in v]
-
-    return {"min": col(lo), "max": col(hi), "mean": col(mean), "std": col(std), "count": [frames]}
+    pixels, frames = [], 0
+    for path in paths:
+        with av.open(str(path)) as container:
+            for i, frame in enumerate(container.decode(video=0)):
+                if i % 4 == 0:
+                    pixels.append(frame.to_ndarray(format="rgb24").reshape(-1, 3)[::16] / 255.0)
+                    frames += 1
+    x = np.concatenate(pixels)
+    out = {"min": x.min(0), "max": x.max(0), "mean": x.mean(0), "std": x.std(0)}
+    out |= {f"q{int(q * 100):02d}": np.quantile(x, q, axis=0) for q in QUANTILES}
+    return {k: [[[float(c)]] for c in v] for k, v in out.items()} | {"count": [frames]}
 
 
 def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_success: bool) -> int:
@@ -288,8 +285,8 @@ def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_su
         old.unlink()
     episodes: list[dict] = []
     index = 0
-    states, actions = [], []
-    image_stats: dict[str, list] = {c: [] for c in cams}
+    columns: dict[str, list] = {}  # every feature's values, for the statistics
+    videos: dict[str, list[Path]] = {c: [] for c in cams}
     for k, r in enumerate(kept):
         src = out / STAGING / f"seed-{r['seed']}"
         table = pq.read_table(src / "frames.parquet")
@@ -308,8 +305,9 @@ def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_su
             .append_column("next.success", pa.array(done & bool(r["success"])))
         )
         pq.write_table(table, out / "data" / CHUNK / f"file-{k:03d}.parquet")
-        states.append(np.stack(table.column("observation.state").to_numpy(zero_copy_only=False)))
-        actions.append(np.stack(table.column("action").to_numpy(zero_copy_only=False)))
+        for name in table.column_names:
+            values = table.column(name).to_numpy(zero_copy_only=False)
+            columns.setdefault(name, []).append(np.stack(values) if values.dtype == object else values)
         ep = {
             "episode_index": k,
             "tasks": [meta["task"]],
@@ -331,7 +329,7 @@ def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_su
             if dst.exists():
                 dst.unlink()
             os.link(src / f"{cam}.mp4", dst)
-            image_stats[cam].append(_image_stats(dst))
+            videos[cam].append(dst)
             ep |= {f"videos/{key}/chunk_index": 0, f"videos/{key}/file_index": k,
                    f"videos/{key}/from_timestamp": 0.0, f"videos/{key}/to_timestamp": n / fps}  # fmt: skip
         episodes.append(ep)
@@ -339,27 +337,10 @@ def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_su
     pq.write_table(pa.Table.from_pylist(episodes), out / "meta" / "episodes" / CHUNK / "file-000.parquet")
     tasks = pa.table({"task_index": pa.array([0], pa.int64()), "task": pa.array([meta["task"]], pa.string())})
     pq.write_table(tasks.replace_schema_metadata({"pandas": json.dumps(TASKS_PANDAS)}), out / "meta" / "tasks.parquet")
-    stats: dict[str, Any] = {}
-    if states:
-        stats["observation.state"] = _stats(np.concatenate(states))
-        stats["action"] = _stats(np.concatenate(actions))
-        lengths = [int(e["length"]) for e in episodes]
-        frame_index = np.concatenate([np.arange(n) for n in lengths])
-        stats["timestamp"] = _stats(frame_index / fps)
-        stats["frame_index"] = _stats(frame_index)
-        stats["episode_index"] = _stats(np.repeat(np.arange(len(lengths)), lengths))
-        stats["index"] = _stats(np.arange(index))
-        stats["task_index"] = _stats(np.zeros(index))
-    for cam, per in image_stats.items():
-        if per:
-            w = np.array([p["count"][0] for p in per], dtype=float)
-            stats[IMAGE_KEY.format(cam)] = {
-                "min": np.min([p["min"] for p in per], axis=0).tolist(),
-                "max": np.max([p["max"] for p in per], axis=0).tolist(),
-                "mean": np.average([p["mean"] for p in per], axis=0, weights=w).tolist(),
-                "std": np.average([p["std"] for p in per], axis=0, weights=w).tolist(),
-                "count": [int(w.sum())],
-            }
+    stats: dict[str, Any] = {name: _stats(np.concatenate(parts)) for name, parts in columns.items()}
+    for cam, paths in videos.items():
+        if paths:
+            stats[IMAGE_KEY.format(cam)] = _image_stats(paths)
     (out / "meta" / "stats.json").write_text(json.dumps(stats, indent=1) + "\n")
     sim_size = len(table.column("observation.sim_state")[0]) if kept else 0
     (out / "meta" / "info.json").write_text(json.dumps(_info(meta, len(kept), index, sim_size), indent=2) + "\n")
