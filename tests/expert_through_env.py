@@ -3,7 +3,7 @@
     python tests/expert_through_env.py --seeds 0-99 --workers 2 --out DIR [SCENARIO ...]
 
 Runs :class:`~pickdemo.envs.ExpertPolicy` in ``pickdemo/Pick-v0`` (``joint_pos``, one action a control
-tick, ``state`` observations) for every scenario x seed in worker processes, writes ``DIR/env.jsonl``,
+tick, ``state`` observations, ``--gripper opening`` or ``opening_force``) for every scenario x seed in worker processes, writes ``DIR/env.jsonl``,
 and prints each scenario's successes with their Wilson 95 % interval. With ``--bench DIR2`` (a ``bench``
 run's directory on the same seeds) it prints bench's beside them.
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 DEFAULT = ["pick_cube", "pick_mesh", "pick_conveyor", "so101_pick_cube"]
 
 
-def one(job: tuple[str, int]) -> dict:
+def one(job: tuple[str, int, str]) -> dict:
     import warnings
 
     import gymnasium as gym
@@ -29,9 +29,9 @@ def one(job: tuple[str, int]) -> dict:
     from pickdemo.envs import ExpertPolicy
 
     warnings.simplefilter("ignore")
-    scenario, seed = job
+    scenario, seed, gripper = job
     t0 = time.perf_counter()
-    env = gym.make("pickdemo/Pick-v0", scenario=scenario, agent_rate_hz=None)
+    env = gym.make("pickdemo/Pick-v0", scenario=scenario, agent_rate_hz=None, gripper=gripper)
     expert = ExpertPolicy(env)
     obs, info = env.reset(seed=seed)
     steps = 0
@@ -64,9 +64,10 @@ def main() -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--bench", type=Path)
+    ap.add_argument("--gripper", default="opening", help="opening (one number) or opening_force")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    jobs = [(s, seed) for s in args.scenarios for seed in parse_seeds(args.seeds)]
+    jobs = [(s, seed, args.gripper) for s in args.scenarios for seed in parse_seeds(args.seeds)]
     results = []
     with ProcessPoolExecutor(args.workers) as pool, (args.out / "env.jsonl").open("w") as fh:
         for r in pool.map(one, jobs):

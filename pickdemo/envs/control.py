@@ -13,7 +13,9 @@ robot's reflex (:class:`~pickdemo.robot.rate_limit.Reflex`) still checks what is
   gripper. The goal pose is kept from step to step (from the hand's pose at the first step),
   held within ``WORKSPACE``; the joints come from Pinocchio's IK, warm-started from the last goal.
 - The gripper, in both: -1 closed, +1 open (each finger's travel between), squeezing with the
-  robot's grasp force.
+  robot's grasp force; with ``gripper="opening_force"`` a second number sets the force, -1 none to
+  +1 the hand's most (a Franka Hand's ``grasp(width, speed, force)``; the skill squeezes a small face
+  less and a slipped object harder).
 
 An action outside the action space, or not finite, is a ``ValueError`` naming the action; the
 simulator never sees it. A part of the environments: numpy and the robot package, no Gymnasium.
@@ -53,13 +55,20 @@ def gripper_action(finger_m: float, robot: RobotDescription) -> float:
     return float(np.clip(2.0 * finger_m / robot.gripper.finger_max_m - 1.0, -1.0, 1.0))
 
 
+GRIPPERS = ("opening", "opening_force")
+
+
 class _Mode:
-    """What both modes share: the held joint goal, its line over the step's ticks, the limiter."""
+    """What both modes share: the held joint goal, its line over the step's ticks, the limiter; the
+    gripper's one number (its opening) or two (its opening and force)."""
 
     name = ""
 
-    def __init__(self, kin: Kinematics, q0: np.ndarray, dt_s: float, ticks: int, grip_force_n: float) -> None:
+    def __init__(
+        self, kin: Kinematics, q0: np.ndarray, dt_s: float, ticks: int, grip_force_n: float, gripper: str = "opening"
+    ) -> None:
         self.kin, self.robot, self.ticks, self.grip_force_n = kin, kin.robot, ticks, grip_force_n
+        self.gripper_size = GRIPPERS.index(gripper) + 1
         self.limiter = RateLimiter(q0, dt_s, kin.robot.limits)
         self.q_from = np.asarray(q0, dtype=float).copy()
         self.q_goal = self.q_from.copy()
@@ -85,11 +94,23 @@ class _Mode:
             )
         return np.clip(a, b.low, b.high)
 
-    def _hold(self, q_goal: np.ndarray, g: float) -> None:
+    def _hold(self, q_goal: np.ndarray, g: np.ndarray) -> None:
+        """Hold this joint goal and the gripper's part of the action (one number or two)."""
         self.q_from = self.limiter.q.copy()  # from where the joints were last sent
         self.q_goal = q_goal
-        self.finger_m = gripper_command(g, self.robot)
+        self.finger_m = gripper_command(float(g[0]), self.robot)
+        if len(g) > 1:
+            self.grip_force_n = float((g[1] + 1.0) / 2.0 * self.robot.gripper.max_force_n)
         self.tick = 0
+
+    def _gripper_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return -np.ones(self.gripper_size), np.ones(self.gripper_size)
+
+    def _gripper_of(self, cmd: Command) -> list[float]:
+        g = [gripper_action(cmd.finger_opening_m, self.robot)]
+        if self.gripper_size > 1:
+            g.append(float(np.clip(2.0 * cmd.finger_force_n / self.robot.gripper.max_force_n - 1.0, -1.0, 1.0)))
+        return g
 
     def _braked(self, q: np.ndarray) -> np.ndarray:
         """``q`` with each joint's step toward its nearer limit no faster than it can still stop at
@@ -119,21 +140,24 @@ class JointPos(_Mode):
     @property
     def bounds(self) -> Bounds:
         lim = self.robot.limits
-        return Bounds(np.append(lim.min_position_rad, -1.0), np.append(lim.max_position_rad, 1.0))
+        lo, hi = self._gripper_bounds()
+        return Bounds(np.concatenate([lim.min_position_rad, lo]), np.concatenate([lim.max_position_rad, hi]))
 
     def set(self, action: np.ndarray) -> None:
         a = self.check(action)
-        self._hold(a[:-1].copy(), float(a[-1]))
+        n = self.robot.dof
+        self._hold(a[:n].copy(), a[n:])
 
     def action_for(self, cmd: Command) -> np.ndarray:
         """The action that asks for ``cmd`` (the expert's command, at one tick a step)."""
         b = self.bounds
-        q = np.clip(np.asarray(cmd.arm_q, dtype=float), b.low[:-1], b.high[:-1])
-        return np.append(q, gripper_action(cmd.finger_opening_m, self.robot))
+        n = self.robot.dof
+        q = np.clip(np.asarray(cmd.arm_q, dtype=float), b.low[:n], b.high[:n])
+        return np.append(q, self._gripper_of(cmd))
 
 
 class EeDelta(_Mode):
-    """``ee_delta``: (dx, dy, dz, dyaw, gripper), each in [-1, 1]."""
+    """``ee_delta``: (dx, dy, dz, dyaw, gripper[, force]), each in [-1, 1]."""
 
     name = "ee_delta"
 
@@ -144,11 +168,12 @@ class EeDelta(_Mode):
         dt_s: float,
         ticks: int,
         grip_force_n: float,
+        gripper: str = "opening",
         *,
         max_speed_m_s: float = 0.5,
         max_yaw_rate_rad_s: float = 2.0,
     ) -> None:
-        super().__init__(kin, q0, dt_s, ticks, grip_force_n)
+        super().__init__(kin, q0, dt_s, ticks, grip_force_n, gripper)
         step_s = dt_s * ticks
         self.max_step_m, self.max_turn_rad = max_speed_m_s * step_s, max_yaw_rate_rad_s * step_s
         home = kin.forward(self.q_from)
@@ -158,7 +183,7 @@ class EeDelta(_Mode):
 
     @property
     def bounds(self) -> Bounds:
-        return Bounds(-np.ones(5), np.ones(5))
+        return Bounds(-np.ones(4 + self.gripper_size), np.ones(4 + self.gripper_size))
 
     def goal_pose(self) -> Pose:
         c, s = np.cos(self.yaw), np.sin(self.yaw)
@@ -171,7 +196,7 @@ class EeDelta(_Mode):
         yaw = self.yaw + a[3] * self.max_turn_rad
         self.yaw = float(np.arctan2(np.sin(yaw), np.cos(yaw)))
         ik = self.kin.track(self.goal_pose(), self.q_goal, max_iterations=20)
-        self._hold(ik.q, float(a[4]))  # (not reached: as near as the arm gets, within its joint limits)
+        self._hold(ik.q, a[4:])  # (not reached: as near as the arm gets, within its joint limits)
 
     def action_for(self, cmd: Command) -> np.ndarray:
         """The action nearest to asking for ``cmd``: where its joints put the hand, from the held goal
@@ -180,7 +205,7 @@ class EeDelta(_Mode):
         d = (pose.position - self.position) / self.max_step_m
         yaw = float(np.arctan2(pose.rotation[1, 0], pose.rotation[0, 0]))
         turn = float(np.arctan2(np.sin(yaw - self.yaw), np.cos(yaw - self.yaw))) / self.max_turn_rad
-        return np.clip(np.array([*d, turn, gripper_action(cmd.finger_opening_m, self.robot)]), -1.0, 1.0)
+        return np.clip(np.array([*d, turn, *self._gripper_of(cmd)]), -1.0, 1.0)
 
 
 def _level(R: np.ndarray) -> np.ndarray:

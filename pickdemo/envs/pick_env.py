@@ -33,7 +33,7 @@ from gymnasium import spaces
 
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import EpisodeFailure, EpisodeResult, Stage
-from pickdemo.envs.control import MODES, EeDelta, JointPos
+from pickdemo.envs.control import GRIPPERS, MODES, EeDelta, JointPos
 from pickdemo.envs.pilot import Pilot, Watcher
 from pickdemo.runtime.episode import THIRD_PERSON_K, THIRD_PERSON_POSE, Episode, EpisodeOptions
 from pickdemo.runtime.world import FIXED_CAMERA, WRIST_CAMERA
@@ -70,16 +70,18 @@ class PickEnv(gym.Env):
         task: str | None = None,
         options: EpisodeOptions | None = None,
         image_width: int | None = None,
+        gripper: str = "opening",
     ) -> None:
         """``scenario``: a shipped scenario's name, a file, or a loaded one; ``robot``: another robot than
         its own (a shipped one's name or a robot file); ``agent_rate_hz`` None: every control tick;
         ``task``: the task the scenario must have (the id's: ``pick`` or ``clear``); ``image_width``: the
         ``rgbd`` images' width in pixels (the same field of view, both sides rounded to even; default: each
-        camera's own)."""
+        camera's own); ``gripper``: ``"opening"`` (one number) or ``"opening_force"`` (and the force)."""
         for what, value, allowed in (
             ("obs_mode", obs_mode, OBS_MODES),
             ("control_mode", control_mode, tuple(MODES)),
             ("reward_mode", reward_mode, REWARD_MODES),
+            ("gripper", gripper, GRIPPERS),
             ("render_mode", render_mode, (None, *self.metadata["render_modes"])),
         ):
             if value not in allowed:
@@ -90,6 +92,7 @@ class PickEnv(gym.Env):
         self.scenario = sc
         self.obs_mode, self.control_mode, self.render_mode = obs_mode, control_mode, render_mode
         self.reward_mode, self.terminate_on_failure = reward_mode, terminate_on_failure
+        self.gripper = gripper
         self.robot = sc.robot_description
         if image_width is not None and not 16 <= image_width <= 4096:
             raise ValueError(f"image_width={image_width}: 16 to 4096 pixels")
@@ -120,10 +123,11 @@ class PickEnv(gym.Env):
     # ================================================================================== spaces
     def _action_space(self) -> spaces.Box:
         lim = self.robot.limits
+        g = GRIPPERS.index(self.gripper) + 1
         if self.control_mode == "joint_pos":
-            low, high = np.append(lim.min_position_rad, -1.0), np.append(lim.max_position_rad, 1.0)
+            low, high = np.append(lim.min_position_rad, -np.ones(g)), np.append(lim.max_position_rad, np.ones(g))
             return spaces.Box(low, high, dtype=np.float64)
-        return spaces.Box(-1.0, 1.0, (5,), dtype=np.float64)
+        return spaces.Box(-1.0, 1.0, (4 + g,), dtype=np.float64)
 
     def _observation_space(self) -> spaces.Dict:
         n = self.robot.dof
@@ -170,7 +174,7 @@ class PickEnv(gym.Env):
         force = told["params"].grip_force_n
         # from where the robot was last told to be (its reflex checks the first command against that)
         q_sent = self.episode.robot.reflex.q.copy()
-        self.mode = mode_class(told["kin"], q_sent, told["dt_s"], self.ticks, force)
+        self.mode = mode_class(told["kin"], q_sent, told["dt_s"], self.ticks, force, self.gripper)
         if self.expert_eye:
             eye = skill
         else:
@@ -208,6 +212,7 @@ class PickEnv(gym.Env):
             if ep.step():
                 break
         if not ep.done:
+            ep.observe()  # the robot's sensors after the physics: what the agent acts on
             ep.deliver()  # what perception has delivered by now: in this observation
             self._succeeded = self._task_done()
             if self._succeeded or (self.terminate_on_failure and self._target_lost()):

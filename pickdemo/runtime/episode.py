@@ -459,6 +459,11 @@ class Episode:
         self.view.tick = self.tick
         return True
 
+    def observe(self) -> Observation:
+        """The robot's observation now, between ticks (the next tick reads the same)."""
+        self.observation = self.robot.observe()
+        return self.observation
+
     def deliver(self) -> None:
         """Hand the controller the estimates whose latency has passed by now (each tick does, first)."""
         now = self.world.scene.sim_time_s

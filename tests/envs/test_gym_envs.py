@@ -73,6 +73,16 @@ def test_a_thousand_random_actions_run_within_the_robots_limits(env_id: str, con
         assert not result.limit_exceedances
 
 
+def test_the_observation_is_the_robots_after_the_step() -> None:
+    env = gym.make("pickdemo/Pick-v0", agent_rate_hz=None)
+    obs, info = env.reset(seed=0)
+    assert obs["time"][0] == info["time_s"]
+    for _ in range(3):
+        obs, _, _, _, info = env.step(np.append(obs["joint_pos"], 1.0))
+        assert obs["time"][0] == info["time_s"] > 0  # not the tick's start: the agent acts on what is now
+    env.close()
+
+
 def test_bad_actions_are_refused_in_words_and_the_env_goes_on() -> None:
     env = gym.make("pickdemo/Pick-v0", control_mode="ee_delta")
     env.reset(seed=0)
