@@ -11,12 +11,13 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / "pickdemo"
 MAX_MODULE_LINES = 600
 MAX_CLASS_LINES = 400
-#: The one import inside a function: the package's Episode, loaded on first use so that the pure
-#: layers (the skill, perception, the schema) import without the simulator.
+#: The imports inside a function: the package's Episode, loaded on first use so that the pure
+#: layers (the skill, perception, the schema) import without the simulator; demos, an extra's.
 LAZY = {
     ("pickdemo", "pickdemo.runtime.episode"),
     ("pickdemo", "pickdemo.runtime"),
     ("pickdemo.apps.cli", "pickdemo.apps.demos"),  # (an extra's: gymnasium, pyarrow, PyAV, h5py)
+    ("pickdemo.apps.cli", "pickdemo.apps.datasets"),
 }
 #: The Panda's names and constants: in its robot file (pickdemo/robot/robots/panda.toml), no module.
 PANDA_NAMES = re.compile(r"\b(HOME_Q|FINGER_MAX_M|PALM_ABOVE_TCP_M|MAX_VELOCITY_RAD_S|MAX_ACCELERATION_RAD_S2|"

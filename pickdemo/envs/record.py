@@ -33,7 +33,9 @@ def state_names(env: PickEnv) -> list[str]:
 
 
 def action_names(env: PickEnv) -> list[str]:
-    return [f"joint_goal.{i}" for i in range(env.robot.dof)] + ["gripper"]
+    return [f"joint_goal.{i}" for i in range(env.robot.dof)] + ["gripper", "gripper_force"][
+        : env.action_space.shape[0] - env.robot.dof
+    ]
 
 
 def state_vector(obs: dict[str, np.ndarray]) -> np.ndarray:
@@ -73,10 +75,12 @@ class Recorded:
 
 
 def make_env(scenario: str, robot: str | None = None, *, image_width: int | None = None) -> PickEnv:
-    """The environment demonstrations are recorded and replayed in (its images ``image_width`` across)."""
+    """The environment demonstrations are recorded and replayed in (its images ``image_width`` across): the
+    gripper's opening and force in each action, so that the skill's own force is recorded and replayed."""
     return PickEnv(
-        scenario, robot=robot, obs_mode="state", control_mode="joint_pos", agent_rate_hz=None, image_width=image_width
-    )
+        scenario, robot=robot, obs_mode="state", control_mode="joint_pos", agent_rate_hz=None,
+        image_width=image_width, gripper="opening_force",
+    )  # fmt: skip
 
 
 def stride_for(env: PickEnv, fps: float) -> int:
