@@ -3,8 +3,9 @@
     python tests/expert_through_env.py --seeds 0-99 --workers 2 --out DIR [SCENARIO ...]
 
 Runs :class:`~pickdemo.envs.ExpertPolicy` in ``pickdemo/Pick-v0`` (``joint_pos``, one action a control
-tick, ``state`` observations, ``--gripper opening`` or ``opening_force``) for every scenario x seed in worker processes, writes ``DIR/env.jsonl``,
-and prints each scenario's successes with their Wilson 95 % interval. With ``--bench DIR2`` (a ``bench``
+tick, ``state`` observations, ``--gripper opening`` or ``opening_force``) for every scenario x seed in
+worker processes, writes ``DIR/env.jsonl``, and prints each scenario's successes with their Wilson 95 %
+interval. With ``--bench DIR2`` (a ``bench``
 run's directory on the same seeds) it prints bench's beside them.
 """
 

@@ -86,6 +86,8 @@ class Hdf5Episode:
 
     def row(self, row: Row) -> None:
         self._append("obs/state", row.state)
+        self._append("rewards", np.array(0.0))  # (the last one set by close: 1 for a success)
+        self._append("dones", np.array(0, dtype=np.uint8))
         self._append("actions", row.action)
         self._append("action_ticks", _pad_ticks(row.ticks, self.stride))
         self._append("states", row.sim_state)
@@ -95,7 +97,10 @@ class Hdf5Episode:
             self._append(f"obs/{cam}_depth", depth, compression="lzf")
         self.n += 1
 
-    def close(self, keep: bool) -> None:
+    def close(self, keep: bool, success: bool = False) -> None:
+        if self.n:
+            self.file["dones"][-1] = 1
+            self.file["rewards"][-1] = float(success)
         self.file.close()
         if keep:
             os.replace(self.tmp, self.path)
@@ -111,7 +116,11 @@ def finalize_hdf5(out: Path, records: dict[int, dict], meta: dict, *, only_succe
     tmp = out / "demos.hdf5.tmp"
     with h5py.File(tmp, "w") as f:
         data = f.create_group("data")
-        data.attrs["env_args"] = json.dumps(meta)
+        env_name = meta["env_id"]
+        env_kwargs = {"scenario": meta["scenario"], "robot": meta["robot"], "obs_mode": "state",
+                      "control_mode": "joint_pos", "agent_rate_hz": None, "gripper": "opening_force"}  # fmt: skip
+        data.attrs["env_args"] = json.dumps({"env_name": env_name, "type": "pickdemo", "env_kwargs": env_kwargs})
+        data.attrs["pickdemo"] = json.dumps(meta)
         total = 0
         for k, r in enumerate(kept):
             with h5py.File(out / STAGING / f"seed-{r['seed']}.h5", "r") as src:
@@ -125,6 +134,14 @@ def finalize_hdf5(out: Path, records: dict[int, dict], meta: dict, *, only_succe
     return len(kept)
 
 
+def hdf5_meta(out: Path) -> dict:
+    """What ``out/demos.hdf5`` was recorded with."""
+    import h5py
+
+    with h5py.File(out / "demos.hdf5", "r") as f:
+        return json.loads(f["data"].attrs["pickdemo"])
+
+
 def read_hdf5(out: Path, episode: int) -> tuple[dict, dict, np.ndarray, np.ndarray]:
     """(meta, the episode's attributes, every tick's action (T x stride, A), the states (T, Z))."""
     import h5py
@@ -133,7 +150,7 @@ def read_hdf5(out: Path, episode: int) -> tuple[dict, dict, np.ndarray, np.ndarr
     if not path.is_file():
         raise DatasetError(f"{path}: no such file (record with `pickdemo demos ... --format hdf5`)")
     with h5py.File(path, "r") as f:
-        meta = json.loads(f["data"].attrs["env_args"])
+        meta = json.loads(f["data"].attrs["pickdemo"])
         name = f"demo_{episode}"
         if name not in f["data"]:
             raise DatasetError(f"{path}: no episode {episode} (it has {len(f['data'])})")
@@ -202,7 +219,7 @@ class LeRobotEpisode:
             for packet in stream.encode(frame):
                 container.mux(packet)
 
-    def close(self, keep: bool) -> None:
+    def close(self, keep: bool, success: bool = False) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
 

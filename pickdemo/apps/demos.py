@@ -21,6 +21,7 @@ from pickdemo.apps import datasets
 from pickdemo.apps.bench import parse_seeds
 from pickdemo.apps.datasets import STAGING, DatasetError
 from pickdemo.envs.record import action_names, make_env, record_episode, replay_episode, state_names, stride_for
+from pickdemo.scenario.load import list_scenarios, resolve_scenario_path
 
 
 def run_demos(
@@ -45,7 +46,7 @@ def run_demos(
     stride = stride_for(env, fps)
     meta = {
         "format": fmt,
-        "scenario": scenario,
+        "scenario": scenario if scenario in list_scenarios() else str(resolve_scenario_path(scenario)),
         "scenario_name": env.scenario.name,
         "robot": robot,
         "robot_name": env.robot.name,
@@ -56,6 +57,7 @@ def run_demos(
         "action_names": action_names(env),
         "cameras": {name: list(size) for name, size in env._camera_sizes().items()},
         "task": env.scenario.description or f"pick and place ({env.scenario.name})",
+        "env_id": "pickdemo/Clear-v0" if env.scenario.task == "clear" else "pickdemo/Pick-v0",
     }
     meta_path = out / STAGING / "meta.json"
     done = datasets.staged(out)
@@ -81,7 +83,7 @@ def run_demos(
                 sink.close(keep=False)
                 raise
             keep = recorded.success or not only_success
-            sink.close(keep=keep)
+            sink.close(keep=keep, success=recorded.success)
             datasets.write_record(out, recorded, {"kept": keep})
             ok += recorded.success
             bar.update(1)
@@ -90,17 +92,20 @@ def run_demos(
         bar.close()
         env.close()
     wall = time.perf_counter() - t0
-    records = {s: r for s, r in datasets.staged(out).items() if s in seeds}
+    records = datasets.staged(out)  # (every episode recorded here: an earlier run's other seeds too)
     kept = datasets.finalize(fmt, out, records, meta, only_success=only_success)
-    return {"episodes": len(records), "successes": sum(r["success"] for r in records.values()), "kept": kept,
-            "recorded": len(todo), "wall_s": wall}  # fmt: skip
+    asked = [r for s, r in records.items() if s in seeds]
+    return {"episodes": len(asked), "successes": sum(r["success"] for r in asked), "kept": kept,
+            "staged": len(records), "recorded": len(todo), "wall_s": wall}  # fmt: skip
 
 
 def replay_meta(out: Path) -> dict:
-    meta_path = out / STAGING / "meta.json"
-    if not meta_path.is_file():
-        raise DatasetError(f"{out}: not a pickdemo demos directory (no {STAGING}/meta.json)")
-    return json.loads(meta_path.read_text())
+    """What a dataset was recorded with, from the dataset itself (a copy of it replays too)."""
+    if (out / "meta" / "pickdemo.json").is_file():
+        return json.loads((out / "meta" / "pickdemo.json").read_text())
+    if (out / "demos.hdf5").is_file():
+        return datasets.hdf5_meta(out)
+    raise DatasetError(f"{out}: not a pickdemo demos dataset (no meta/pickdemo.json, no demos.hdf5)")
 
 
 def episodes_in(out: Path, which: str) -> list[int]:

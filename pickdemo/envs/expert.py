@@ -56,8 +56,10 @@ class ExpertPolicy:
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         env = self.env
-        if env.pilot is None or env.pilot.eye is None:
+        if env.pilot is None:
             raise RuntimeError("reset() the environment first")
+        if not hasattr(env.pilot.eye, "update"):
+            raise RuntimeError("the expert was made after this episode's reset(): reset() the environment again")
         command = env.pilot.eye.update(observation_of(obs))
         return env.mode.action_for(command)
 

@@ -117,6 +117,7 @@ class PickEnv(gym.Env):
         self.mode: JointPos | EeDelta | None = None
         self._result: EpisodeResult | None = None
         self._succeeded = False
+        self._closed = False
         self.action_space = self._action_space()
         self.observation_space = self._observation_space()
 
@@ -138,6 +139,7 @@ class PickEnv(gym.Env):
             "finger_contacts": _box((2,), 0.0),
             "wrist_force": _box((3,)),
             "time": _box((1,), 0.0),
+            "tcp_pose": _box((7,)),
             "place": _box((2,)),
             "target_pose": _box((4,)),
             "target_cov": _box((4, 4)),
@@ -192,7 +194,7 @@ class PickEnv(gym.Env):
             seed = int(self.np_random.integers(0, 2**31 - 1))
         self.close()
         self.episode = Episode(self.scenario, int(seed), self.options, wrap_controller=self._wrap)
-        self._result, self._succeeded = None, False
+        self._result, self._succeeded, self._closed = None, False, False
         if self.episode.reset() is None:  # a seed whose world cannot be built: said, not stepped
             result = self.episode.result()
             failure = result.failure
@@ -204,6 +206,8 @@ class PickEnv(gym.Env):
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         if self.episode is None:
             raise RuntimeError("step() before reset()")
+        if self._closed:
+            raise RuntimeError("step() on a closed environment: reset() first")
         if self.episode.done:
             raise RuntimeError("step() after the episode ended: reset() first")
         self.mode.set(action)
@@ -273,6 +277,7 @@ class PickEnv(gym.Env):
             pose = np.array([*tp.position, tp.yaw_rad])
             cov = np.array(tp.covariance[:4, :4], dtype=float)
         place = ep.world.place_xy if ep.world is not None else (0.0, 0.0)
+        tcp = self.pilot.kin.forward(o.arm_q)  # where the joints put the hand: the robot's kinematics, not the truth
         out = {
             "joint_pos": np.array(o.arm_q, dtype=float),
             "joint_vel": np.array(o.arm_dq, dtype=float),
@@ -280,6 +285,7 @@ class PickEnv(gym.Env):
             "finger_contacts": np.array(o.finger_contacts, dtype=float),
             "wrist_force": np.array(o.wrist_force_n, dtype=float),
             "time": np.array([o.time_s]),
+            "tcp_pose": np.concatenate([tcp.position, tcp.quaternion_xyzw]),
             "place": np.array(place, dtype=float),
             "target_pose": pose,
             "target_cov": cov,
@@ -335,10 +341,11 @@ class PickEnv(gym.Env):
         return self._last_render
 
     def close(self) -> None:
-        if self.episode is not None and not self.episode.done:
+        if self.episode is not None and not self.episode.done and not self._closed:
             if self.render_mode == "rgb_array":
                 self.render()
             self.episode.close()
+        self._closed = True
 
 
 def _has_display() -> bool:

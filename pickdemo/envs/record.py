@@ -21,7 +21,10 @@ from pickdemo.envs.expert import ExpertPolicy
 from pickdemo.envs.pick_env import PickEnv
 
 #: The state observation's parts, in the order of a dataset's ``observation.state``.
-STATE_KEYS = ("joint_pos", "joint_vel", "fingers", "finger_contacts", "wrist_force", "target_pose", "target_tracked")
+STATE_KEYS = (
+    "joint_pos", "joint_vel", "fingers", "finger_contacts", "wrist_force", "tcp_pose", "place", "target_pose",
+    "target_tracked",
+)  # fmt: skip
 
 
 def state_names(env: PickEnv) -> list[str]:
@@ -29,6 +32,7 @@ def state_names(env: PickEnv) -> list[str]:
     n = env.robot.dof
     names = [f"joint_pos.{i}" for i in range(n)] + [f"joint_vel.{i}" for i in range(n)]
     names += ["finger.0", "finger.1", "contacts.0", "contacts.1", "wrist_force.x", "wrist_force.y", "wrist_force.z"]
+    names += ["tcp.x", "tcp.y", "tcp.z", "tcp.qx", "tcp.qy", "tcp.qz", "tcp.qw", "place.x", "place.y"]
     return names + ["target.x", "target.y", "target.z", "target.yaw", "target.tracked"]
 
 
@@ -39,6 +43,7 @@ def action_names(env: PickEnv) -> list[str]:
 
 
 def state_vector(obs: dict[str, np.ndarray]) -> np.ndarray:
+    """An environment's state observation as a dataset's ``observation.state`` (:data:`STATE_KEYS`, in order)."""
     return np.concatenate([np.ravel(obs[k]) for k in STATE_KEYS])
 
 

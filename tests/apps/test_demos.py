@@ -82,6 +82,8 @@ def test_a_stopped_run_resumes_without_an_episode_lost_or_doubled(
         assert [int(f["data"][d].attrs["seed"]) for d in ("demo_0", "demo_1")] == [0, 1]
         g = f["data"]["demo_1"]
         n = int(g.attrs["num_samples"])
+        assert list(g["dones"][:]) == [0] * (n - 1) + [1] and g["rewards"][-1] == 1.0
+        assert json.loads(f["data"].attrs["env_args"])["env_name"] == "pickdemo/Pick-v0"
         assert g["obs/state"].shape[0] == g["actions"].shape[0] == g["states"].shape[0] == n
         assert g["obs/camera_rgb"].shape == (n, 168, 224, 3)
     assert main(["replay", str(out), "--episode", "1"]) == 0
@@ -89,6 +91,6 @@ def test_a_stopped_run_resumes_without_an_episode_lost_or_doubled(
 
 def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["replay", str(tmp_path)]) == 2
-    assert "not a pickdemo demos directory" in capsys.readouterr().err
+    assert "not a pickdemo demos dataset" in capsys.readouterr().err
     assert main(["demos", "pick_cube", "--out", str(tmp_path / "x"), "--fps", "7"]) == 2
     assert "--fps 7" in capsys.readouterr().err
