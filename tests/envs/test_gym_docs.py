@@ -32,15 +32,16 @@ def test_the_gymnasium_pages_examples_run(capsys: pytest.CaptureFixture[str]) ->
 
 
 def test_the_demonstrations_pages_commands_and_example_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    console = _blocks("demonstrations.md", "console")[0]
-    commands = [line[2:].split() for line in console.splitlines() if line.startswith("$ python -m pickdemo ")]
+    shown = _blocks("demonstrations.md", "console")[0] + _blocks("demonstrations.md", "text")[0]
+    commands = [line[2:].split() for line in shown.splitlines() if line.startswith("$ python -m pickdemo ")]
+    assert [c[3] for c in commands] == ["demos", "replay"]
     cwd = os.getcwd()
     os.chdir(tmp_path)
     try:
         for argv in commands:
             assert main(argv[3:] + (["--no-progress"] if argv[3] == "demos" else [])) == 0
         printed = capsys.readouterr().out
-        for line in console.splitlines():
+        for line in shown.splitlines():
             if line.startswith(("pick_cube:", "episode ")):  # the same words, another machine's seconds
                 assert re.sub(r"[\d.]+ s\)", "", line) in re.sub(r"[\d.]+ s\)", "", printed)
         exec(compile(_blocks("demonstrations.md", "python")[0], "docs/demonstrations.md", "exec"), {})  # noqa: S102
