@@ -405,8 +405,9 @@ def _replay(demos, args: argparse.Namespace) -> int:  # noqa: ANN001 - the modul
     """Each episode asked for, replayed: a line each, then how many succeeded again."""
     episodes = demos.episodes_in(args.dir, args.episode)
     again = recorded = 0
+    env = demos.replay_env(args.dir)
     for k in episodes:
-        r = demos.run_replay(args.dir, k)
+        r = demos.run_replay(args.dir, k, env)
         s, a = r["from_states"], r["from_actions"]
         was = "success" if r["recorded_success"] else "failure"
         print(f"episode {k} (seed {r['seed']}, recorded {was}):"

@@ -121,19 +121,22 @@ def episodes_in(out: Path, which: str) -> list[int]:
     return chosen
 
 
-def run_replay(out: Path, episode: int) -> dict:
-    """Replay episode ``episode`` of the dataset in ``out`` from its states and from its actions."""
+def run_replay(out: Path, episode: int, env=None) -> dict:  # noqa: ANN001 - a PickEnv to reuse, or None
+    """Replay episode ``episode`` of the dataset in ``out`` from its states and from its actions (in
+    ``env``, made blind for replays by :func:`replay_env`, or one made here)."""
     meta = replay_meta(out)
     attrs, ticks, states = datasets.read_episode(meta["format"], out, episode)
     stride = int(meta["stride"])
     actions = [row for row in ticks.reshape(-1, len(meta["action_names"])) if not np.isnan(row).any()]
-    env = make_env(meta["scenario"], meta["robot"])
+    own = env is None
+    env = replay_env(out) if own else env
     try:
         seed = int(attrs["seed"])
         from_states = replay_episode(env, seed, actions, stride, list(states), from_states=True)
         from_actions = replay_episode(env, seed, actions, stride, list(states), from_states=False)
     finally:
-        env.close()
+        if own:
+            env.close()
     return {
         "episode": episode,
         "seed": seed,
@@ -145,3 +148,10 @@ def run_replay(out: Path, episode: int) -> dict:
             "identical": from_actions.identical,
         },
     }
+
+
+def replay_env(out: Path):  # noqa: ANN201 - a PickEnv
+    """The environment the dataset in ``out`` replays in: its scenario and robot, no perception (what
+    perception sees never moves the robot in a replay)."""
+    meta = replay_meta(out)
+    return make_env(meta["scenario"], meta["robot"], perception=False)

@@ -51,6 +51,8 @@ class ExpertPolicy:
                 f"the expert decides every control tick ({base.scenario.control.control_rate_hz:g} Hz); this "
                 f"environment acts at {base.agent_rate_hz:g} Hz: make it with agent_rate_hz=None"
             )
+        if not base.perception:
+            raise ValueError("the expert sees through the env's cameras: make it with perception=True")
         base.expert_eye = True
         self.env = base
 

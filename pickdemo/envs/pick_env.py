@@ -71,12 +71,15 @@ class PickEnv(gym.Env):
         options: EpisodeOptions | None = None,
         image_width: int | None = None,
         gripper: str = "opening",
+        perception: bool = True,
     ) -> None:
         """``scenario``: a shipped scenario's name, a file, or a loaded one; ``robot``: another robot than
         its own (a shipped one's name or a robot file); ``agent_rate_hz`` None: every control tick;
         ``task``: the task the scenario must have (the id's: ``pick`` or ``clear``); ``image_width``: the
         ``rgbd`` images' width in pixels (the same field of view, both sides rounded to even; default: each
-        camera's own); ``gripper``: ``"opening"`` (one number) or ``"opening_force"`` (and the force)."""
+        camera's own); ``gripper``: ``"opening"`` (one number) or ``"opening_force"`` (and the force);
+        ``perception`` False: no camera frames and no estimates in the loop (``target_pose`` stays zeros;
+        faster: a replay, an agent on ``privileged`` observations)."""
         for what, value, allowed in (
             ("obs_mode", obs_mode, OBS_MODES),
             ("control_mode", control_mode, tuple(MODES)),
@@ -93,6 +96,7 @@ class PickEnv(gym.Env):
         self.obs_mode, self.control_mode, self.render_mode = obs_mode, control_mode, render_mode
         self.reward_mode, self.terminate_on_failure = reward_mode, terminate_on_failure
         self.gripper = gripper
+        self.perception = perception
         self.robot = sc.robot_description
         if image_width is not None and not 16 <= image_width <= 4096:
             raise ValueError(f"image_width={image_width}: 16 to 4096 pixels")
@@ -183,7 +187,7 @@ class PickEnv(gym.Env):
             w = self.episode.world
             eye = Watcher(
                 told["kin"], told["cameras"], skill.model, told["params"], w.place_xy, told["q0"],
-                surface_z=getattr(getattr(skill, "belief", None), "surface_z", None),
+                surface_z=getattr(getattr(skill, "belief", None), "surface_z", None), looking=self.perception,
             )  # fmt: skip
         self.pilot = Pilot(eye, self.mode)
         return self.pilot

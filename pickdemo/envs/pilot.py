@@ -66,7 +66,10 @@ class Watcher:
         place_xy: tuple[float, float],
         q0: np.ndarray,
         surface_z: Any = None,  # Callable[..., float] | None: what the target rests on (the table: 0)
+        *,
+        looking: bool = True,
     ) -> None:
+        """``looking`` False: no frames at all (a replay, an agent on the truth alone): the track stays empty."""
         self.kin, self.model = kin, model
         self.symmetry = model.geometry.yaw_symmetry_rad
         self.counters = Counters()
@@ -84,6 +87,7 @@ class Watcher:
             kin, params, model, self.belief, watch, cameras, place_xy, look_at=None, open_loop=False
         )
         self.arm_q = np.asarray(q0, dtype=float)
+        self.looking = looking
         self.failure: Failure | None = None
         self.events: list = []
         self.attempts: list[AttemptRecord] = []
@@ -98,6 +102,8 @@ class Watcher:
         self.arm_q = obs.arm_q
 
     def views(self, now_s: float) -> list[FrameRequest]:
+        if not self.looking:
+            return []
         # LOOK: the whole view, then about the track; DESCEND: a hand camera when the track is in its view
         state = State.DESCEND if self.belief.initialised else State.LOOK
         return self.planner.requests(

@@ -79,12 +79,15 @@ class Recorded:
     result: dict[str, Any]  # the referee's EpisodeResult, as result.json has it
 
 
-def make_env(scenario: str, robot: str | None = None, *, image_width: int | None = None) -> PickEnv:
+def make_env(
+    scenario: str, robot: str | None = None, *, image_width: int | None = None, perception: bool = True
+) -> PickEnv:
     """The environment demonstrations are recorded and replayed in (its images ``image_width`` across): the
-    gripper's opening and force in each action, so that the skill's own force is recorded and replayed."""
+    gripper's opening and force in each action, so that the skill's own force is recorded and replayed;
+    ``perception`` False for a replay (what perception sees never moves the robot there)."""
     return PickEnv(
         scenario, robot=robot, obs_mode="state", control_mode="joint_pos", agent_rate_hz=None,
-        image_width=image_width, gripper="opening_force",
+        image_width=image_width, gripper="opening_force", perception=perception,
     )  # fmt: skip
 
 
