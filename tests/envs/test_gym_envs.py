@@ -83,6 +83,22 @@ def test_the_observation_is_the_robots_after_the_step() -> None:
     env.close()
 
 
+def test_perception_and_images_never_move_the_robot() -> None:
+    """The same actions give the same physics whether the loop looks, and whatever the agent observes."""
+    runs = []
+    for kwargs in ({"perception": False, "obs_mode": "privileged"}, {"obs_mode": "privileged"}, {"obs_mode": "rgbd"}):
+        env = gym.make("pickdemo/Pick-v0", control_mode="ee_delta", **kwargs)
+        obs, _ = env.reset(seed=2)
+        rng = np.random.default_rng(0)
+        for _ in range(20):
+            obs, *_ = env.step(rng.uniform(-1, 1, 5))
+        runs.append((obs["joint_pos"], obs["target_tracked"], obs.get("objects_true_pose")))
+        env.close()
+    assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][2], runs[1][2])
+    assert np.array_equal(runs[0][0], runs[2][0])
+    assert runs[0][1][0] == 0.0 and runs[1][1][0] == 1.0  # blind: no track; looking: the target tracked
+
+
 def test_bad_actions_are_refused_in_words_and_the_env_goes_on() -> None:
     env = gym.make("pickdemo/Pick-v0", control_mode="ee_delta")
     env.reset(seed=0)
