@@ -56,6 +56,11 @@ def main() -> None:
         ("pickdemo/Pick-v0 state, joint_pos, 10 Hz", "pickdemo/Pick-v0", {}),
         ("pickdemo/Pick-v0 state, ee_delta, 10 Hz", "pickdemo/Pick-v0", {"control_mode": "ee_delta"}),
         ("pickdemo/Pick-v0 state, joint_pos, 24 Hz", "pickdemo/Pick-v0", {"agent_rate_hz": 24}),
+        (
+            "pickdemo/Pick-v0 privileged, no perception, joint_pos, 10 Hz",
+            "pickdemo/Pick-v0",
+            {"obs_mode": "privileged", "perception": False},
+        ),
     ]
     for name, env_id, kwargs in rows:
         sps, rtf, resets = rate(env_id, args.steps, **kwargs)
