@@ -71,6 +71,9 @@ class _Arm(_Model):
     #: a collision mesh the simulator takes instead of one of the URDF's (by its file name): a convex
     #: decomposition of a concave part, whose single convex hull a simulator would otherwise collide with
     collision_meshes: dict[str, str] = {}
+    #: a visual mesh rendered instead of one of the URDF's (by its file name): fewer triangles, where the
+    #: renderer pays for every one of them in every camera frame
+    render_meshes: dict[str, str] = {}
 
 
 class _Limits(_Model):
@@ -168,6 +171,12 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         if not mesh.is_file():
             raise fail(f"arm.collision_meshes.{name}", f"no such file: {mesh}")
         meshes.append((name, str(mesh)))
+    renders = []
+    for name, rel in sorted(spec.arm.render_meshes.items()):
+        mesh = (path.parent / rel).resolve()
+        if not mesh.is_file():
+            raise fail(f"arm.render_meshes.{name}", f"no such file: {mesh}")
+        renders.append((name, str(mesh)))
     a, g, lim = spec.arm, spec.gripper, spec.limits
     return RobotDescription(
         name=spec.name,
@@ -209,7 +218,7 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         camera_mounts=tuple(a.camera_mounts),
         base_radius_m=a.base_radius_m,
         locate=lambda: files,
-        render_urdf=functools.partial(_lean_urdf_path, files, spec.name, tuple(meshes)),
+        render_urdf=functools.partial(_lean_urdf_path, files, spec.name, tuple(meshes), tuple(renders)),
         grasp_heights=tuple((k, v) for k, v in spec.grasp.model_dump().items() if v is not None),
     )
 
@@ -416,14 +425,15 @@ _LINK_RGBA = "0.92 0.92 0.92 1"
 _HAND_RGBA = "0.25 0.25 0.28 1"
 
 
-def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None, collision: tuple = ()) -> str:
+def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None, collision: tuple = (), render: tuple = ()) -> str:
     """The URDF with its collision meshes as visuals (example-robot-data keeps them beside the visual
     ones: ~2k triangles instead of ~128k for the Panda; a visual whose collision twin is not there is
     kept) and package paths made absolute. ``mesh_dir``: where an STL without normals is written as an
     OBJ with them (None: used as it is). ``collision``: (file name, path) pairs, a collision mesh to
-    take instead of the URDF's of that name (the robot file's ``collision_meshes``)."""
+    take instead of the URDF's of that name (the robot file's ``collision_meshes``); ``render``: the same for
+    the visuals (its ``render_meshes``)."""
     text = _MESH_RE.sub(lambda m: f'filename="{files.package_root / m.group(1)}"', files.urdf.read_text())
-    swap = dict(collision)
+    swap, seen = dict(collision), dict(render)
 
     def collided(match: re.Match[str]) -> str:
         body = re.sub(r'filename="([^"]+)"', lambda f: f'filename="{swap.get(Path(f.group(1)).name, f.group(1))}"',
@@ -445,6 +455,9 @@ def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None, collision: t
         lean = body.replace("/visual/", "/collision/").replace(".dae", ".stl")
         if all(Path(f).is_file() for f in re.findall(r'filename="([^"]+)"', lean)):
             body = re.sub(r'filename="([^"]+)"', shaded, lean)
+        if seen:
+            body = re.sub(r'filename="([^"]+)"', lambda f: f'filename="{seen.get(Path(f.group(1)).name, f.group(1))}"',
+                          body)  # fmt: skip
         rgba = _HAND_RGBA if ("hand" in body or "finger" in body) else _LINK_RGBA
         return f'<visual>{body}<material name="pd_{rgba.split()[0]}"><color rgba="{rgba}"/></material></visual>'
 
@@ -452,12 +465,12 @@ def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None, collision: t
 
 
 @functools.cache
-def _lean_urdf_path(files: RobotFiles, name: str, collision: tuple = ()) -> Path:
+def _lean_urdf_path(files: RobotFiles, name: str, collision: tuple = (), render: tuple = ()) -> Path:
     """A lean URDF for rendering (:func:`lean_urdf_text`), written once per process into a temporary
     directory; it refers to the installed meshes by absolute path (nothing copied or downloaded)."""
     out_dir = _scratch_dir()
     mesh_dir = out_dir / "meshes"
     mesh_dir.mkdir()
     out = out_dir / f"{name}_lean.urdf"
-    out.write_text(lean_urdf_text(files, mesh_dir, collision))
+    out.write_text(lean_urdf_text(files, mesh_dir, collision, render))
     return out
