@@ -165,18 +165,19 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         hand = None if spec.hand is None else _locate(spec.hand.urdf, path.parent, fail, "hand.urdf")
         files = _joined(files, hand, spec, fail)
     _check(spec, files.urdf, fail)
-    meshes = []
-    for name, rel in sorted(spec.arm.collision_meshes.items()):
-        mesh = (path.parent / rel).resolve()
-        if not mesh.is_file():
-            raise fail(f"arm.collision_meshes.{name}", f"no such file: {mesh}")
-        meshes.append((name, str(mesh)))
-    renders = []
-    for name, rel in sorted(spec.arm.render_meshes.items()):
-        mesh = (path.parent / rel).resolve()
-        if not mesh.is_file():
-            raise fail(f"arm.render_meshes.{name}", f"no such file: {mesh}")
-        renders.append((name, str(mesh)))
+
+    def mesh_files(key: str, table: dict[str, str]) -> tuple[tuple[str, str], ...]:
+        """(a URDF mesh's file name, the file beside the robot file taking its place), each there."""
+        pairs = []
+        for name, rel in sorted(table.items()):
+            mesh = (path.parent / rel).resolve()
+            if not mesh.is_file():
+                raise fail(f"arm.{key}.{name}", f"no such file: {mesh}")
+            pairs.append((name, str(mesh)))
+        return tuple(pairs)
+
+    meshes = mesh_files("collision_meshes", spec.arm.collision_meshes)
+    renders = mesh_files("render_meshes", spec.arm.render_meshes)
     a, g, lim = spec.arm, spec.gripper, spec.limits
     return RobotDescription(
         name=spec.name,
@@ -218,7 +219,7 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         camera_mounts=tuple(a.camera_mounts),
         base_radius_m=a.base_radius_m,
         locate=lambda: files,
-        render_urdf=functools.partial(_lean_urdf_path, files, spec.name, tuple(meshes), tuple(renders)),
+        render_urdf=functools.partial(_lean_urdf_path, files, spec.name, meshes, renders),
         grasp_heights=tuple((k, v) for k, v in spec.grasp.model_dump().items() if v is not None),
     )
 
@@ -435,13 +436,13 @@ def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None, collision: t
     text = _MESH_RE.sub(lambda m: f'filename="{files.package_root / m.group(1)}"', files.urdf.read_text())
     swap, seen = dict(collision), dict(render)
 
-    def collided(match: re.Match[str]) -> str:
-        body = re.sub(r'filename="([^"]+)"', lambda f: f'filename="{swap.get(Path(f.group(1)).name, f.group(1))}"',
-                      match.group(0))  # fmt: skip
-        return body
+    def swapped(body: str, table: dict[str, str]) -> str:
+        """``body`` with each mesh file named in ``table`` (by its file name) replaced by its entry."""
+        return re.sub(r'filename="([^"]+)"', lambda f: f'filename="{table.get(Path(f.group(1)).name, f.group(1))}"',
+                      body)  # fmt: skip
 
     if swap:
-        text = re.sub(r"<collision>.*?</collision>", collided, text, flags=re.DOTALL)
+        text = re.sub(r"<collision>.*?</collision>", lambda m: swapped(m.group(0), swap), text, flags=re.DOTALL)
 
     def shaded(match: re.Match[str]) -> str:
         path = Path(match.group(1))
@@ -456,8 +457,7 @@ def lean_urdf_text(files: RobotFiles, mesh_dir: Path | None = None, collision: t
         if all(Path(f).is_file() for f in re.findall(r'filename="([^"]+)"', lean)):
             body = re.sub(r'filename="([^"]+)"', shaded, lean)
         if seen:
-            body = re.sub(r'filename="([^"]+)"', lambda f: f'filename="{seen.get(Path(f.group(1)).name, f.group(1))}"',
-                          body)  # fmt: skip
+            body = swapped(body, seen)
         rgba = _HAND_RGBA if ("hand" in body or "finger" in body) else _LINK_RGBA
         return f'<visual>{body}<material name="pd_{rgba.split()[0]}"><color rgba="{rgba}"/></material></visual>'
 
