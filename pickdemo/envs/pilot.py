@@ -18,14 +18,11 @@ from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.perception import PerceptionError, PlaceView, PoseEstimate, TargetModel
 from pickdemo.robot.kinematics import Kinematics
-from pickdemo.skills.pick import CameraModel, FrameRequest, MachineParams, State
+from pickdemo.skills.pick import HELD_STATES, CameraModel, FrameRequest, MachineParams, State
 from pickdemo.skills.pick.views import ViewPlanner
 from pickdemo.skills.pick.watch import MoveWatch
 from pickdemo.tracking.belief import Counters, TargetBelief, Verdict
 from pickdemo.tracking.tracker import TargetTracker
-
-#: The skill's states in which the target should be in the hand (the referee measures its height then).
-CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
 
 
 class Eye(Protocol):
@@ -182,7 +179,7 @@ class Pilot:
     def carrying(self) -> bool:
         """Whether the referee measures how high the target got now: always for an agent (it may lift
         it at any time), in the skill's carrying states for the skill."""
-        return isinstance(self.eye, Watcher) or self.eye.state in CARRY_STATES
+        return isinstance(self.eye, Watcher) or self.eye.state in HELD_STATES
 
     def __getattr__(self, name: str) -> Any:  # the rest of a controller's face: the eye's
         return getattr(self.eye, name)

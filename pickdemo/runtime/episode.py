@@ -73,7 +73,7 @@ from pickdemo.scenario.load import Scenario
 from pickdemo.sim.controller import RobotInterface
 from pickdemo.sim.disturb import PushPlayer, draw_push
 from pickdemo.skills.controller import Controller
-from pickdemo.skills.pick import TRACKING_STATES, CameraModel, FrameRequest, MachineParams, State
+from pickdemo.skills.pick import HELD_STATES, TRACKING_STATES, CameraModel, FrameRequest, MachineParams, State
 
 __all__ = [
     "PERCEPTION_OFF_MM",
@@ -90,8 +90,6 @@ PhaseCallback = Callable[[PhaseRecord], None]  # each state entered (and each no
 #: (the task's controller, what it was told) -> the controller the loop drives: an agent's, which may
 #: keep the task's to look for it (:mod:`pickdemo.envs`)
 ControllerWrap = Callable[[Controller, dict], Controller]
-
-CARRY_STATES = frozenset({State.LIFT, State.TRANSPORT, State.LOWER})
 
 
 @dataclass(frozen=True)
@@ -454,7 +452,7 @@ class Episode:
                     push.step(scene)
                 scene.step()
         # truth: how high it was carried, what came into a tray: for scoring only
-        self.referee.tick(carrying=machine.carrying if self.wrap_controller else machine.state in CARRY_STATES)
+        self.referee.tick(carrying=machine.carrying if self.wrap_controller else machine.state in HELD_STATES)
         self.tick += 1
         self.view.tick = self.tick
         return True

@@ -12,6 +12,7 @@ moving target (:mod:`~pickdemo.skills.pick.intercept`), how the arm gets there
 from pickdemo.skills.pick.machine import PickMachine
 from pickdemo.skills.pick.params import (
     HAND_OVER_TARGET,
+    HELD_STATES,
     TRACKING_STATES,
     CameraModel,
     Event,
@@ -22,6 +23,7 @@ from pickdemo.skills.pick.params import (
 
 __all__ = [
     "HAND_OVER_TARGET",
+    "HELD_STATES",
     "TRACKING_STATES",
     "CameraModel",
     "Event",
