@@ -365,7 +365,7 @@ def _cmd_profile(args: argparse.Namespace) -> int:
     def on_episode(e) -> None:
         if not args.json:
             outcome = "ok" if e.success else f"FAILED ({e.failure})"
-            print(f"  seed {e.seed}: {outcome}, {e.sim_time_s:.1f} s simulated in {e.loop_s:.2f} s "
+            print(f"  seed {e.seed}: {outcome}, {e.loop_sim_s:.1f} s simulated in {e.loop_s:.2f} s "
                   f"({e.real_time_factor:.1f}x real time)", flush=True)  # fmt: skip
 
     report = profile(scenario, seeds, on_episode)

@@ -1,11 +1,15 @@
-"""``pickdemo profile``: where a closed-loop episode's wall time goes, stage by stage, beside the bare
-physics of the same cell measured in the same run.
+"""``pickdemo profile``: where a closed-loop episode's wall time goes, stage by stage, beside the
+episode's own physics replayed in the same run.
 
 Absolute figures travel badly between machines (the same episode ran 4.1x real time on one and 8.7x
-on another), so every figure here comes with a reference measured in the same process a moment
-before: the cell's Panda and table (and belt) with no objects, the arm holding still, stepped at the
-scenario's physics rate. An episode's real-time factor over that reference's says how much of the
-physics' own speed the loop keeps.
+on another), so every figure here comes with a reference measured in the same process. The first is
+the episode's own physics, replayed right after it: the same scene and objects (built from the same
+seed, settled the same way), the arm's and fingers' commands sent at the same physics steps as the
+loop sent them, a push slid at the same times, a belt running; no camera, no perception, no control
+decision. The loop's real-time factor over the replay's says how much of its own physics' speed the
+loop keeps (1: the loop costs nothing but its physics); the replay is checked to end in the episode's
+state bit for bit. The second, kept for comparison with older figures, is the bare physics: the cell's
+robot and table (and belt) with no objects, the arm holding still.
 
 The stages are timed by wrapping the episode's parts for its run (nothing in the loop knows): each
 call is counted under one stage, its time exclusive of the wrapped calls it makes (a motion step's
@@ -23,8 +27,12 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
+from pickdemo.core.interfaces import Command
 from pickdemo.runtime.episode import Episode
 from pickdemo.scenario.load import Scenario
+from pickdemo.sim.disturb import Push, PushPlayer
 from pickdemo.sim.scene import Scene
 
 #: The stages, in the order they are printed, and what each covers.
@@ -158,6 +166,81 @@ def bare_physics(scenario: Scenario, steps: int = REFERENCE_STEPS) -> Reference:
         return Reference(steps=steps, seconds=seconds, time_step_s=scene.time_step_s)
 
 
+@dataclass
+class CommandLog:
+    """What an episode's loop sent the simulator: each command with the physics step it was sent at,
+    the pushes it played, the steps its loop spanned and the state it ended in."""
+
+    commands: list[tuple[int, Command]] = field(default_factory=list)
+    pushes: list[Push] = field(default_factory=list)
+    start_step: int = 0
+    end_step: int = 0
+    final_state: np.ndarray | None = None
+
+    def watch(self, ep: Episode) -> None:
+        """Log ``ep``'s commands as its robot sends them (a command the reflex refused was not sent),
+        and its end: the step and the simulator's state when its loop ended."""
+        scene, robot, end_loop = ep.world.scene, ep.robot, ep._end_loop
+        self.start_step = self.end_step = scene.steps
+        apply = robot.apply
+
+        def logged(cmd: Command) -> None:
+            apply(cmd)
+            self.commands.append((scene.steps, cmd))
+
+        def ended() -> None:
+            self.end_step, self.final_state = scene.steps, scene.state()
+            self.pushes = [player.push for player in ep.pushes]
+            end_loop()
+
+        robot.apply = logged
+        ep._end_loop = ended
+
+
+@dataclass(frozen=True)
+class PhysicsReplay:
+    """The episode's physics replayed: its wall time, and whether it ended in the episode's state."""
+
+    steps: int
+    seconds: float
+    time_step_s: float
+    same_state: bool | None  # None: the episode ended in an error, its state not taken
+
+    @property
+    def real_time_factor(self) -> float:
+        return self.steps * self.time_step_s / max(self.seconds, 1e-12)
+
+
+def replay_physics(scenario: Scenario, seed: int, log: CommandLog) -> PhysicsReplay:
+    """The same seed's scene built and settled again, then stepped with ``log``'s commands and pushes,
+    each at its step, and nothing else; timed from the loop's first step to its last."""
+    ep = Episode(scenario, seed)
+    try:
+        ep.reset()
+        scene, robot = ep.world.scene, ep.robot
+        assert scene.steps == log.start_step, "the replay's scene did not settle as the episode's did"
+        players = [PushPlayer(push, ep.target_name) for push in log.pushes]
+
+        def advance(to: int) -> None:
+            while scene.steps < to:
+                for player in players:
+                    player.step(scene)
+                scene.step()
+
+        t0 = time.perf_counter()
+        for at, cmd in log.commands:
+            advance(at)
+            robot.send(cmd)
+        advance(log.end_step)
+        seconds = time.perf_counter() - t0
+        same = None if log.final_state is None else bool(np.array_equal(scene.state(), log.final_state))
+        return PhysicsReplay(
+            steps=log.end_step - log.start_step, seconds=seconds, time_step_s=scene.time_step_s, same_state=same
+        )
+    finally:
+        ep.close()
+
+
 @dataclass(frozen=True)
 class EpisodeProfile:
     seed: int
@@ -166,12 +249,20 @@ class EpisodeProfile:
     sim_time_s: float
     build_s: float  # the scene built, the objects settled (before the first tick)
     loop_s: float  # the control loop's wall time
+    loop_sim_s: float  # the simulated time the loop spanned (the settling before it not included)
     stages: dict[str, StageTime]
     control_decision_ms: float  # the machine's update, a tick (median)
+    replay: PhysicsReplay | None  # None: the episode ended before its loop began
 
     @property
     def real_time_factor(self) -> float:
-        return self.sim_time_s / max(self.loop_s, 1e-12)
+        """The loop's: simulated time over its wall time."""
+        return self.loop_sim_s / max(self.loop_s, 1e-12)
+
+    @property
+    def share_of_replay(self) -> float | None:
+        """The loop's real-time factor over its own physics replay's (the same simulated span)."""
+        return None if self.replay is None else self.replay.seconds / max(self.loop_s, 1e-12)
 
 
 def profile_episode(scenario: Scenario, seed: int) -> EpisodeProfile:
@@ -182,8 +273,10 @@ def profile_episode(scenario: Scenario, seed: int) -> EpisodeProfile:
     started = ep.reset() is not None
     build_s = time.perf_counter() - t0
     loop_s = 0.0
+    log = CommandLog()
     with prof.wrapped():
         if started:
+            log.watch(ep)  # (under the profiler's wrapper: a command's logging counts as robot I/O)
             _wrap_episode(prof, ep)
             t0 = time.perf_counter()
             while not ep.step():
@@ -191,6 +284,7 @@ def profile_episode(scenario: Scenario, seed: int) -> EpisodeProfile:
             loop_s = time.perf_counter() - t0
     result = ep.result()
     ep.close()
+    replay = replay_physics(scenario, seed, log) if started and log.end_step > log.start_step else None
     times = result.stage_wall_times_s
     known = {"scene", "settle", "render", "render wrist", "perceive", "perceive wrist", "physics"}
     observers = sum(v for k, v in times.items() if k not in known)
@@ -206,8 +300,10 @@ def profile_episode(scenario: Scenario, seed: int) -> EpisodeProfile:
         sim_time_s=result.sim_time_s,
         build_s=build_s,
         loop_s=loop_s,
+        loop_sim_s=(log.end_step - log.start_step) * scenario.sim.time_step_s,
         stages=stages,
         control_decision_ms=float(result.control_tick_wall_ms.get("median", 0.0)),
+        replay=replay,
     )
 
 
@@ -235,12 +331,34 @@ class ProfileReport:
         return sum(e.loop_s for e in self.episodes)
 
     @property
+    def loop_sim_s(self) -> float:
+        return sum(e.loop_sim_s for e in self.episodes)
+
+    @property
     def real_time_factor(self) -> float:
-        return self.sim_time_s / max(self.loop_s, 1e-12)
+        """The loops': the simulated time they spanned over their wall time."""
+        return self.loop_sim_s / max(self.loop_s, 1e-12)
+
+    @property
+    def replays(self) -> list[PhysicsReplay]:
+        return [e.replay for e in self.episodes if e.replay is not None]
+
+    @property
+    def replay_real_time_factor(self) -> float:
+        """The episodes' physics replays': the same simulated time over their wall time."""
+        rs = self.replays
+        return sum(r.steps * r.time_step_s for r in rs) / max(sum(r.seconds for r in rs), 1e-12)
+
+    @property
+    def share_of_replay(self) -> float:
+        """The loops' real-time factor over their physics replays' (1: the loop costs nothing but its
+        physics); over the episodes that have a replay."""
+        timed = [e for e in self.episodes if e.replay is not None]
+        return sum(e.replay.seconds for e in timed) / max(sum(e.loop_s for e in timed), 1e-12)  # type: ignore[union-attr]
 
     @property
     def ratio(self) -> float:
-        """The loop's real-time factor over the bare physics' (1: the loop costs nothing but physics)."""
+        """The loop's real-time factor over the bare physics'."""
         return self.real_time_factor / self.reference.real_time_factor
 
     def to_dict(self) -> dict[str, Any]:
@@ -261,7 +379,16 @@ class ProfileReport:
                     "sim_time_s": e.sim_time_s,
                     "build_s": e.build_s,
                     "loop_s": e.loop_s,
+                    "loop_sim_s": e.loop_sim_s,
                     "real_time_factor": e.real_time_factor,
+                    "replay": None
+                    if e.replay is None
+                    else {
+                        "seconds": e.replay.seconds,
+                        "real_time_factor": e.replay.real_time_factor,
+                        "same_state": e.replay.same_state,
+                    },
+                    "share_of_replay": e.share_of_replay,
                     "control_decision_ms": e.control_decision_ms,
                     "stages": {k: {"calls": s.calls, "seconds": s.seconds} for k, s in e.stages.items()},
                 }
@@ -269,7 +396,10 @@ class ProfileReport:
             ],
             "sim_time_s": self.sim_time_s,
             "loop_s": self.loop_s,
+            "loop_sim_s": self.loop_sim_s,
             "real_time_factor": self.real_time_factor,
+            "replay_real_time_factor": self.replay_real_time_factor,
+            "share_of_replay": self.share_of_replay,
             "ratio_to_reference": self.ratio,
             "control_decision_ms_median": self.control_decision_ms,
             "stages": {
@@ -291,12 +421,17 @@ class ProfileReport:
     def format(self) -> str:
         ref, totals = self.reference, self.totals()
         ok = sum(e.success for e in self.episodes)
+        rs = self.replays
+        same = sum(r.same_state is True for r in rs)
         lines = [
+            f"episodes: {len(self.episodes)} ({ok} succeeded), {self.loop_sim_s:.1f} s simulated in "
+            f"{self.loop_s:.2f} s of loop: {self.real_time_factor:.1f}x real time",
+            f"their physics replayed (same scene, same commands at the same steps; no camera, perception or "
+            f"decision): {sum(r.seconds for r in rs):.2f} s, {self.replay_real_time_factor:.1f}x real time; "
+            f"{same} of {len(rs)} ended in the episode's state bit for bit",
+            f"the loop: {self.share_of_replay:.3f} of its physics replay's real-time factor",
             f"bare physics (the cell's robot and table, no objects, the arm still): {ref.steps} steps, "
-            f"{ref.us_per_step:.0f} us a step, {ref.real_time_factor:.1f}x real time",
-            f"episodes: {len(self.episodes)} ({ok} succeeded), {self.sim_time_s:.1f} s simulated in "
-            f"{self.loop_s:.2f} s of loop: {self.real_time_factor:.1f}x real time, "
-            f"{self.ratio:.3f} of the bare physics'",
+            f"{ref.us_per_step:.0f} us a step, {ref.real_time_factor:.1f}x real time; the loop {self.ratio:.3f} of it",
             f"control decision: {self.control_decision_ms:.3f} ms a tick (median of the episodes' medians)",
             "",
             f"{'stage':<11} {'share':>6} {'wall s':>8} {'calls':>8} {'per call':>10} {'median':>10}  what",

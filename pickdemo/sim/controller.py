@@ -52,8 +52,13 @@ class RobotInterface:
         )
 
     def apply(self, cmd: Command) -> None:
+        """Check the arm's command against the datasheet, then :meth:`send` it."""
+        self.reflex.check(cmd.arm_q, self.scene.sim_time_s)
+        self.send(cmd)
+
+    def send(self, cmd: Command) -> None:
+        """The motors' calls for ``cmd``, unchecked (``profile``'s physics replay sends what was checked)."""
         s = self.scene
-        self.reflex.check(cmd.arm_q, s.sim_time_s)
         s.client.setJointMotorControlArray(
             s.bodies["robot"],
             s.arm_joints,

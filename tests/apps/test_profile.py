@@ -53,6 +53,10 @@ def test_profile_of_an_episode_accounts_for_its_loop_and_leaves_nothing_wrapped(
         assert e.stages[stage].calls > 0 and e.stages[stage].seconds > 0.0, stage
     assert report.reference.steps > 0 and report.reference.real_time_factor > 0.0
     assert 0.0 < report.ratio < 1.0  # the loop costs more than the bare physics
+    # its own physics, replayed: the loop's span step for step, ending where the episode did, bit for bit
+    assert e.replay is not None and e.replay.same_state is True
+    assert e.replay.steps * dt == pytest.approx(e.loop_sim_s) and e.loop_sim_s < e.sim_time_s
+    assert 0.0 < e.share_of_replay < 1.0 and report.share_of_replay == pytest.approx(e.share_of_replay)
     assert not any(name in kin.__dict__ for name in ("track", "solve", "forward"))
     assert np.allclose(kin.forward(np.zeros(7)).position, kinematics_of(ROBOT).forward(np.zeros(7)).position)
 
@@ -67,4 +71,6 @@ def test_profile_json() -> None:
     out = json.loads(proc.stdout)
     assert out["scenario"] == "pick_cube" and len(out["episodes"]) == 1
     assert out["ratio_to_reference"] == pytest.approx(out["real_time_factor"] / out["reference"]["real_time_factor"])
+    assert out["share_of_replay"] == pytest.approx(out["real_time_factor"] / out["replay_real_time_factor"])
+    assert out["episodes"][0]["replay"]["same_state"] is True
     assert set(out["stages"]) == set(STAGES)
