@@ -2,9 +2,10 @@
 
 ``python -m pickdemo bench [SCENARIO ...] --seeds 0-199 [--workers N] [--out DIR] [--resume]``
 
-- Each scenario x seed is one job; a job runs one episode in a worker process (a pebble process
-  pool, or Ray tasks with ``--executor ray``). An episode is self-contained and seeded, so the
-  results are the same whatever the number of workers or the executor.
+- Each scenario x seed is one job; a job runs one episode in a worker process (an executor of
+  :mod:`pickdemo.apps.executors`: a process pool, or Ray tasks with ``--executor ray``). An episode
+  is self-contained and seeded, so the results are the same whatever the number of workers or the
+  executor.
 - Each finished episode is appended to ``DIR/episodes.jsonl`` at once (the same object as its
   ``result.json``); ``--resume`` skips the episodes already there, so an interrupted run loses
   nothing and none is run twice. Every output of a run (``episodes.jsonl``, ``summary.json``,
@@ -26,11 +27,9 @@ import time
 import xml.etree.ElementTree as ET
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import TimeoutError as FutureTimeout
-from concurrent.futures import as_completed
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeAlias
+from typing import Any, Protocol, TypeAlias
 
 from pickdemo.core.result import EpisodeRecord, EpisodeResult, Stage, result_key, summary_name
 from pickdemo.core.stats import describe
@@ -52,6 +51,12 @@ JobFn = Callable[["Job"], EpisodeRecord]
 #: (or None) and, for the measured quantities, :func:`pickdemo.core.stats.describe` of them (a dict of n, mean,
 #: median, p95, max ..., or None when nothing was measured). A dict, as read back from the JSON file.
 ScenarioSummary: TypeAlias = dict[str, Any]
+
+
+class Executor(Protocol):
+    """Where the jobs run (:mod:`pickdemo.apps.executors`): one result per job, as each finishes."""
+
+    def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]: ...
 
 
 class BenchError(ValueError):
@@ -154,127 +159,6 @@ def run_job(job: Job) -> EpisodeRecord:
 
     options = EpisodeOptions(open_loop=job.open_loop, perception_method=job.perception)
     return run_episode(scenario, job.seed, options=options).to_dict()
-
-
-# --------------------------------------------------------------------------------------- executors
-class LocalExecutor:
-    """Worker processes on this machine (pebble), each episode under a wall-clock guard.
-
-    A worker whose episode overruns the guard is killed and replaced; a worker that dies (a crash in
-    native code) is replaced too. Neither stops the batch.
-    """
-
-    def __init__(self, workers: int, guard_s: float = DEFAULT_GUARD_S, fn: JobFn = run_job) -> None:
-        if workers < 1:
-            raise BenchError("--workers must be at least 1")
-        self.workers, self.guard_s, self.fn = workers, guard_s, fn
-
-    def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
-        from pebble import ProcessExpired, ProcessPool
-
-        with ProcessPool(max_workers=self.workers) as pool:
-            futures = {pool.schedule(self.fn, args=(job,), timeout=self.guard_s): job for job in jobs}
-            started = time.perf_counter()
-            try:
-                for fut in as_completed(futures):
-                    job = futures[fut]
-                    try:
-                        yield fut.result()
-                    except FutureTimeout:
-                        yield failed_result(
-                            job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {self.guard_s:g} s", self.guard_s
-                        )
-                    except ProcessExpired as exc:
-                        yield failed_result(
-                            job, Stage.ERROR, f"worker died (exit code {exc.exitcode})", time.perf_counter() - started
-                        )
-                    except Exception as exc:  # noqa: BLE001 - one bad episode must not take the batch down
-                        reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
-                        yield failed_result(job, Stage.ERROR, reason, time.perf_counter() - started)
-            finally:
-                pool.stop()
-
-
-#: How long to wait for a Ray cluster's address to answer before saying it does not.
-RAY_CONNECT_TIMEOUT_S = 5.0
-
-
-def _reachable(address: str) -> None:
-    """A ``host:port`` (or ``ray://host:port``) Ray address must answer, before Ray waits for it at
-    length; ``auto`` and other forms are left to Ray."""
-    rest = address.removeprefix("ray://")
-    host, sep, port = rest.rpartition(":")
-    if not sep or not port.isdigit() or not host:
-        return
-    import socket
-
-    try:
-        socket.create_connection((host, int(port)), timeout=RAY_CONNECT_TIMEOUT_S).close()
-    except OSError as exc:
-        raise BenchError(
-            f"--address {address}: no Ray cluster answers there ({exc.strerror or exc}); start one with "
-            "`ray start --head`, or leave --address out for a local Ray instance"
-        ) from None
-
-
-class RayExecutor:
-    """Ray tasks on an existing cluster (``address``) or a local Ray instance.
-
-    At most as many tasks are in flight as the cluster has CPUs, so a task starts when it is
-    submitted and the wall-clock guard can be measured from then; an overrunning task is cancelled.
-    The cluster's nodes need pickdemo installed (as they need any task's code).
-    """
-
-    def __init__(
-        self, address: str | None, guard_s: float = DEFAULT_GUARD_S, fn: JobFn = run_job, num_cpus: int | None = None
-    ) -> None:
-        try:
-            import ray
-        except ImportError:
-            raise BenchError(
-                "--executor ray needs Ray: pip install -c .ci/constraints.txt '.[ray]' in the checkout"
-            ) from None
-        self.ray = ray
-        if not ray.is_initialized():
-            kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
-            if address is not None:
-                _reachable(address)
-                kwargs["address"] = address
-            elif num_cpus is not None:
-                kwargs["num_cpus"] = num_cpus
-            try:
-                ray.init(**kwargs)
-            except (ConnectionError, RuntimeError, ValueError) as exc:
-                where = f" at {address}" if address else ""
-                raise BenchError(f"--executor ray: Ray did not start{where}: {str(exc).splitlines()[0]}") from None
-        self.guard_s = guard_s
-        self.remote_fn = ray.remote(num_cpus=1, max_retries=0)(fn)
-
-    def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
-        ray = self.ray
-        slots = max(1, int(ray.cluster_resources().get("CPU", 1)))
-        queue = list(jobs)
-        in_flight: dict[Any, tuple[Job, float]] = {}
-        while queue or in_flight:
-            while queue and len(in_flight) < slots:
-                job = queue.pop(0)
-                in_flight[self.remote_fn.remote(job)] = (job, time.perf_counter())
-            done, _ = ray.wait(list(in_flight), num_returns=1, timeout=1.0)
-            for ref in done:
-                job, t0 = in_flight.pop(ref)
-                try:
-                    yield ray.get(ref)
-                except Exception as exc:  # noqa: BLE001 - a task that raised or whose worker died
-                    reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
-                    yield failed_result(job, Stage.ERROR, reason, time.perf_counter() - t0)
-            now = time.perf_counter()
-            for ref, (job, t0) in list(in_flight.items()):
-                if now - t0 > self.guard_s:
-                    ray.cancel(ref, force=True)
-                    del in_flight[ref]
-                    yield failed_result(
-                        job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {self.guard_s:g} s", now - t0
-                    )
 
 
 # ----------------------------------------------------------------------------------- result files
@@ -555,7 +439,7 @@ def _short(text: str, limit: int) -> str:
 
 def run_bench(
     jobs: list[Job],
-    executor: LocalExecutor | RayExecutor,
+    executor: Executor,
     *,
     out_dir: Path | None = None,
     resume: bool = False,

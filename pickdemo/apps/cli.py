@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from pickdemo.apps import bench, perceive, report
+from pickdemo.apps import bench, executors, perceive, report
 from pickdemo.apps.parser import UsageError, build_parser
 from pickdemo.apps.profile import profile
 from pickdemo.apps.summary import summary_line, yaw_modulus_deg
@@ -242,11 +242,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     if args.executor == "ray":
         try:
-            executor = bench.RayExecutor(args.address, args.episode_timeout, num_cpus=args.workers)
+            executor = executors.RayExecutor(args.address, args.episode_timeout, num_cpus=args.workers)
         except bench.BenchError as exc:
             raise UsageError(str(exc)) from None
     else:
-        executor = bench.LocalExecutor(min(args.workers, len(jobs)), args.episode_timeout)
+        executor = executors.LocalExecutor(min(args.workers, len(jobs)), args.episode_timeout)
 
     def on_result(r: dict) -> None:
         if not r["success"]:

@@ -17,7 +17,6 @@ import pytest
 from pickdemo.apps.bench import (
     BenchError,
     Job,
-    LocalExecutor,
     junit_xml,
     load_episodes,
     parse_seeds,
@@ -26,6 +25,7 @@ from pickdemo.apps.bench import (
     summarise,
     wilson_interval,
 )
+from pickdemo.apps.executors import LocalExecutor
 from pickdemo.core.result import WALL_CLOCK_KEYS
 
 
@@ -368,7 +368,7 @@ def test_ray_executor_gives_the_same_results() -> None:
     pytest.importorskip("ray")
     import ray
 
-    from pickdemo.apps.bench import RayExecutor
+    from pickdemo.apps.executors import RayExecutor
     from pickdemo.scenario.load import resolve_scenario_path
 
     jobs = [Job(str(resolve_scenario_path("pick_cube")), "pick_cube", s) for s in range(2)]

@@ -265,7 +265,8 @@ def test_target_too_fast_to_meet_in_reach_fails_by_name(tmp_path: Path) -> None:
 
 @pytest.mark.sim
 def test_conveyor_episodes_are_the_same_with_one_or_two_workers() -> None:
-    from pickdemo.apps.bench import Job, LocalExecutor, run_bench
+    from pickdemo.apps.bench import Job, run_bench
+    from pickdemo.apps.executors import LocalExecutor
     from pickdemo.scenario.load import resolve_scenario_path
 
     path = str(resolve_scenario_path("pick_conveyor_fast"))

@@ -1,0 +1,137 @@
+"""Where a bench's episodes run: worker processes on this machine, or Ray tasks on a cluster.
+
+An executor takes the jobs and yields one result per job as each finishes (in any order); a job that
+raises, kills its worker, loses its node for good or overruns the wall-clock guard yields a failed
+result with stage ``error`` or ``timeout``, and the batch goes on.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from concurrent.futures import TimeoutError as FutureTimeout
+from concurrent.futures import as_completed
+from typing import Any
+
+from pickdemo.apps.bench import DEFAULT_GUARD_S, BenchError, Job, JobFn, failed_result, run_job
+from pickdemo.core.result import EpisodeRecord, Stage
+
+
+class LocalExecutor:
+    """Worker processes on this machine (pebble), each episode under a wall-clock guard.
+
+    A worker whose episode overruns the guard is killed and replaced; a worker that dies (a crash in
+    native code) is replaced too. Neither stops the batch.
+    """
+
+    def __init__(self, workers: int, guard_s: float = DEFAULT_GUARD_S, fn: JobFn = run_job) -> None:
+        if workers < 1:
+            raise BenchError("--workers must be at least 1")
+        self.workers, self.guard_s, self.fn = workers, guard_s, fn
+
+    def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
+        from pebble import ProcessExpired, ProcessPool
+
+        with ProcessPool(max_workers=self.workers) as pool:
+            futures = {pool.schedule(self.fn, args=(job,), timeout=self.guard_s): job for job in jobs}
+            started = time.perf_counter()
+            try:
+                for fut in as_completed(futures):
+                    job = futures[fut]
+                    try:
+                        yield fut.result()
+                    except FutureTimeout:
+                        yield failed_result(
+                            job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {self.guard_s:g} s", self.guard_s
+                        )
+                    except ProcessExpired as exc:
+                        yield failed_result(
+                            job, Stage.ERROR, f"worker died (exit code {exc.exitcode})", time.perf_counter() - started
+                        )
+                    except Exception as exc:  # noqa: BLE001 - one bad episode must not take the batch down
+                        reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
+                        yield failed_result(job, Stage.ERROR, reason, time.perf_counter() - started)
+            finally:
+                pool.stop()
+
+
+#: How long to wait for a Ray cluster's address to answer before saying it does not.
+RAY_CONNECT_TIMEOUT_S = 5.0
+
+
+def _reachable(address: str) -> None:
+    """A ``host:port`` (or ``ray://host:port``) Ray address must answer, before Ray waits for it at
+    length; ``auto`` and other forms are left to Ray."""
+    rest = address.removeprefix("ray://")
+    host, sep, port = rest.rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        return
+    import socket
+
+    try:
+        socket.create_connection((host, int(port)), timeout=RAY_CONNECT_TIMEOUT_S).close()
+    except OSError as exc:
+        raise BenchError(
+            f"--address {address}: no Ray cluster answers there ({exc.strerror or exc}); start one with "
+            "`ray start --head`, or leave --address out for a local Ray instance"
+        ) from None
+
+
+class RayExecutor:
+    """Ray tasks on an existing cluster (``address``) or a local Ray instance.
+
+    At most as many tasks are in flight as the cluster has CPUs, so a task starts when it is
+    submitted and the wall-clock guard can be measured from then; an overrunning task is cancelled.
+    The cluster's nodes need pickdemo installed (as they need any task's code).
+    """
+
+    def __init__(
+        self, address: str | None, guard_s: float = DEFAULT_GUARD_S, fn: JobFn = run_job, num_cpus: int | None = None
+    ) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise BenchError(
+                "--executor ray needs Ray: pip install -c .ci/constraints.txt '.[ray]' in the checkout"
+            ) from None
+        self.ray = ray
+        if not ray.is_initialized():
+            kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+            if address is not None:
+                _reachable(address)
+                kwargs["address"] = address
+            elif num_cpus is not None:
+                kwargs["num_cpus"] = num_cpus
+            try:
+                ray.init(**kwargs)
+            except (ConnectionError, RuntimeError, ValueError) as exc:
+                where = f" at {address}" if address else ""
+                raise BenchError(f"--executor ray: Ray did not start{where}: {str(exc).splitlines()[0]}") from None
+        self.guard_s = guard_s
+        self.remote_fn = ray.remote(num_cpus=1, max_retries=0)(fn)
+
+    def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
+        ray = self.ray
+        slots = max(1, int(ray.cluster_resources().get("CPU", 1)))
+        queue = list(jobs)
+        in_flight: dict[Any, tuple[Job, float]] = {}
+        while queue or in_flight:
+            while queue and len(in_flight) < slots:
+                job = queue.pop(0)
+                in_flight[self.remote_fn.remote(job)] = (job, time.perf_counter())
+            done, _ = ray.wait(list(in_flight), num_returns=1, timeout=1.0)
+            for ref in done:
+                job, t0 = in_flight.pop(ref)
+                try:
+                    yield ray.get(ref)
+                except Exception as exc:  # noqa: BLE001 - a task that raised or whose worker died
+                    reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
+                    yield failed_result(job, Stage.ERROR, reason, time.perf_counter() - t0)
+            now = time.perf_counter()
+            for ref, (job, t0) in list(in_flight.items()):
+                if now - t0 > self.guard_s:
+                    ray.cancel(ref, force=True)
+                    del in_flight[ref]
+                    yield failed_result(
+                        job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {self.guard_s:g} s", now - t0
+                    )
