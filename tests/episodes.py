@@ -10,9 +10,17 @@ machine (determinism, worker counts, recording on and off).
 from __future__ import annotations
 
 import functools
+import hashlib
+import os
+import pickle
 from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
 
 from pickdemo.core.result import EpisodeResult
+
+#: Set by ``conftest.py`` for a test session: a directory its processes (pytest-xdist's workers)
+#: share, so that a set of episodes runs once a session, in whichever worker asks for it first.
+SHARED_DIR_ENV = "PICKDEMO_TEST_EPISODES"
 
 
 @functools.cache
@@ -24,7 +32,27 @@ def episodes(
     method: str = "paper",
     record_trace: bool = False,
 ) -> tuple[EpisodeResult, ...]:
-    """The episodes of a shipped scenario (or a path) over ``seeds``; cached for the session."""
+    """The episodes of a shipped scenario (or a path) over ``seeds``; run once for the test session."""
+    key = (scenario, tuple(seeds), open_loop, method, record_trace)
+    shared = os.environ.get(SHARED_DIR_ENV)
+    if not shared:
+        return _run(*key)
+    from filelock import FileLock
+
+    path = Path(shared) / (hashlib.sha256(repr(key).encode()).hexdigest()[:24] + ".pickle")
+    with FileLock(f"{path}.lock"):  # another worker asking for them waits, then reads them
+        if path.exists():
+            return pickle.loads(path.read_bytes())
+        results = _run(*key)
+        part = path.with_suffix(".part")
+        part.write_bytes(pickle.dumps(results))
+        part.replace(path)
+        return results
+
+
+def _run(
+    scenario: str, seeds: tuple[int, ...], open_loop: bool, method: str, record_trace: bool
+) -> tuple[EpisodeResult, ...]:
     from pickdemo import load_scenario, run_episode
     from pickdemo.runtime.episode import EpisodeOptions
 

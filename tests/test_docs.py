@@ -186,6 +186,7 @@ def test_the_example_estimator_sees_the_cube_beside_the_papers_method() -> None:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_the_python_examples_of_getting_started_run(capsys: pytest.CaptureFixture[str]) -> None:
     blocks = re.findall(r"```python\n(.*?)```", (DOCS / "getting-started.md").read_text(), re.S)
     assert len(blocks) == 2
@@ -195,6 +196,7 @@ def test_the_python_examples_of_getting_started_run(capsys: pytest.CaptureFixtur
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_the_example_scenario_with_its_own_mesh_is_picked() -> None:
     """Measured 20/20 over seeds 0-19 (docs/measurements/hand-camera.md): two of three seeds at least."""
     proc = _pickdemo("bench", str(EXAMPLES / "my_part.toml"), "--seeds", "0-2", "--min-success", "0.6", "--no-progress")

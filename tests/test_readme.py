@@ -63,7 +63,7 @@ def test_the_readme_starts_with_the_two_commands_from_the_lock() -> None:
     assert first and text.index(first.group(0)) < text.index("\n## ")
     install, tests = first.group(1).strip().splitlines()
     assert "-c .ci/constraints.txt" in install and install.endswith("python -m pickdemo run pick_cube")
-    assert "-c .ci/constraints.txt" in tests and tests.endswith("python -m pytest -q")
+    assert "-c .ci/constraints.txt" in tests and tests.endswith("python -m pytest -q -n auto")
 
 
 def test_a_bench_line_said_only_when_there_is_something_to_say_reads_true() -> None:
@@ -90,6 +90,7 @@ def test_the_readme_shows_run_bench_perceive_and_profile() -> None:
 @pytest.mark.parametrize(
     ("page", "example"), EXAMPLES, ids=[f"{p.relative_to(ROOT)}:{e.command.split(' --')[0]}" for p, e in EXAMPLES]
 )
+@pytest.mark.slow
 def test_example_is_what_the_code_prints(page, example) -> None:
     problems = differences(example.output, run(example.command))
     assert not problems, f"{page.relative_to(ROOT)}'s example `{example.command}` has drifted (python " \

@@ -7,6 +7,7 @@ result with stage ``error`` or ``timeout``, and the batch goes on.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Iterator
 from concurrent.futures import TimeoutError as FutureTimeout
@@ -57,6 +58,9 @@ class LocalExecutor:
 
 #: How long to wait for a Ray cluster's address to answer before saying it does not.
 RAY_CONNECT_TIMEOUT_S = 5.0
+#: How often Ray runs a task again whose worker process or node died (a node lost mid-run): an
+#: episode is seeded, so its second run is the same episode. An episode that raises is not retried.
+RAY_TASK_RETRIES = 3
 
 
 def _reachable(address: str) -> None:
@@ -80,9 +84,11 @@ def _reachable(address: str) -> None:
 class RayExecutor:
     """Ray tasks on an existing cluster (``address``) or a local Ray instance.
 
-    At most as many tasks are in flight as the cluster has CPUs, so a task starts when it is
-    submitted and the wall-clock guard can be measured from then; an overrunning task is cancelled.
-    The cluster's nodes need pickdemo installed (as they need any task's code).
+    At most as many tasks are in flight as the cluster's live nodes have CPUs (counted again as
+    nodes join or leave), so a task starts when it is submitted and the wall-clock guard can be
+    measured from then; an overrunning task is cancelled. A task whose node died is run again on
+    another (:data:`RAY_TASK_RETRIES`); what had finished was yielded already. The cluster's nodes
+    need pickdemo installed (as they need any task's code).
     """
 
     def __init__(
@@ -97,25 +103,28 @@ class RayExecutor:
         self.ray = ray
         if not ray.is_initialized():
             kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+            address = address or os.environ.get("RAY_ADDRESS") or None
             if address is not None:
                 _reachable(address)
                 kwargs["address"] = address
-            elif num_cpus is not None:
-                kwargs["num_cpus"] = num_cpus
+            else:  # a new instance of its own, even where a cluster runs that Ray would join unasked
+                kwargs["address"] = "local"
+                if num_cpus is not None:
+                    kwargs["num_cpus"] = num_cpus
             try:
                 ray.init(**kwargs)
             except (ConnectionError, RuntimeError, ValueError) as exc:
                 where = f" at {address}" if address else ""
-                raise BenchError(f"--executor ray: Ray did not start{where}: {str(exc).splitlines()[0]}") from None
+                raise BenchError(f"--executor ray: Ray did not start{where}: {_why(exc)}") from None
         self.guard_s = guard_s
-        self.remote_fn = ray.remote(num_cpus=1, max_retries=0)(fn)
+        self.remote_fn = ray.remote(num_cpus=1, max_retries=RAY_TASK_RETRIES)(fn)
 
     def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
         ray = self.ray
-        slots = max(1, int(ray.cluster_resources().get("CPU", 1)))
         queue = list(jobs)
         in_flight: dict[Any, tuple[Job, float]] = {}
         while queue or in_flight:
+            slots = max(1, int(ray.cluster_resources().get("CPU", 1)))  # the live nodes'
             while queue and len(in_flight) < slots:
                 job = queue.pop(0)
                 in_flight[self.remote_fn.remote(job)] = (job, time.perf_counter())
@@ -135,3 +144,13 @@ class RayExecutor:
                     yield failed_result(
                         job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {self.guard_s:g} s", now - t0
                     )
+
+
+def _why(exc: BaseException) -> str:
+    """Ray's reason in one line; a cluster that wants a token this process was not given says so."""
+    if any("Authentication token" in str(e) for e in (exc, exc.__cause__, exc.__context__) if e is not None):
+        return (
+            "the cluster wants an authentication token: give this process the head's (RAY_AUTH_MODE=token, "
+            "and the token in ~/.ray/auth_token or RAY_AUTH_TOKEN)"
+        )
+    return str(exc).splitlines()[0]

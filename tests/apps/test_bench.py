@@ -208,6 +208,7 @@ def _strip(rs: list[dict]) -> dict:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_same_results_whatever_the_worker_count(cube_scenario) -> None:
     from pickdemo.scenario.load import resolve_scenario_path
 
@@ -222,6 +223,7 @@ def _cli(*args: str, **kw) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_cli_bench_gate_and_files(tmp_path: Path) -> None:
     out = tmp_path / "b"
     proc = _cli("bench", "pick_cube", "pick_cylinder", "--seeds", "0-1", "--workers", "2", "--out", str(out),
@@ -290,6 +292,7 @@ def test_bench_gates_without_min_success_and_zero_turns_it_off(tmp_path: Path) -
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_resumed_bench_outputs_all_describe_the_whole_run(tmp_path: Path) -> None:
     out = tmp_path / "gate"
     junit = out / "junit.xml"
@@ -329,6 +332,7 @@ def test_gate_fails_below_min_success(tmp_path: Path) -> None:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_killed_bench_resumes_with_every_episode_once(tmp_path: Path) -> None:
     out = tmp_path / "k"
     args = [sys.executable, "-m", "pickdemo", "bench", "pick_cube", "--seeds", "0-7", "--workers", "2",

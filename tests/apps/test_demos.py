@@ -27,6 +27,7 @@ def lerobot_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_the_lerobot_dataset_has_v3s_layout_as_its_loader_reads_it(lerobot_dir: Path) -> None:
     info = json.loads((lerobot_dir / "meta" / "info.json").read_text())
     assert info["codebase_version"] == "v3.0" and info["total_episodes"] == 2 and isinstance(info["fps"], int)
@@ -66,6 +67,7 @@ def test_an_episode_replays_from_its_states_and_bit_for_bit_from_its_actions(
     assert "from states SUCCESS, from actions SUCCESS (identical states)" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_a_stopped_run_resumes_without_an_episode_lost_or_doubled(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:

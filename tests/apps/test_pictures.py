@@ -56,6 +56,7 @@ def _strip(d: dict) -> dict:
     return {k: v for k, v in d.items() if k not in WALL_CLOCK_KEYS}
 
 
+@pytest.mark.slow
 def test_video_decodes_and_recording_changes_nothing(run_dir: Path, tmp_path: Path) -> None:
     with_video = json.loads((run_dir / "result.json").read_text())
     assert main(["run", "pick_pushed", "--seed", "1", "--out", str(tmp_path), "--quiet"]) in (0, 1)
@@ -90,6 +91,7 @@ def _chromium() -> str | None:
 
 
 @pytest.mark.parametrize("which", ["run", "bench", "perceive"])
+@pytest.mark.slow
 def test_report_loads_in_a_headless_browser(which: str, request: pytest.FixtureRequest, tmp_path: Path) -> None:
     browser = _chromium()
     if browser is None:

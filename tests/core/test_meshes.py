@@ -112,6 +112,7 @@ def test_the_scene_builds_a_mesh_resting_where_the_layout_put_it(urdf: str, scal
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_the_cube_is_picked_among_meshes() -> None:
     """A duck, a jenga block and a random test-split object (one a seed) beside the red cube: the loop
     picks the cube (6 seeds, at least 5)."""

@@ -31,6 +31,7 @@ def test_the_gymnasium_pages_examples_run(capsys: pytest.CaptureFixture[str]) ->
     assert out[1].startswith("True ")  # the expert picked the cube
 
 
+@pytest.mark.slow
 def test_the_demonstrations_pages_commands_and_example_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     shown = _blocks("demonstrations.md", "console")[0] + _blocks("demonstrations.md", "text")[0]
     commands = [line[2:].split() for line in shown.splitlines() if line.startswith("$ python -m pickdemo ")]

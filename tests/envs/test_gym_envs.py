@@ -21,6 +21,7 @@ MODES = [(i, o, c) for i in ENV_IDS for o in OBS_MODES for c in ("joint_pos", "e
 
 
 @pytest.mark.parametrize(("env_id", "obs_mode", "control_mode"), MODES)
+@pytest.mark.slow
 def test_check_env_passes(env_id: str, obs_mode: str, control_mode: str) -> None:
     env = gym.make(env_id, obs_mode=obs_mode, control_mode=control_mode, render_mode="rgb_array")
     with warnings.catch_warnings():
@@ -55,6 +56,7 @@ def test_a_seeded_reset_gives_the_same_scene_and_the_same_steps(env_id: str) -> 
 
 @pytest.mark.parametrize("env_id", list(ENV_IDS))
 @pytest.mark.parametrize("control_mode", ["joint_pos", "ee_delta"])
+@pytest.mark.slow
 def test_a_thousand_random_actions_run_within_the_robots_limits(env_id: str, control_mode: str) -> None:
     env = gym.make(env_id, control_mode=control_mode)
     env.action_space.seed(0)
@@ -124,6 +126,7 @@ def test_bad_arguments_are_refused_in_words() -> None:
         ExpertPolicy(gym.make("pickdemo/Pick-v0"))
 
 
+@pytest.mark.slow
 def test_the_expert_succeeds_through_the_env_on_most_seeds() -> None:
     env = gym.make("pickdemo/Pick-v0", scenario="pick_cube", agent_rate_hz=None)
     expert = ExpertPolicy(env)

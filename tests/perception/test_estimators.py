@@ -77,6 +77,7 @@ def test_cli_refuses_an_unknown_method(capsys) -> None:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_a_drifting_yaw_does_not_walk_the_wrist_into_its_limit() -> None:
     """centroid's yaw on a cube is +-45 deg off and wanders from frame to frame; keeping the hand's
     angle re-plan after re-plan once turned joint 7 to its stop (``trajectory``: IK lost the setpoint,

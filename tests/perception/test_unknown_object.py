@@ -186,6 +186,7 @@ def test_a_jaw_comes_down_beside_the_span_it_closes_on_whatever_the_width() -> N
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_objects_nobody_described_are_picked_and_put_down() -> None:
     """The closed loop on a duck and on held-out test-split objects: found, measured at their centre
     and picked (the success rates themselves are measured by the bench, ``tests/mesh_split.py``)."""

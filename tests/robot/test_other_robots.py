@@ -4,6 +4,7 @@ several seeds)."""
 
 from __future__ import annotations
 
+import pytest
 from episodes import at_least, describe, episodes, none_fails_in
 
 from pickdemo import load_scenario
@@ -16,6 +17,7 @@ def test_a_scenario_names_its_robot_and_the_checks_use_it() -> None:
     assert load_scenario("pick_cube").robot_description is robot_named("panda")
 
 
+@pytest.mark.slow
 def test_the_ur5_picks_anywhere_within_its_own_limits() -> None:
     results = episodes("ur5_pick_anywhere", (0, 1, 2, 3, 4))
     at_least(results, 4)
@@ -26,6 +28,7 @@ def test_the_ur5_picks_anywhere_within_its_own_limits() -> None:
             assert max(r.peak_joint_limit_ratio.values()) <= 1.0, describe(r)
 
 
+@pytest.mark.slow
 def test_the_ur5_clears_a_pile() -> None:
     results = episodes("ur5_clear_pile", (0, 1))
     none_fails_in(results, "ik", "trajectory", "reflex", "error")
@@ -33,6 +36,7 @@ def test_the_ur5_clears_a_pile() -> None:
     assert cleared >= 8, "; ".join(describe(r) for r in results)
 
 
+@pytest.mark.slow
 def test_the_so101_picks_a_small_cube_by_friction_within_its_own_limits() -> None:
     """One jaw against a fixed one, no weld: it holds what it lifts by friction alone."""
     results = episodes("so101_pick_cube", (0, 1, 2))
@@ -44,6 +48,7 @@ def test_the_so101_picks_a_small_cube_by_friction_within_its_own_limits() -> Non
             assert max(r.peak_joint_limit_ratio.values()) <= 1.0, describe(r)
 
 
+@pytest.mark.slow
 def test_the_so101_waits_for_a_target_that_slides_out_of_its_reach_and_stops() -> None:
     """The cube slides toward the base as the arm sets off: where the arm would meet it is out of reach
     while it slides; it stood still when the pick was planned, so the arm looks again once it stops
@@ -53,6 +58,7 @@ def test_the_so101_waits_for_a_target_that_slides_out_of_its_reach_and_stops() -
     none_fails_in(results, "ik", "trajectory", "reflex", "error")
 
 
+@pytest.mark.slow
 def test_the_so101_picks_near_its_base() -> None:
     """12-13.5 cm from the base the SO-101's hand points down only low: a re-plan that turned the hand
     to an angle whose descent it cannot follow failed in ``ik`` (seeds 8 and 9 of these before); it
@@ -62,6 +68,7 @@ def test_the_so101_picks_near_its_base() -> None:
     none_fails_in(results, "ik", "trajectory", "reflex", "error")
 
 
+@pytest.mark.slow
 def test_the_so101_pushes_a_heavier_cube_to_its_fixed_jaw() -> None:
     """A 60 g cube: the moving jaw's arc presses it into the table as it pushes it, and the jaw stalled
     short of the fixed one at 5 N (0 of 5 before); stalled on the cube alone, it closes harder."""

@@ -66,6 +66,7 @@ SCENARIOS = (
 
 @pytest.mark.sim
 @pytest.mark.parametrize("name", SCENARIOS)
+@pytest.mark.slow
 def test_no_episode_commands_beyond_the_datasheet(name: str) -> None:
     """The suite, the conveyors, the pushes and the slippery cube, 20 seeds each: every episode's
     commanded joint motion within the datasheet (and none stopped by the reflex)."""

@@ -88,6 +88,7 @@ def test_the_arm_in_view_is_filtered_out_and_the_rest_is_not() -> None:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_boxes_of_the_arm_s_colours_are_picked() -> None:
     """A grey and a black box (the arm is white, the hand dark grey), 4 seeds each: at least 3 each."""
     from episodes import at_least, episodes

@@ -228,6 +228,7 @@ def test_belt_carries_a_cube_at_its_speed_by_friction(tmp_path: Path, speed: flo
 
 @pytest.mark.sim
 @pytest.mark.parametrize("name", ["pick_conveyor", "pick_conveyor_rush"])
+@pytest.mark.slow
 def test_cube_is_picked_off_a_running_belt(name: str) -> None:
     rs = episodes(name, (0, 1, 2))
     for r in at_least(rs, 2, lambda r: [a.outcome for a in r.attempts] == ["placed"], "place it at the first attempt"):
@@ -240,6 +241,7 @@ def test_cube_is_picked_off_a_running_belt(name: str) -> None:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_belt_speeding_up_mid_approach_is_followed() -> None:
     rs = episodes("pick_conveyor_speed_change", (0, 1, 2))
     for r in at_least(rs, 2):
@@ -264,6 +266,7 @@ def test_target_too_fast_to_meet_in_reach_fails_by_name(tmp_path: Path) -> None:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_conveyor_episodes_are_the_same_with_one_or_two_workers() -> None:
     from pickdemo.apps.bench import Job, run_bench
     from pickdemo.apps.executors import LocalExecutor

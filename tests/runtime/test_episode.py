@@ -49,6 +49,7 @@ def test_cube_is_picked_and_placed(cube_scenario: Scenario) -> None:
     assert float(np.median([r.tracking_error_mm for r in ok])) < 1.0
 
 
+@pytest.mark.slow
 def test_cylinder_is_picked_and_placed() -> None:
     rs = episodes("pick_cylinder", (0, 1, 2, 3))
     for r in at_least(rs, 3):
@@ -78,6 +79,7 @@ def test_open_loop_looks_once() -> None:
 PUSHED_SEEDS = (0, 1, 2, 3)
 
 
+@pytest.mark.slow
 def test_push_is_noticed_before_the_gripper_closes() -> None:
     closed = episodes("pick_pushed", PUSHED_SEEDS, record_trace=True)
     at_least(closed, len(closed) - 1)
@@ -130,6 +132,7 @@ def test_last_5cm_of_descent_is_vertical_over_the_tracked_target() -> None:
     assert checked >= len(CUBE_SEEDS) - 1
 
 
+@pytest.mark.slow
 def test_slipping_object_is_retried_with_more_force() -> None:
     rs = episodes("pick_slippery", (0, 1, 2))
     # 20 N cannot hold the 1 kg steel cube: every first lift slips (by design, 100/100 measured).
@@ -173,6 +176,7 @@ def test_simulated_time_budget_is_a_timeout(cube_scenario: Scenario) -> None:
     assert r.attempts and r.attempts[-1].outcome == "failed"
 
 
+@pytest.mark.slow
 def test_motion_scales_slow_the_arm(cube_scenario: Scenario) -> None:
     slow = cube_scenario.model_copy(
         update={"motion": cube_scenario.motion.model_copy(update={"velocity_scale": 0.5, "acceleration_scale": 0.5})}

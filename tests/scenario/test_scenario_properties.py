@@ -123,6 +123,7 @@ def valid_variants(draw: st.DrawFn) -> dict:
 @pytest.mark.sim
 @settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(valid_variants(), st.integers(0, 2**31))
+@pytest.mark.slow
 def test_a_valid_scenario_runs_without_an_internal_error(doc: dict, seed: int) -> None:
     from pickdemo import Stage, run_episode
 

@@ -105,6 +105,7 @@ def test_perception_through_holes_written_as_zero() -> None:
 
 @pytest.mark.sim
 @pytest.mark.parametrize("name", ["perceive_boxes_d435", "perceive_boxes_d435_miscal"])
+@pytest.mark.slow
 def test_covariance_stays_honest_under_a_real_sensors_faults(name: str) -> None:
     """Position NEES in [1.5, 6] (3 is honest) with the D435 preset, with and without miscalibration;
     the outline term was calibrated on seeds 100-199, this checks seeds 0-39."""
@@ -118,6 +119,7 @@ def test_covariance_stays_honest_under_a_real_sensors_faults(name: str) -> None:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_wrong_estimates_under_the_d435_preset_are_not_acted_on() -> None:
     """With the hand over the target part of it is hidden, and some estimates land far off (one fit
     diverged to tens of metres). In pick_cube_d435 they have grown rare (9 over seeds 0-39 with the

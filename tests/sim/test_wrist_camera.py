@@ -78,6 +78,7 @@ def test_a_miscalibrated_fixed_camera_alone_is_refused_by_name_before_the_arm_mo
         assert r.sim_time_s < 1.0  # before it runs
 
 
+@pytest.mark.slow
 def test_a_camera_on_the_hand_makes_the_miscalibrated_cells_grasps_safe() -> None:
     sc = load_scenario("pick_miscalibrated_wrist")
     results = [run_episode(sc, seed) for seed in (0, 1, 2, 3)]
@@ -85,6 +86,7 @@ def test_a_camera_on_the_hand_makes_the_miscalibrated_cells_grasps_safe() -> Non
     assert all(r.place_error_mm < 20.0 for r in results if r.success)
 
 
+@pytest.mark.slow
 def test_a_push_during_the_descent_is_seen_by_the_hands_camera_and_the_first_attempt_goes_on() -> None:
     sc = load_scenario("pick_pushed_descent_wrist")
     results = [run_episode(sc, seed) for seed in (0, 1, 2, 3)]

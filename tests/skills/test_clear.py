@@ -196,6 +196,7 @@ def test_the_bench_counts_objects_and_grasps_with_wilson_intervals() -> None:
 
 
 @pytest.mark.sim
+@pytest.mark.slow
 def test_rounds_clear_the_table_into_the_tray() -> None:
     """Rounds of 3 objects packed and piled, 2 seeds each: nearly every object ends in the tray (the
     truth's count), the figures agree with one another, and result.json says it all."""

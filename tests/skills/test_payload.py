@@ -38,6 +38,7 @@ def test_scale_tares_then_weighs() -> None:
     assert scale.grip_force_n(0.8) == pytest.approx(PayloadParams().grip_n_per_kg * 0.8)
 
 
+@pytest.mark.slow
 def test_a_heavy_cube_is_weighed_gripped_harder_and_placed_well() -> None:
     rs = episodes("pick_heavy", HEAVY_SEEDS)
     placed = at_least(rs, len(rs) - 1)
@@ -48,6 +49,7 @@ def test_a_heavy_cube_is_weighed_gripped_harder_and_placed_well() -> None:
     assert np.median(errors) < 5.0, errors  # 20 N let it turn in the pads and land 21-33 mm off
 
 
+@pytest.mark.slow
 def test_a_cube_seen_off_the_place_is_placed_again() -> None:
     """Gripped too gently to hold a 0.8 kg cube straight, it lands off; the camera sees it, the arm
     picks it up again (within max_attempts)."""

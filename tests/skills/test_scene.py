@@ -6,6 +6,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from pickdemo.core.geometry import Pose
 from pickdemo.core.shapes import Box
@@ -51,6 +52,7 @@ def test_a_free_place_is_the_place_and_a_taken_one_is_moved_within_the_tolerance
     assert isinstance(strict.spot(view(_carton(0.47, 0.53, 0.25, 0.35)), 0.0, plan), str)
 
 
+@pytest.mark.slow
 def test_a_place_that_may_be_taken_is_put_down_on_free_or_refused_before_the_pick() -> None:
     """``pick_place_maybe_taken``: a carton drawn beside the place. Every episode puts the cube down
     within the tolerance, or fails in ``place`` before any attempt, saying it is taken; the carton is
@@ -64,6 +66,7 @@ def test_a_place_that_may_be_taken_is_put_down_on_free_or_refused_before_the_pic
     at_least(results, 2)  # (the layout leaves some seeds' place free)
 
 
+@pytest.mark.slow
 def test_a_cube_flush_against_a_carton_is_grasped_by_its_free_faces_first_time() -> None:
     results = episodes("pick_beside_carton", (0, 1, 2, 3))
     good = at_least(results, 4)
@@ -94,6 +97,7 @@ def test_a_motion_that_fails_is_planned_again_within_the_attempts(monkeypatch) -
         assert r.peak_joint_limit_ratio is not None and max(r.peak_joint_limit_ratio.values()) <= 1.0
 
 
+@pytest.mark.slow
 def test_lowering_onto_something_the_camera_missed_stops_and_rises_with_the_target(monkeypatch) -> None:  # noqa: ANN001
     """The place check made blind (as if the camera missed what stands there): lowering the cube onto
     the carton stops at the touch (the wrist's load falls), the hand rises holding it, and the
@@ -111,6 +115,7 @@ def test_lowering_onto_something_the_camera_missed_stops_and_rises_with_the_targ
         assert r.others_moved_mm == {}, describe(r)
 
 
+@pytest.mark.slow
 def test_a_mug_told_by_its_size_is_not_taken_for_a_taller_can_or_box() -> None:
     """``pick_mug_among_lookalikes``: the mug, told only its rough size, among a can and a box as wide
     and 20 mm taller: no episode carries another object (by the sizes' footprints alone, the can was

@@ -5,6 +5,7 @@ hand never goes lower than the lower end of its state's move, and every episode 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from episodes import describe, episodes
 
 #: pick_anywhere seeds whose direct transfers dipped 2-10 cm on the machine this was measured on (on
@@ -22,6 +23,7 @@ def _runs(states: tuple[str, ...]) -> list[tuple[str, int, int]]:
     return out
 
 
+@pytest.mark.slow
 def test_free_space_transfers_keep_the_hand_above_their_ends() -> None:
     results = episodes("pick_anywhere", SEEDS, record_trace=True)
     worst: list[str] = []
