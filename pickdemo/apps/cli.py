@@ -10,7 +10,7 @@
 - ``perceive SCENARIO [--seeds ...] [--out DIR]``: perception only; ``DIR`` gets
   ``perception.json``, ``perception.png`` and ``report.html``.
 - ``profile SCENARIO [--seeds 0-2] [--json]``: where the loop's wall time goes, stage by stage, beside the
-  bare physics of the same cell measured in the same run.
+  episode's own physics replayed in the same run.
 - ``validate SCENARIO ...``, ``list [--names]``.
 
 Exit codes: 0 the episode (or every scenario of a bench) succeeded, 1 it failed, 2 bad scenario or

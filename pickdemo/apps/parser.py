@@ -109,11 +109,12 @@ def build_parser() -> argparse.ArgumentParser:
     perceive.add_argument("--repeat", type=int, default=1, help="time each method N times per frame (median)")
     prof = sub.add_parser(
         "profile",
-        help="where an episode's wall time goes, stage by stage, beside the bare physics",
+        help="where an episode's wall time goes, stage by stage, beside its own physics replayed",
         description="Runs the seeds' episodes one after another in this process, each stage of the loop timed "
-        "(physics, robot I/O, render, perception, tracker, skill, motion, kinematics, observers), and first the "
-        "bare physics of the same cell (its robot and table, no objects) as the reference: the loop's real-time "
-        "factor is printed as a share of the reference's, measured in the same run.",
+        "(physics, robot I/O, render, perception, tracker, skill, motion, kinematics, observers), and replays each "
+        "one's physics right after it (the same scene, the commands sent at the same steps, nothing else) as the "
+        "reference: the loop's real-time factor is printed as a share of the replay's, measured in the same run; "
+        "the bare physics of the cell (its robot and table, no objects) as a second line.",
     )
     prof.add_argument("scenario", help="a scenario name or path")
     prof.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-9 (default 0-2)")
