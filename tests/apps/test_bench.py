@@ -384,6 +384,35 @@ def test_ray_executor_gives_the_same_results() -> None:
     assert _strip(on_ray) == _strip(local)
 
 
+@pytest.mark.slow
+def test_a_ray_task_whose_worker_died_is_run_again_and_the_run_completes(tmp_path: Path) -> None:
+    """As when a node is lost mid-run: Ray runs the task again elsewhere, and nothing is lost or doubled."""
+    ray = pytest.importorskip("ray")
+    from ray import cloudpickle
+
+    from pickdemo.apps.executors import RayExecutor
+
+    died = tmp_path / "died-once"
+
+    def dies_once(job: Job) -> dict:
+        if job.seed == 1 and not died.exists():
+            died.touch()
+            os._exit(3)
+        return _job_ok(job)
+
+    module = sys.modules[__name__]
+    cloudpickle.register_pickle_by_value(module)  # (Ray's workers cannot import this test module)
+    try:
+        jobs = [Job("x.toml", "x", s) for s in range(3)]
+        out = run_bench(jobs, RayExecutor(None, fn=dies_once, num_cpus=2), out_dir=tmp_path, progress=False)
+    finally:
+        ray.shutdown()
+        cloudpickle.unregister_pickle_by_value(module)
+    assert died.exists()  # its first run died
+    assert sorted(r["seed"] for r in out.results) == [0, 1, 2] and all(r["success"] for r in out.results)
+    assert len((tmp_path / "episodes.jsonl").read_text().splitlines()) == 3
+
+
 def test_a_failed_job_is_an_episode_result() -> None:
     """A job that produced no result becomes :meth:`EpisodeResult.failed`, serialised by its ``to_dict``:
     the keys of every other result, in their order, nothing measured."""
