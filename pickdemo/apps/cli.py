@@ -360,7 +360,8 @@ def _cmd_profile(args: argparse.Namespace) -> int:
         raise UsageError(f"--seeds: {exc}") from None
     scenario = _pick_scenario(args.scenario)
     if not args.json:
-        print(f"pickdemo profile: {scenario.name}, seeds {args.seeds}, one process", flush=True)
+        mode = ", open loop" if args.open_loop else ""
+        print(f"pickdemo profile: {scenario.name}, seeds {args.seeds}{mode}, one process", flush=True)
 
     def on_episode(e) -> None:
         if not args.json:
@@ -368,7 +369,7 @@ def _cmd_profile(args: argparse.Namespace) -> int:
             print(f"  seed {e.seed}: {outcome}, {e.loop_sim_s:.1f} s simulated in {e.loop_s:.2f} s "
                   f"({e.real_time_factor:.1f}x real time)", flush=True)  # fmt: skip
 
-    report = profile(scenario, seeds, on_episode)
+    report = profile(scenario, seeds, on_episode, open_loop=args.open_loop)
     print(json.dumps(report.to_dict(), indent=1) if args.json else "\n" + report.format())
     return EXIT_OK
 

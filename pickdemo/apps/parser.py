@@ -119,6 +119,9 @@ def build_parser() -> argparse.ArgumentParser:
     prof.add_argument("scenario", help="a scenario name or path")
     prof.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-9 (default 0-2)")
     prof.add_argument("--json", action="store_true", help="print the figures as JSON instead")
+    prof.add_argument(
+        "--open-loop", action="store_true", help="look once and play the plan: the loop without its closed-loop frames"
+    )
     validate = sub.add_parser(
         "validate",
         help="check scenarios without running them",

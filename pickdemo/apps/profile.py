@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from pickdemo.core.interfaces import Command
-from pickdemo.runtime.episode import Episode
+from pickdemo.runtime.episode import Episode, EpisodeOptions
 from pickdemo.scenario.load import Scenario
 from pickdemo.sim.disturb import Push, PushPlayer
 from pickdemo.sim.scene import Scene
@@ -211,10 +211,12 @@ class PhysicsReplay:
         return self.steps * self.time_step_s / max(self.seconds, 1e-12)
 
 
-def replay_physics(scenario: Scenario, seed: int, log: CommandLog) -> PhysicsReplay:
+def replay_physics(
+    scenario: Scenario, seed: int, log: CommandLog, options: EpisodeOptions | None = None
+) -> PhysicsReplay:
     """The same seed's scene built and settled again, then stepped with ``log``'s commands and pushes,
     each at its step, and nothing else; timed from the loop's first step to its last."""
-    ep = Episode(scenario, seed)
+    ep = Episode(scenario, seed, options=options)
     try:
         ep.reset()
         scene, robot = ep.world.scene, ep.robot
@@ -265,10 +267,10 @@ class EpisodeProfile:
         return None if self.replay is None else self.replay.seconds / max(self.loop_s, 1e-12)
 
 
-def profile_episode(scenario: Scenario, seed: int) -> EpisodeProfile:
+def profile_episode(scenario: Scenario, seed: int, options: EpisodeOptions | None = None) -> EpisodeProfile:
     """One episode, its loop timed stage by stage."""
     prof = Profiler()
-    ep = Episode(scenario, seed)
+    ep = Episode(scenario, seed, options=options)
     t0 = time.perf_counter()
     started = ep.reset() is not None
     build_s = time.perf_counter() - t0
@@ -284,7 +286,7 @@ def profile_episode(scenario: Scenario, seed: int) -> EpisodeProfile:
             loop_s = time.perf_counter() - t0
     result = ep.result()
     ep.close()
-    replay = replay_physics(scenario, seed, log) if started and log.end_step > log.start_step else None
+    replay = replay_physics(scenario, seed, log, options) if started and log.end_step > log.start_step else None
     times = result.stage_wall_times_s
     known = {"scene", "settle", "render", "render wrist", "perceive", "perceive wrist", "physics"}
     observers = sum(v for k, v in times.items() if k not in known)
@@ -460,13 +462,19 @@ def _duration(seconds: float | None) -> str:
 
 
 def profile(
-    scenario: Scenario, seeds: list[int], on_episode: Callable[[EpisodeProfile], None] | None = None
+    scenario: Scenario,
+    seeds: list[int],
+    on_episode: Callable[[EpisodeProfile], None] | None = None,
+    *,
+    open_loop: bool = False,
 ) -> ProfileReport:
-    """The bare physics of the scenario's cell, then its episodes, one after another in this process."""
+    """The bare physics of the scenario's cell, then its episodes (each with its physics replayed),
+    one after another in this process; ``open_loop``: looking once (the loop without its frames)."""
     reference = bare_physics(scenario)
+    options = EpisodeOptions(open_loop=open_loop)
     episodes = []
     for seed in seeds:
-        e = profile_episode(scenario, seed)
+        e = profile_episode(scenario, seed, options)
         episodes.append(e)
         if on_episode is not None:
             on_episode(e)

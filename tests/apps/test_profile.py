@@ -74,3 +74,10 @@ def test_profile_json() -> None:
     assert out["share_of_replay"] == pytest.approx(out["real_time_factor"] / out["replay_real_time_factor"])
     assert out["episodes"][0]["replay"]["same_state"] is True
     assert set(out["stages"]) == set(STAGES)
+
+
+@pytest.mark.sim
+def test_profile_open_loop_has_fewer_frames_and_its_own_replay() -> None:
+    closed, opened = (profile(load_scenario("pick_cube"), [2], open_loop=o).episodes[0] for o in (False, True))
+    assert opened.stages["render"].calls < closed.stages["render"].calls  # (whatever the seed's outcome)
+    assert opened.replay is not None and opened.replay.same_state is True
