@@ -413,6 +413,39 @@ def test_a_ray_task_whose_worker_died_is_run_again_and_the_run_completes(tmp_pat
     assert len((tmp_path / "episodes.jsonl").read_text().splitlines()) == 3
 
 
+def _job_takes_a_moment(job: Job) -> dict:
+    time.sleep(0.5)  # (so that some are on the node when it goes)
+    return _job_ok(job)
+
+
+@pytest.mark.slow
+def test_a_ray_node_lost_mid_run_loses_no_episode(tmp_path: Path) -> None:
+    """A cluster of two nodes; one is killed after the first results: every job still ends, once, well."""
+    ray = pytest.importorskip("ray")
+    from ray import cloudpickle
+    from ray.cluster_utils import Cluster
+
+    from pickdemo.apps.executors import RayExecutor
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    node = cluster.add_node(num_cpus=1)
+    module = sys.modules[__name__]
+    cloudpickle.register_pickle_by_value(module)  # (Ray's workers cannot import this test module)
+    results = []
+    try:
+        executor = RayExecutor(cluster.address, fn=_job_takes_a_moment)
+        for r in executor.run([Job("x.toml", "x", s) for s in range(10)]):
+            results.append(r)
+            if len(results) == 2:
+                cluster.remove_node(node, allow_graceful=False)
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+        cloudpickle.unregister_pickle_by_value(module)
+    assert sorted(r["seed"] for r in results) == list(range(10))
+    assert all(r["success"] for r in results), [r["failure"] for r in results if not r["success"]]
+
+
 def test_a_failed_job_is_an_episode_result() -> None:
     """A job that produced no result becomes :meth:`EpisodeResult.failed`, serialised by its ``to_dict``:
     the keys of every other result, in their order, nothing measured."""
