@@ -192,8 +192,8 @@ BAD = [
     ),
     (
         "a collision mesh that is not there",
-        _edit('"so101/moving_jaw_vhacd.obj"', '"so101/missing.obj"', SO101_FILE),
-        "arm.collision_meshes.moving_jaw_so101_v1.stl: no such file",
+        _edit('"so101/collision/base_motor_holder_so101_v1.stl"', '"so101/missing.stl"', SO101_FILE),
+        "arm.collision_meshes.base_motor_holder_so101_v1.stl: no such file",
     ),
     (
         "a grasp harder than the gripper can squeeze",
