@@ -124,3 +124,32 @@ def test_a_mug_told_by_its_size_is_not_taken_for_a_taller_can_or_box() -> None:
     for r in results:
         assert r.others_moved_mm == {}, describe(r)
     at_least(results, 3)
+
+
+def _verified(high_m: float, sd_m: float) -> tuple[object, list[str]]:
+    """The end's look finds the target ``high_m`` above where it should rest, known to ``sd_m`` in height."""
+    from pickdemo.skills.pick.carry import tick_verify
+
+    failed: list[str] = []
+    estimate = SimpleNamespace(
+        pose=Pose(np.array([0.45, 0.3, 0.025 + high_m]), np.eye(3)), position_cov=np.diag([1e-6, 1e-6, sd_m**2])
+    )
+    m = SimpleNamespace(
+        verify_asked=True, verify_estimate=estimate, verify_settled=True, rest_height_m=0.025, place_z_m=0.0,
+        place_xy=(0.45, 0.3), place_tolerance_m=0.02, p=MachineParams(), note=lambda message: None,
+        fail=lambda stage, reason: failed.append(f"{stage.value}: {reason}"),
+    )  # fmt: skip
+    return tick_verify(m, None), failed
+
+
+def test_the_end_judges_a_height_by_what_the_estimate_knows_of_it() -> None:
+    """16 mm high is on something for a camera known to a millimetre, and within what a camera known
+    only to 5 mm and 1 deg can tell (its estimate's height known to 11 mm)."""
+    _, failed = _verified(0.016, 0.001)
+    assert failed and "put down on something" in failed[0]
+    _, failed = _verified(-0.016, 0.001)
+    assert failed and "fallen over" in failed[0]
+    done, failed = _verified(0.016, 0.011)
+    assert not failed and done[0].value == "done"
+    _, failed = _verified(0.05, 0.011)  # a carton's height is more than it can be off
+    assert failed and "put down on something" in failed[0]

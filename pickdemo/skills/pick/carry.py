@@ -229,7 +229,8 @@ def tick_verify(m: PickMachine, obs: Observation) -> Transition:
     seen = m.verify_estimate.pose.position
     if m.rest_height_m is not None:  # on the table at the place, not on something there, not fallen over
         high = float(seen[2]) - (m.place_z_m + m.rest_height_m)
-        if abs(high) > m.p.verify_height_tolerance_m:
+        sd = float(np.sqrt(max(m.verify_estimate.position_cov[2, 2], 0.0)))
+        if abs(high) > max(m.p.verify_height_tolerance_m, m.p.verify_height_sigmas * sd):
             how = "put down on something at the place" if high > 0 else "fallen over"
             where = "above" if high > 0 else "below"
             m.fail(Stage.PLACE, f"the camera sees the target's centre {abs(high) * 1e3:.0f} mm {where} where it "

@@ -150,6 +150,10 @@ class MachineParams:
     #: at the end, the target seen this far (m) above where it should rest (on something), or below it
     #: (fallen over): not placed
     verify_height_tolerance_m: float = 0.015
+    #: ... or this many of the estimate's own standard deviations in height, when that is more: a camera
+    #: known only to its calibration's accuracy (5 mm and 1 deg: 11 mm at a metre) sees a height that far
+    #: off, and an estimate's covariance carries it
+    verify_height_sigmas: float = 3.0
     #: lowering a described target, the wrist's vertical load this far (N) below what the hand and its
     #: load weigh at rest: what it holds stands on something (the motors' share keeps the reading above
     #: it on the way down, measured: 15.7 N moving, 8.4 at rest, -7.5 one frame after a cube met a carton)
