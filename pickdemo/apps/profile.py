@@ -31,6 +31,8 @@ import numpy as np
 
 from pickdemo.core.interfaces import Command
 from pickdemo.runtime.episode import Episode, EpisodeOptions
+from pickdemo.runtime.observers import Observer
+from pickdemo.runtime.view import EpisodeView
 from pickdemo.scenario.load import Scenario
 from pickdemo.sim.disturb import Push, PushPlayer
 from pickdemo.sim.scene import Scene
@@ -166,10 +168,11 @@ def bare_physics(scenario: Scenario, steps: int = REFERENCE_STEPS) -> Reference:
         return Reference(steps=steps, seconds=seconds, time_step_s=scene.time_step_s)
 
 
-@dataclass
-class CommandLog:
+@dataclass(eq=False)
+class CommandLog(Observer):
     """What an episode's loop sent the simulator: each command with the physics step it was sent at,
-    the pushes it played, the steps its loop spanned and the state it ended in."""
+    the pushes it played, the steps its loop spanned and the state it ended in (an observer of the
+    episode, for its end)."""
 
     commands: list[tuple[int, Command]] = field(default_factory=list)
     pushes: list[Push] = field(default_factory=list)
@@ -178,9 +181,8 @@ class CommandLog:
     final_state: np.ndarray | None = None
 
     def watch(self, ep: Episode) -> None:
-        """Log ``ep``'s commands as its robot sends them (a command the reflex refused was not sent),
-        and its end: the step and the simulator's state when its loop ended."""
-        scene, robot, end_loop = ep.world.scene, ep.robot, ep._end_loop
+        """Log ``ep``'s commands as its robot sends them (a command the reflex refused was not sent)."""
+        scene, robot = ep.world.scene, ep.robot
         self.start_step = self.end_step = scene.steps
         apply = robot.apply
 
@@ -188,13 +190,11 @@ class CommandLog:
             apply(cmd)
             self.commands.append((scene.steps, cmd))
 
-        def ended() -> None:
-            self.end_step, self.final_state = scene.steps, scene.state()
-            self.pushes = [player.push for player in ep.pushes]
-            end_loop()
-
         robot.apply = logged
-        ep._end_loop = ended
+
+    def end(self, ep: EpisodeView, now: float) -> None:
+        scene = ep.world.scene
+        self.end_step, self.final_state = scene.steps, scene.state()
 
 
 @dataclass(frozen=True)
@@ -270,12 +270,12 @@ class EpisodeProfile:
 def profile_episode(scenario: Scenario, seed: int, options: EpisodeOptions | None = None) -> EpisodeProfile:
     """One episode, its loop timed stage by stage."""
     prof = Profiler()
-    ep = Episode(scenario, seed, options=options)
+    log = CommandLog()
+    ep = Episode(scenario, seed, options=options, observers=(log,))
     t0 = time.perf_counter()
     started = ep.reset() is not None
     build_s = time.perf_counter() - t0
     loop_s = 0.0
-    log = CommandLog()
     with prof.wrapped():
         if started:
             log.watch(ep)  # (under the profiler's wrapper: a command's logging counts as robot I/O)
@@ -284,6 +284,7 @@ def profile_episode(scenario: Scenario, seed: int, options: EpisodeOptions | Non
             while not ep.step():
                 pass
             loop_s = time.perf_counter() - t0
+    log.pushes = [player.push for player in ep.pushes]
     result = ep.result()
     ep.close()
     replay = replay_physics(scenario, seed, log, options) if started and log.end_step > log.start_step else None
