@@ -80,6 +80,18 @@ class JointState:
     fingers_m: np.ndarray  # (2,) m, each finger's opening from the centre (a jaw's: half the gap, each)
 
 
+@dataclass(frozen=True)
+class StillBox:
+    """A box of the scene that never moves (the table, a bin's walls), as it was built: what a camera
+    that never moves either may render once (:class:`~pickdemo.sim.render.Backdrop`)."""
+
+    body: int
+    half_extents: tuple[float, float, float]
+    position: tuple[float, float, float]
+    orientation_xyzw: tuple[float, float, float, float]
+    rgba: tuple[float, float, float, float]
+
+
 class Scene:
     """A PyBullet world built from a scenario and a sampled layout."""
 
@@ -116,6 +128,7 @@ class Scene:
         self.steps = 0
         self.bodies: dict[str, int] = {}
         self.fixture_bodies: dict[str, list[int]] = {}  # a bin's parts (not objects on the table)
+        self.still_boxes: list[StillBox] = []  # in the order they were built
         self.belt = None
         if scenario.conveyor is not None:  # before the table: TinyRenderer then shades only the belt where both are
             self.belt = Belt(self.client, scenario.conveyor)
@@ -139,12 +152,20 @@ class Scene:
     # ----------------------------------------------------------------------------------- building
     def _build_table(self) -> None:
         c, t = self.client, self.scenario.table
-        half = [t.size[0] / 2.0, t.size[1] / 2.0, TABLE_THICKNESS_M / 2.0]
-        col = c.createCollisionShape(p.GEOM_BOX, halfExtents=half)
-        vis = c.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[*t.color, 1.0])
-        body = c.createMultiBody(0.0, col, vis, basePosition=[t.center[0], t.center[1], -TABLE_THICKNESS_M / 2.0])
+        half = (t.size[0] / 2.0, t.size[1] / 2.0, TABLE_THICKNESS_M / 2.0)
+        centre = (t.center[0], t.center[1], -TABLE_THICKNESS_M / 2.0)
+        body = self._still_box(half, centre, (0.0, 0.0, 0.0, 1.0), t.color)
         c.changeDynamics(body, -1, lateralFriction=t.friction)
         self.bodies["table"] = body
+
+    def _still_box(self, half: tuple, position: tuple, orientation_xyzw: tuple, color: tuple) -> int:
+        """A box fixed where it is put, of one colour; recorded in :attr:`still_boxes`."""
+        c, rgba = self.client, (*(float(v) for v in color), 1.0)
+        col = c.createCollisionShape(p.GEOM_BOX, halfExtents=list(half))
+        vis = c.createVisualShape(p.GEOM_BOX, halfExtents=list(half), rgbaColor=list(rgba))
+        body = c.createMultiBody(0.0, col, vis, basePosition=list(position), baseOrientation=list(orientation_xyzw))
+        self.still_boxes.append(StillBox(body, tuple(half), tuple(position), tuple(orientation_xyzw), rgba))
+        return body
 
     def _build_tray(self, tray: Tray) -> None:
         """A clear round's tray, fixed to the table where the scenario puts it."""
@@ -178,13 +199,10 @@ class Scene:
             return
         parts = []
         for box in fixture.boxes():
-            half = ((box.hi - box.lo) / 2.0).tolist()
+            half = tuple(((box.hi - box.lo) / 2.0).tolist())
             centre = box.pose.transform_points(((box.lo + box.hi) / 2.0)[None, :])[0]
-            col = c.createCollisionShape(p.GEOM_BOX, halfExtents=half)
-            vis = c.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[*fixture.color, 1.0])
-            body = c.createMultiBody(
-                0.0, col, vis, basePosition=centre.tolist(), baseOrientation=list(box.pose.quaternion_xyzw)
-            )
+            orientation = tuple(box.pose.quaternion_xyzw.tolist())
+            body = self._still_box(half, tuple(centre.tolist()), orientation, fixture.color)
             c.changeDynamics(body, -1, lateralFriction=self.scenario.table.friction)
             parts.append(body)
         self.fixture_bodies[fixture.name] = parts
