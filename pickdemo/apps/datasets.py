@@ -200,7 +200,9 @@ class LeRobotEpisode:
             stream = container.add_stream("libx264", rate=int(round(self.fps)))
             stream.width, stream.height = rgb.shape[1], rgb.shape[0]
             stream.pix_fmt = "yuv420p"
-            stream.options = {"crf": "23", "g": "2", "bf": "0", "preset": "veryfast"}  # a key frame every other
+            # A key frame every other (LeRobot seeks by time). One thread: the same bytes on any number of
+            # cores, and faster for frames this small (evidence: docs/decisions.md#gymnasium-and-demonstrations).
+            stream.options = {"crf": "23", "g": "2", "bf": "0", "preset": "veryfast", "threads": "1"}
             self.videos[cam] = (container, stream)
         return self.videos[cam]
 

@@ -57,13 +57,16 @@ class ExpertPolicy:
         self.env = base
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        return self.act(observation_of(obs))
+
+    def act(self, observation: Observation) -> np.ndarray:
+        """The action for the robot's own observation (what the environment's observation carries of it)."""
         env = self.env
         if env.pilot is None:
             raise RuntimeError("reset() the environment first")
         if not hasattr(env.pilot.eye, "update"):
             raise RuntimeError("the expert was made after this episode's reset(): reset() the environment again")
-        command = env.pilot.eye.update(observation_of(obs))
-        return env.mode.action_for(command)
+        return env.mode.action_for(env.pilot.eye.update(observation))
 
     @property
     def failure(self):  # noqa: ANN201 - the skill's Failure, if it gave up

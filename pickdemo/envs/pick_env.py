@@ -208,6 +208,13 @@ class PickEnv(gym.Env):
         return self._observe(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        terminated, truncated = self.advance(action)
+        return self._observe(), self._reward(), terminated, truncated, self._info()
+
+    def advance(self, action: np.ndarray) -> tuple[bool, bool]:
+        """:meth:`step` without building its observation, reward and info: ``(terminated, truncated)``. For
+        a recorder that keeps one observation in several ticks' (:func:`~pickdemo.envs.record.record_episode`);
+        the robot's own (``episode.observation``) is read all the same."""
         if self.episode is None:
             raise RuntimeError("step() before reset()")
         if self._closed:
@@ -226,14 +233,11 @@ class PickEnv(gym.Env):
             if self._succeeded or (self.terminate_on_failure and self._target_lost()):
                 self.pilot.stop()
                 ep.step()  # (no tick: the loop ends and the referee scores)
-        obs = self._observe()
-        reward = self._reward()
-        terminated = truncated = False
-        if ep.done:
-            self._result = ep.result()
-            timeout = self._result.failure is not None and self._result.failure.stage is Stage.TIMEOUT
-            truncated, terminated = timeout, not timeout
-        return obs, reward, terminated, truncated, self._info()
+        if not ep.done:
+            return False, False
+        self._result = ep.result()
+        timeout = self._result.failure is not None and self._result.failure.stage is Stage.TIMEOUT
+        return not timeout, timeout
 
     def _task_done(self) -> bool:
         """The referee's success now (truth, for the reward and the end only), the hand let go of it."""
@@ -257,6 +261,10 @@ class PickEnv(gym.Env):
         if self.reward_mode == "sparse":
             return 1.0 if self._success() else 0.0
         return dense_reward(self)
+
+    def result(self) -> EpisodeResult | None:
+        """The referee's result once the episode is over (``info["result"]``), else None."""
+        return self._result
 
     def _success(self) -> bool:
         return self._result.success if self._result is not None else self._succeeded

@@ -102,7 +102,7 @@ def stride_for(env: PickEnv, fps: float) -> int:
 def record_episode(env: PickEnv, seed: int, stride: int, sink: Sink, *, images: bool = True) -> Recorded:
     """Run the expert for ``seed``, one :class:`Row` to ``sink`` every ``stride`` control ticks."""
     expert = ExpertPolicy(env)
-    obs, info = env.reset(seed=seed)
+    obs, _ = env.reset(seed=seed)
     row: Row | None = None
     k = 0
     while True:
@@ -110,15 +110,18 @@ def record_episode(env: PickEnv, seed: int, stride: int, sink: Sink, *, images: 
             scene = env.episode.world.scene
             shots = env.camera_images() if images else {}
             row = Row(float(obs["time"][0]), state_vector(obs), scene.state(), shots, [])
-        action = expert(obs)
+        action = expert.act(env.episode.observation)  # (what obs carries of the robot)
         row.ticks.append(action)
-        obs, reward, terminated, truncated, info = env.step(action)
+        if (k + 1) % stride == 0:  # a frame starts next: its observation
+            obs, _, terminated, truncated, _ = env.step(action)
+        else:  # inside a frame: none built
+            terminated, truncated = env.advance(action)
         k += 1
         if k % stride == 0 or terminated or truncated:
             sink.row(row)
         if terminated or truncated:
             break
-    result = info["result"]
+    result = env.result()
     f = result.failure
     return Recorded(
         seed=seed,
