@@ -5,7 +5,8 @@ pixel ``(W / 2, H / 2 - 1)`` for a symmetric frustum (measured, and checked by a
 known points), so the intrinsics handed to perception say exactly that. Shadows are off (they
 persist between calls and cost render time; evidence: docs/decisions.md#speed). Depth is converted
 from the non-linear depth buffer to metric z-depth, then optionally corrupted with the paper's eq. (8)
-noise from the camera's own RNG.
+noise from the camera's own RNG. A fixed camera's whole view (a dataset's image) renders the scene's
+still boxes once and only what moves over them each time (:class:`Backdrop`).
 """
 
 from __future__ import annotations
