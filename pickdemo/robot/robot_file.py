@@ -379,8 +379,9 @@ def _take_hand(arm_root: ET.Element, arm: RobotFiles, hand: RobotFiles, spec: _H
     clash = sorted((taken & arm_links) | ({j.get("name") for j in joints} & arm_joints))
     if clash:
         raise fail("hand.urdf", f"{', '.join(clash)}: named in both URDFs")
-    for link in taken:
-        arm_root.append(hand_links[link])
+    for name, link in hand_links.items():  # in the hand's file's order: the same file in every process
+        if name in taken:
+            arm_root.append(link)
     arm_root.extend(joints)
     _fixed_joint(arm_root, spec.joint, spec.flange_link, spec.root_link, spec.xyz, spec.rpy)
 
