@@ -42,16 +42,13 @@ class LocalExecutor:
                     try:
                         yield fut.result()
                     except FutureTimeout:
-                        yield failed_result(
-                            job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {self.guard_s:g} s", self.guard_s
-                        )
+                        yield timed_out(job, self.guard_s, self.guard_s)
                     except ProcessExpired as exc:
                         yield failed_result(
                             job, Stage.ERROR, f"worker died (exit code {exc.exitcode})", time.perf_counter() - started
                         )
                     except Exception as exc:  # noqa: BLE001 - one bad episode must not take the batch down
-                        reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
-                        yield failed_result(job, Stage.ERROR, reason, time.perf_counter() - started)
+                        yield raised(job, exc, time.perf_counter() - started)
             finally:
                 pool.stop()
 
@@ -134,16 +131,23 @@ class RayExecutor:
                 try:
                     yield ray.get(ref)
                 except Exception as exc:  # noqa: BLE001 - a task that raised or whose worker died
-                    reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
-                    yield failed_result(job, Stage.ERROR, reason, time.perf_counter() - t0)
+                    yield raised(job, exc, time.perf_counter() - t0)
             now = time.perf_counter()
             for ref, (job, t0) in list(in_flight.items()):
                 if now - t0 > self.guard_s:
                     ray.cancel(ref, force=True)
                     del in_flight[ref]
-                    yield failed_result(
-                        job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {self.guard_s:g} s", now - t0
-                    )
+                    yield timed_out(job, self.guard_s, now - t0)
+
+
+def timed_out(job: Job, guard_s: float, wall_s: float) -> EpisodeRecord:
+    """The result of an episode stopped by the wall-clock guard."""
+    return failed_result(job, Stage.TIMEOUT, f"exceeded the wall-clock guard of {guard_s:g} s", wall_s)
+
+
+def raised(job: Job, exc: BaseException, wall_s: float) -> EpisodeRecord:
+    """The result of an episode whose worker raised (its first line)."""
+    return failed_result(job, Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0], wall_s)
 
 
 def _why(exc: BaseException) -> str:
