@@ -35,6 +35,10 @@ TABLE_BAND_M = 0.003
 #: ... a plane at most this far from z = 0 (m) and this steep: a calibration's error, not a box top
 TABLE_OFF_MAX_M = 0.03
 TABLE_SLOPE_MAX = 0.1
+#: ... or as far as this many standard deviations of the height error the camera's calibration makes
+#: at the spot's range (a camera told it may be off by 10 mm and 2 deg sees a table 1.3 m away up to
+#: 5 cm off)
+TABLE_OFF_SIGMAS = 3.0
 #: Neighbours' points kept at most (a regular thinning beyond).
 MAX_POINTS = 3000
 
@@ -121,9 +125,12 @@ def _standing(
                                        cx=frame.intrinsics.cx - x0, cy=frame.intrinsics.cy - y0),
     )  # fmt: skip
     pts = world_points(window)
+    s_t, s_r = frame.calibration_sigma
+    reach = float(np.linalg.norm(centre - frame.T_world_cam.position))
+    off_max = max(TABLE_OFF_MAX_M, TABLE_OFF_SIGMAS * (s_t + reach * s_r))
     with np.errstate(invalid="ignore"):
         near = (np.abs(pts[..., 0] - centre[0]) < r) & (np.abs(pts[..., 1] - centre[1]) < r)
-        height = _above_table(pts, near)
+        height = _above_table(pts, near, off_max)
         cand = near & (height > params.min_height_m) & (pts[..., 2] < NEIGHBOURHOOD_TOP_M)
     # (a speck of noise is no object: an opening keeps what is 3 px wide and more)
     cand = cv2.morphologyEx(cand.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)).astype(bool)
@@ -131,12 +138,12 @@ def _standing(
     return pts[cand]
 
 
-def _above_table(pts: np.ndarray, near: np.ndarray) -> np.ndarray:
+def _above_table(pts: np.ndarray, near: np.ndarray, off_max_m: float = TABLE_OFF_MAX_M) -> np.ndarray:
     """(H, W) each point's height above the table as this view sees it: a plane fitted to the lower half
     of the points ``near`` the spot, then to those within :data:`TABLE_BAND_M` of it. A camera whose pose
     is known only to its calibration sees the table tilted and raised by some millimetres (the world's
-    z = 0 is not where it sees the table); a plane far from z = 0 (the spot covered by something) is
-    not the table, and the world's z is kept."""
+    z = 0 is not where it sees the table); a plane farther than ``off_max_m`` from z = 0 (the spot
+    covered by something) is not the table, and the world's z is kept."""
     ok = near & np.isfinite(pts[..., 2])
     P = pts[ok]
     if len(P) < 50:
@@ -152,7 +159,7 @@ def _above_table(pts: np.ndarray, near: np.ndarray) -> np.ndarray:
             break
         sel = inliers
     at_spot = float(np.mean(P[:, :2], axis=0) @ coef[:2] + coef[2])
-    if abs(at_spot) > TABLE_OFF_MAX_M or float(np.hypot(coef[0], coef[1])) > TABLE_SLOPE_MAX:
+    if abs(at_spot) > off_max_m or float(np.hypot(coef[0], coef[1])) > TABLE_SLOPE_MAX:
         return pts[..., 2]
     return pts[..., 2] - (pts[..., 0] * coef[0] + pts[..., 1] * coef[1] + coef[2])
 
