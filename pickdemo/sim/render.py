@@ -289,13 +289,5 @@ class Backdrop:
 
 def render_rgb(scene: Scene, T_world_cam: Pose, K: Intrinsics, near_m: float = 0.05, far_m: float = 5.0) -> np.ndarray:
     """An RGB image of the scene from any pose (a third-person view for a video)."""
-    _, _, rgba, _, _ = scene.client.getCameraImage(
-        K.width,
-        K.height,
-        viewMatrix=opengl_view_matrix(T_world_cam),
-        projectionMatrix=opengl_projection_matrix(K, near_m, far_m),
-        shadow=0,
-        lightDirection=list(LIGHT_DIRECTION),
-        renderer=p.ER_TINY_RENDERER,
-    )
-    return np.asarray(rgba, dtype=np.uint8).reshape(K.height, K.width, 4)[:, :, :3].copy()
+    view, proj = opengl_view_matrix(T_world_cam), opengl_projection_matrix(K, near_m, far_m)
+    return _tiny_render(scene.client, K.width, K.height, view, proj)[0]
