@@ -213,8 +213,8 @@ class PickEnv(gym.Env):
 
     def advance(self, action: np.ndarray) -> tuple[bool, bool]:
         """:meth:`step` without building its observation, reward and info: ``(terminated, truncated)``. For
-        a recorder that keeps one observation in several ticks' (:func:`~pickdemo.envs.record.record_episode`);
-        the robot's own (``episode.observation``) is read all the same."""
+        a recorder that keeps an observation every few ticks (:func:`~pickdemo.envs.record.record_episode`);
+        the robot's own (``episode.observation``) is read every tick all the same."""
         if self.episode is None:
             raise RuntimeError("step() before reset()")
         if self._closed:

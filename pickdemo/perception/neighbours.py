@@ -35,9 +35,9 @@ TABLE_BAND_M = 0.003
 #: ... a plane at most this far from z = 0 (m) and this steep: a calibration's error, not a box top
 TABLE_OFF_MAX_M = 0.03
 TABLE_SLOPE_MAX = 0.1
-#: ... or as far as this many standard deviations of the height error the camera's calibration makes
-#: at the spot's range (a camera told it may be off by 10 mm and 2 deg sees a table 1.3 m away up to
-#: 5 cm off)
+#: ... or as far as this many standard deviations of the height a point at the spot takes from the
+#: camera's calibration (:meth:`RGBDFrame.calibration_cov_at`: a camera told it may be off by 10 mm
+#: and 2 deg sees a table 1.3 m away up to 5 cm off; 3 sigma there is 79 mm)
 TABLE_OFF_SIGMAS = 3.0
 #: Neighbours' points kept at most (a regular thinning beyond).
 MAX_POINTS = 3000
@@ -125,9 +125,8 @@ def _standing(
                                        cx=frame.intrinsics.cx - x0, cy=frame.intrinsics.cy - y0),
     )  # fmt: skip
     pts = world_points(window)
-    s_t, s_r = frame.calibration_sigma
-    reach = float(np.linalg.norm(centre - frame.T_world_cam.position))
-    off_max = max(TABLE_OFF_MAX_M, TABLE_OFF_SIGMAS * (s_t + reach * s_r))
+    cal = frame.calibration_cov_at(centre)
+    off_max = TABLE_OFF_MAX_M if cal is None else max(TABLE_OFF_MAX_M, TABLE_OFF_SIGMAS * float(np.sqrt(cal[2, 2])))
     with np.errstate(invalid="ignore"):
         near = (np.abs(pts[..., 0] - centre[0]) < r) & (np.abs(pts[..., 1] - centre[1]) < r)
         height = _above_table(pts, near, off_max)
