@@ -15,8 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from pickdemo.core.result import EpisodeFailure, Stage
-from pickdemo.core.shapes import Mesh, Unknown
-from pickdemo.grasping.top_down import GraspParams
+from pickdemo.core.shapes import Unknown
 from pickdemo.perception import PerceptionParams, PoseEstimate, TargetModel, estimate_pose
 from pickdemo.perception.estimators import EstimatorError, resolve_estimator
 from pickdemo.runtime.referee import ClearReferee, Referee
@@ -91,16 +90,9 @@ class PickTask:
     def told(
         self, scenario: Scenario, world: World, method: str, perception: PerceptionParams, open_loop: bool
     ) -> Told:
+        # What the robot is told is the file's (target_model), never this seed's draw; whether a drawn
+        # mesh can be held is the grasp planner's to say, from what the camera saw.
         name = scenario.target.name
-        drawn = world.placement(name).geometry
-        widest = world.robot.gripper.max_opening_m - GraspParams().width_margin_m
-        width = drawn.top_down_width_m() if isinstance(drawn, Mesh) else 0.0
-        if width > widest:  # a mesh no top-down grasp can hold: refused before it runs
-            raise EpisodeFailure(
-                Stage.GRASP_PLANNING,
-                f"this seed drew {drawn.urdf} at scale {drawn.scale:.3g}: no top-down grasp can hold it (it is "
-                f"{width * 1e3:.0f} mm across where the fingers would close; at most {widest * 1e3:.0f} mm)",
-            )
         model = target_model(scenario, world.placement(name))
         if isinstance(model.geometry, Unknown) and method != "paper":
             raise EpisodeFailure(

@@ -382,8 +382,8 @@ def _check_pick(sc: Scenario) -> None:
 
 def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float, robot: RobotDescription) -> None:
     """A mesh target some top-down grasp of the hand can hold at its smallest scale (of a
-    ``urdf_choice``: at least one of its files; a seed that draws one no grasp can hold is refused
-    when its episode is built)."""
+    ``urdf_choice``: at least one of its files; of a seed that draws one too wide, the grasp planner
+    says so from what the camera sees: nothing a seed drew is told to the robot or judged before it looks)."""
     files = target.urdf_files
     widths = []
     for path in files:

@@ -108,6 +108,10 @@ class ObjectSpec(Model):
     roll_range_deg: tuple[Angle, Angle] | None = None
     static: bool = False  # held where it is placed (no gravity): for tilted objects in perception tests
     target: bool = False
+    #: what a pick order tells the robot of a target it is otherwise told nothing of (a mesh, a cylinder
+    #: lying): its height and its footprint's longer and shorter side as it rests (m), the same every
+    #: seed; None: nothing (it is then the only object the robot may take for it)
+    rough_size_m: tuple[Extent, Extent, Extent] | None = None
     reference: ReferenceSpec | None = None  # published errors for this object, shown by `perceive`
     #: an object ``beside`` another: where its centre may be (the scenario sets it from the other's)
     _beside_range: tuple[Vec2, Vec2] | None = PrivateAttr(default=None)
@@ -171,7 +175,26 @@ class ObjectSpec(Model):
             for lo, hi in self.position_range:
                 if lo > hi:
                     raise ValueError("position_range bounds must be [min, max]")
+        if self.rough_size_m is not None:
+            self._check_rough_size()
         return self
+
+    def _check_rough_size(self) -> None:
+        if self.shape != "mesh" and not self.lying:
+            raise ValueError(
+                f"rough_size_m is for a target nobody described (a mesh, a cylinder lying): a {self.shape}'s "
+                "shape, size and colour are told in full"
+            )
+        if not self.target:
+            raise ValueError("rough_size_m is what the robot is told of its target: this object is not the target")
+        if self.rough_size_m[1] < self.rough_size_m[2]:  # type: ignore[index]
+            raise ValueError("rough_size_m is [height, longer side, shorter side]: the longer side first")
+
+    @property
+    def told_nothing(self) -> bool:
+        """An object nobody described (a mesh, a cylinder lying on its side): the robot is told at most
+        its :attr:`rough_size_m`."""
+        return self.shape == "mesh" or self.lying
 
     @property
     def lying(self) -> bool:
@@ -183,8 +206,8 @@ class ObjectSpec(Model):
 
     def rough_size(self, shape: Shape) -> tuple[float, float, float]:
         """Its height and its footprint's longer and shorter side as it stands, at this shape (m): what
-        a task that names only its rough size tells (a cylinder on its side: its diameter high, its
-        length and its diameter across)."""
+        ``validate`` holds a stated :attr:`rough_size_m` and a look-alike against (a cylinder on its side:
+        its diameter high, its length and its diameter across). Never told to the robot: a seed's draw."""
         if self.lying:
             d, length = shape.size
             return d, max(d, length), min(d, length)

@@ -59,36 +59,66 @@ def _rough_sizes(obj: ObjectSpec) -> list[tuple[float, float, float]] | None:
     return [obj.rough_size(g) for g in shapes]
 
 
-def _as_large(target: ObjectSpec, other: ObjectSpec) -> bool:
-    """Whether ``other`` may look like a target told only its rough size: as tall, within the height's
-    tolerance, and each side of its footprint within ``TWIN_FOOTPRINT_FACTOR``."""
-    a, b = _rough_sizes(target), _rough_sizes(other)
-    if a is None or b is None:
+def _as_large(told: tuple[float, float, float], other: ObjectSpec) -> bool:
+    """Whether ``other`` may look like a target told only its rough size ``told`` (height, longer and
+    shorter side, m): as tall, within the height's tolerance, and each side of its footprint within
+    ``TWIN_FOOTPRINT_FACTOR``."""
+    b = _rough_sizes(other)
+    if b is None:
         return False
-    tol = height_tolerance_m(min(s[0] for s in a))
+    tol = height_tolerance_m(told[0])
 
-    def near(i: int, factor: float, pad: float) -> bool:  # (size i's ranges overlap, so widened)
-        lo_a, hi_a = min(s[i] for s in a), max(s[i] for s in a)
+    def near(i: int, factor: float, pad: float) -> bool:  # (the other's sizes span a range)
         lo_b, hi_b = min(s[i] for s in b), max(s[i] for s in b)
-        return lo_a / factor - pad <= hi_b and lo_b <= hi_a * factor + pad
+        return told[i] / factor - pad <= hi_b and lo_b <= told[i] * factor + pad
 
     return near(0, 1.0, tol) and near(1, TWIN_FOOTPRINT_FACTOR, 0.0) and near(2, TWIN_FOOTPRINT_FACTOR, 0.0)
 
 
+def _check_told_size(target: ObjectSpec) -> None:
+    """A rough size the robot could never match: the target's own height (every file at every scale it
+    may have) outside the tolerance of the height stated, so no look would take it for the target."""
+    told = target.rough_size_m
+    assert told is not None
+    if target.shape == "mesh":
+        heights = [target.mesh_shape(f, s).height_m for f in target.urdf_files for s in target.scales]
+    else:
+        heights = [h for h, _, _ in _rough_sizes(target) or ()]
+    tol = height_tolerance_m(told[0])
+    if heights and not min(heights) - tol <= told[0] <= max(heights) + tol:
+        lo, hi = f"{min(heights) * 1e3:.0f}", f"{max(heights) * 1e3:.0f}"
+        raise ScenarioError(
+            f"objects.{target.name}.rough_size_m: the target stands {lo if lo == hi else f'{lo}-{hi}'} "
+            f"mm tall, not within {tol * 1e3:.0f} mm of the {told[0] * 1e3:.0f} mm stated: the robot would never take "
+            "it for the target"
+        )
+
+
 def check_twins(sc: Scenario) -> None:
     """A pick whose target another object looks the same as is refused: the robot is told what its
-    target looks like, not where it is, so it could carry the other (measured: 3 of 5 episodes did)."""
+    target looks like, not where it is, so it could carry the other (measured: 3 of 5 episodes did).
+    A target nobody described is told at most its rough size: with none stated, it must be the only
+    object; with one, no other as large."""
     if not TASK_RULES[sc.task].one_target:
         return
     target = sc.target
+    if target.told_nothing and target.rough_size_m is not None:
+        _check_told_size(target)
     for obj in sc.objects:
-        by_size = target.shape == "mesh" or target.lying  # (told only its rough size)
-        if obj is not target and not obj.target and by_size and _as_large(target, obj):
+        if obj is target or obj.target:
+            continue
+        if target.told_nothing and target.rough_size_m is None:
+            raise ScenarioError(
+                f"objects.{target.name}: the robot is told nothing of this target (not its shape, size or colour), so "
+                f"it cannot tell it from objects.{obj.name}; state its rough size (rough_size_m = [height, longer "
+                "side, shorter side] in m) or leave it alone on the table"
+            )
+        if target.told_nothing and _as_large(target.rough_size_m, obj):  # type: ignore[arg-type]
             raise ScenarioError(
                 f"objects.{obj.name}: about as large as the target objects.{target.name}, which the robot is told "
                 "only by its rough size: it cannot tell them apart; make one differ in height (15 % or 1 cm)"
             )
-        if obj is not target and not obj.target and _looks_the_same(target, obj):
+        if _looks_the_same(target, obj):
             raise ScenarioError(
                 f"objects.{obj.name}: looks the same as the target objects.{target.name} (its shape, size and "
                 "colour): the robot, told only what its target looks like, cannot tell them apart; make one "

@@ -173,11 +173,42 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "a mesh told by its size beside an object as large",
         _edit(
             'shape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.85, 0.1, 0.1]',
-            'shape = "mesh"\nurdf = "pybullet_data:objects/mug.urdf"\nscale = 0.8',
+            'shape = "mesh"\nurdf = "pybullet_data:objects/mug.urdf"\nscale = 0.8\nrough_size_m = [0.08, 0.095, 0.065]',
         )
         + SECOND.replace('shape = "box"\nsize = [0.05, 0.05, 0.05]', 'shape = "cylinder"\nsize = [0.066, 0.085]')
         + "position = [0.5, -0.2]\n",
         "objects.other: about as large as the target objects.cube",
+    ),
+    (
+        "a mesh told nothing beside another object",
+        _edit(
+            'shape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.85, 0.1, 0.1]',
+            'shape = "mesh"\nurdf = "pybullet_data:objects/mug.urdf"\nscale = 0.8',
+        )
+        + SECOND + "position = [0.5, -0.2]\n",
+        "objects.cube: the robot is told nothing of this target (not its shape, size or colour), so it cannot tell "
+        "it from objects.other; state its rough size",
+    ),
+    (
+        "a rough size the target never has",
+        _edit(
+            'shape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.85, 0.1, 0.1]',
+            'shape = "mesh"\nurdf = "pybullet_data:objects/mug.urdf"\nscale = 0.8\nrough_size_m = [0.05, 0.095, 0.065]',
+        ),
+        "objects.cube.rough_size_m: the target stands 80 mm tall, not within 10 mm of the 50 mm stated",
+    ),
+    (
+        "a rough size for a box",
+        _edit("target = true", "target = true\nrough_size_m = [0.05, 0.05, 0.05]"),
+        "objects.cube: rough_size_m is for a target nobody described (a mesh, a cylinder lying): a box's shape",
+    ),
+    (
+        "a rough size with the shorter side first",
+        _edit(
+            'shape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.85, 0.1, 0.1]',
+            'shape = "mesh"\nurdf = "pybullet_data:objects/mug.urdf"\nscale = 0.8\nrough_size_m = [0.08, 0.065, 0.095]',
+        ),
+        "rough_size_m is [height, longer side, shorter side]: the longer side first",
     ),
     (
         "duplicate names",
@@ -645,7 +676,8 @@ MESH_CASES: list[tuple[str, str, dict[str, str], str]] = [
     ("a box with a urdf", _edit("mass = 0.1", 'mass = 0.1\nurdf = "pybullet_data:duck_vhacd.urdf"'), {},
      'objects.cube: urdf is for a mesh (shape = "mesh"), not a box'),
     ("a box without a colour", _edit("color = [0.85, 0.1, 0.1]\n", ""), {}, "objects.cube: a box needs a color"),
-    ("a mesh target validates", GOOD.replace("target = true\n", "") + MESH + "target = true\n", {}, ""),
+    ("a mesh target validates", GOOD.replace("target = true\n", "") + MESH + "target = true\n"
+     "rough_size_m = [0.06, 0.095, 0.075]\n", {}, ""),
     ("a mesh target no grasp can hold", GOOD.replace("target = true\n", "") + MESH + "target = true\nscale = 1.6\n",
      {}, "objects.duck.urdf: no top-down grasp can hold it: at scale 1.6 it is "),
     ("a glob of meshes none of which a grasp can hold",
