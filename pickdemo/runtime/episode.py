@@ -48,7 +48,7 @@ from pickdemo.perception import (
 )
 from pickdemo.perception.estimators import Estimator
 from pickdemo.perception.unknown import survey_objects
-from pickdemo.robot.kinematics import kinematics_of
+from pickdemo.robot.kinematics import Kinematics, kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.runtime.observers import (
@@ -184,6 +184,25 @@ def _estimate(
         return result
     except PerceptionError as exc:
         return exc
+
+
+def _take_frame(
+    world: World, scenario: Scenario, request: FrameRequest, obs: Observation | None, kin: Kinematics
+) -> RGBDFrame:
+    """The requested frame, rendered, with what is no object on the table in it: the robot's own body at
+    the joint states ``obs`` (when the frame was taken), the cell's tray and its fixtures."""
+    rig = world.cameras[request.camera]
+    # on the hand: told where it was by the arm's kinematics at those joint states
+    T_world_tcp = kin.forward(obs.arm_q) if rig.on_hand and obs is not None else None
+    frame = rig.take(world.scene, request.roi, T_world_tcp)
+    frame = dataclasses.replace(frame, camera=request.camera)
+    if obs is not None:
+        boxes = robot_body(world.robot).boxes(obs.arm_q, obs.fingers_m)
+        if world.tray is not None:  # the cell's tray, and what is in it, is no object on the table
+            boxes = (*boxes, world.tray.box())
+        # nor are its fixtures, as near them as the depth noise reaches
+        frame = dataclasses.replace(frame, robot_boxes=boxes, fixture_boxes=seen_boxes(scenario.fixtures))
+    return frame
 
 
 class Episode:
@@ -484,19 +503,9 @@ class Episode:
     def _look(self, request: FrameRequest, now: float) -> None:
         """Render the requested frame and run perception on it (its result is delivered later)."""
         world = self.world
-        obs = self.observation  # the joint states when the frame was taken: where the arm is in it
         rig = world.cameras[request.camera]
         with self.timer("render wrist" if rig.on_hand else "render"):
-            # on the hand: told where it was by the arm's kinematics at those joint states
-            T_world_tcp = self.machine.kin.forward(obs.arm_q) if rig.on_hand else None
-            frame = rig.take(world.scene, request.roi, T_world_tcp)
-        frame = dataclasses.replace(frame, camera=request.camera)
-        if obs is not None:
-            boxes = robot_body(world.robot).boxes(obs.arm_q, obs.fingers_m)
-            if world.tray is not None:  # the cell's tray, and what is in it, is no object on the table
-                boxes = (*boxes, world.tray.box())
-            # nor are its fixtures, as near them as the depth noise reaches
-            frame = dataclasses.replace(frame, robot_boxes=boxes, fixture_boxes=seen_boxes(self.scenario.fixtures))
+            frame = _take_frame(world, self.scenario, request, self.observation, self.machine.kin)
         if request.survey:  # a clear round's look at the whole table
             with self.timer("perceive"):
                 survey = survey_objects(frame, self.options.perception)
