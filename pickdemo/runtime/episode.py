@@ -64,7 +64,7 @@ from pickdemo.runtime.observers import (
 from pickdemo.runtime.recording import RerunRecorder
 from pickdemo.runtime.referee import PERCEPTION_OFF_MM, Referee, diagnose
 from pickdemo.runtime.results import LoopCounts, episode_result
-from pickdemo.runtime.tasks import episode_task
+from pickdemo.runtime.tasks import episode_task, machine_params
 from pickdemo.runtime.view import EpisodeView
 from pickdemo.runtime.world import World
 from pickdemo.scenario.fixtures import seen_boxes
@@ -127,23 +127,6 @@ def run_episode(
     while not episode.step():
         pass
     return episode.result()
-
-
-def machine_params(sc: Scenario, params: MachineParams) -> MachineParams:
-    """The skill's parameters for this scenario's cell: its robot's heights of a pick, a belt's, the
-    motion's scales, its transfers."""
-    robot = sc.robot_description
-    if robot.grasp_heights:  # (a small arm reaches only so high with its hand pointing down)
-        params = dataclasses.replace(params, grasp=dataclasses.replace(params.grasp, **dict(robot.grasp_heights)))
-    if robot.gripper.grip_force_n is not None:
-        params = dataclasses.replace(params, grip_force_n=robot.gripper.grip_force_n)
-    if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
-        params = params.on_a_belt()
-    m = sc.motion
-    scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
-    if scales != (1.0, 1.0, 1.0):
-        params = dataclasses.replace(params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales))
-    return dataclasses.replace(params, joint_transfers=m.transfers == "joint")
 
 
 class _Timer:

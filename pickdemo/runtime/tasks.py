@@ -10,6 +10,7 @@ A new task is a class with these methods and an entry in :data:`TASKS` (and its 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -25,7 +26,7 @@ from pickdemo.scenario.load import Scenario
 from pickdemo.scenario.task import target_model
 from pickdemo.skills.clear import ClearSequencer
 from pickdemo.skills.controller import Controller
-from pickdemo.skills.pick import PickMachine
+from pickdemo.skills.pick import MachineParams, PickMachine
 
 Estimator = Callable[..., PoseEstimate]
 
@@ -74,6 +75,23 @@ def _paper(perception: PerceptionParams, scenario: Scenario | None = None) -> Es
     models = scenario is not None and any(f.kind == "model" for f in scenario.fixtures)
     support = scenario.surface_z if models else None
     return lambda frame, model: estimate_pose(frame, model, perception, support)
+
+
+def machine_params(sc: Scenario, params: MachineParams) -> MachineParams:
+    """The skill's parameters for this scenario's cell: its robot's heights of a pick, a belt's, the
+    motion's scales, its transfers."""
+    robot = sc.robot_description
+    if robot.grasp_heights:  # (a small arm reaches only so high with its hand pointing down)
+        params = dataclasses.replace(params, grasp=dataclasses.replace(params.grasp, **dict(robot.grasp_heights)))
+    if robot.gripper.grip_force_n is not None:
+        params = dataclasses.replace(params, grip_force_n=robot.gripper.grip_force_n)
+    if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
+        params = params.on_a_belt()
+    m = sc.motion
+    scales = (m.velocity_scale, m.acceleration_scale, m.jerk_scale)
+    if scales != (1.0, 1.0, 1.0):
+        params = dataclasses.replace(params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales))
+    return dataclasses.replace(params, joint_transfers=m.transfers == "joint")
 
 
 class PickTask:

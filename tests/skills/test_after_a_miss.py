@@ -13,7 +13,7 @@ from pickdemo.core.geometry import Pose
 from pickdemo.core.result import Failure
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
-from pickdemo.runtime.episode import machine_params
+from pickdemo.runtime.tasks import machine_params
 from pickdemo.scenario.layout import sample_layout
 from pickdemo.scenario.load import load_scenario
 from pickdemo.scenario.task import target_model

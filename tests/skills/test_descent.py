@@ -12,7 +12,7 @@ from pickdemo.core.result import Failure
 from pickdemo.motion.ik_goals import line_speed_scale
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import IKParams, kinematics_of
-from pickdemo.runtime.episode import machine_params
+from pickdemo.runtime.tasks import machine_params
 from pickdemo.scenario.layout import sample_layout
 from pickdemo.scenario.load import load_scenario
 from pickdemo.scenario.task import target_model
