@@ -33,7 +33,18 @@ def episodes(
     record_trace: bool = False,
 ) -> tuple[EpisodeResult, ...]:
     """The episodes of a shipped scenario (or a path) over ``seeds``; run once for the test session."""
-    key = (scenario, tuple(seeds), open_loop, method, record_trace)
+    return no_bugs(_shared(scenario, tuple(seeds), open_loop, method, record_trace))
+
+
+def no_bugs(results: Sequence[EpisodeResult]) -> tuple[EpisodeResult, ...]:
+    """``results``, after asserting that none ended on a bug (an exception no stage expects): a test over
+    seeds that counts successes must not read a bug as an episode that merely failed."""
+    bugs = [r for r in results if r.failure is not None and r.failure.is_bug]
+    assert not bugs, "\n".join(f"{r.scenario} seed {r.seed}:\n{r.failure.traceback}" for r in bugs)  # type: ignore[union-attr]
+    return tuple(results)
+
+
+def _shared(*key) -> tuple[EpisodeResult, ...]:  # noqa: ANN002
     shared = os.environ.get(SHARED_DIR_ENV)
     if not shared:
         return _run(*key)

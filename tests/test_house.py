@@ -1,6 +1,8 @@
 """The house's rules, checked on the source (no simulator): modules and classes small, imports pointing
-one way with no circle, imports at the top of their modules, pybullet only in ``sim/``, and one
-robot's constants only in ``robot/``."""
+one way with no circle, imports at the top of their modules, pybullet only in ``sim/``, one robot's
+constants only in ``robot/``, and the controller's packages importing nothing of the simulator, the
+episode's runtime, the referee or the scoring (the honest loop; its run-time half:
+``pickdemo/runtime/honest.py``)."""
 
 from __future__ import annotations
 
@@ -23,6 +25,14 @@ LAZY = {
 PANDA_NAMES = re.compile(r"\b(HOME_Q|FINGER_MAX_M|PALM_ABOVE_TCP_M|MAX_VELOCITY_RAD_S|MAX_ACCELERATION_RAD_S2|"
                          r"MAX_JERK_RAD_S3|MIN_POSITION_RAD|MAX_POSITION_RAD|panda_hand|panda_link\d|panda_joint\d|"
                          r"panda_finger|PANDA)\b")  # fmt: skip
+
+
+#: The packages the controller is built from: what the robot runs on.
+CONTROLLER_PACKAGES = ("core", "robot", "perception", "tracking", "grasping", "motion", "skills")
+#: ... and what they may import of pickdemo: each other, and of the scenario only what its file states
+#: of the cell (a tray), never a seed's draw (``scenario.layout``), the simulator (``sim``), the episode,
+#: the referee and the scoring (``runtime``), the apps or the environments.
+CONTROLLER_MAY_IMPORT = (*(f"pickdemo.{p}" for p in CONTROLLER_PACKAGES), "pickdemo.scenario.tray")
 
 
 def _modules() -> dict[str, tuple[Path, ast.Module]]:
@@ -125,3 +135,35 @@ def test_only_sim_imports_pybullet_and_no_module_names_the_panda() -> None:
         )
         assert not uses_bullet or name.startswith("pickdemo.sim"), name
         assert not PANDA_NAMES.search(text), (name, PANDA_NAMES.search(text).group(0))
+
+
+def controller_import_breaches(modules: dict[str, ast.Module]) -> list[str]:
+    """Every import by a controller package's module of a pickdemo module outside what it may import."""
+    out = []
+    for name, tree in modules.items():
+        if not name.startswith(tuple(f"pickdemo.{p}" for p in CONTROLLER_PACKAGES)):
+            continue
+        for node, target in _imports(tree):
+            if not any(target == m or target.startswith(m + ".") for m in CONTROLLER_MAY_IMPORT):
+                out.append(f"{name}:{node.lineno} imports {target}")
+    return out
+
+
+def test_the_controller_imports_nothing_of_the_simulator_the_runtime_or_the_scoring() -> None:
+    assert not controller_import_breaches({n: t for n, (_, t) in _modules().items()})
+
+
+def test_the_controller_import_rule_catches_a_planted_import() -> None:
+    """The rule fails on what it forbids, however it is written (a from-import, a plain import, inside a
+    function), and lets through what the controller may import."""
+    planted = {
+        "pickdemo.skills.pick.cheat": "from pickdemo.runtime.world import World",
+        "pickdemo.perception.cheat": "import pickdemo.sim.scene",
+        "pickdemo.grasping.cheat": "def f():\n    from pickdemo.scenario.layout import Placement",
+        "pickdemo.tracking.cheat": "from pickdemo import run_episode",
+        "pickdemo.motion.cheat": "from pickdemo.runtime import referee",
+    }
+    found = controller_import_breaches({n: ast.parse(src) for n, src in planted.items()})
+    assert [b.split(":")[0] for b in found] == list(planted), found
+    allowed = {"pickdemo.skills.ok": "from pickdemo.scenario.tray import Tray\nfrom pickdemo.core.shapes import Box"}
+    assert not controller_import_breaches({n: ast.parse(src) for n, src in allowed.items()})

@@ -91,9 +91,20 @@ class EpisodeTrace:
 class Failure:
     stage: Stage
     reason: str
+    #: a bug's (an exception no stage expects, ending the episode in ``error``): where it was raised, so
+    #: that a bug is never read as an episode that merely failed; None for every named failure
+    traceback: str | None = None
 
     def to_dict(self) -> dict[str, str]:
-        return {"stage": self.stage.value, "reason": self.reason}
+        out = {"stage": self.stage.value, "reason": self.reason}
+        if self.traceback is not None:  # (only a bug's record has the key)
+            out["traceback"] = self.traceback
+        return out
+
+    @property
+    def is_bug(self) -> bool:
+        """An exception the code did not expect (its traceback kept), not a failure of the task."""
+        return self.traceback is not None
 
 
 class EpisodeFailure(Exception):
@@ -130,9 +141,9 @@ WALL_CLOCK_KEYS = ("wall_time_s", "stage_wall_times_s", "control_tick_wall_ms")
 #: An episode's record: the ``result.json`` object, one line of ``episodes.jsonl``, what a bench worker
 #: returns and what the bench, its summary, the report and the CLI read. It is always made by
 #: :meth:`EpisodeResult.to_dict` (so its keys are :class:`EpisodeResult`'s fields but ``trace``, in that
-#: order, with JSON values: ``failure`` a ``{"stage", "reason"}`` object or null, ``perception`` a
-#: :meth:`PerceptionScore.to_dict` or null, ``phases`` and ``attempts`` lists of their ``to_dict``); the
-#: key list is written there once, not again here.
+#: order, with JSON values: ``failure`` a ``{"stage", "reason"}`` object (and ``"traceback"`` for a
+#: bug) or null, ``perception`` a :meth:`PerceptionScore.to_dict` or null, ``phases`` and ``attempts``
+#: lists of their ``to_dict``); the key list is written there once, not again here.
 EpisodeRecord: TypeAlias = dict[str, Any]
 
 

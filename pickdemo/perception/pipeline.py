@@ -44,7 +44,8 @@ def estimate_pose(
     """The target's pose from one frame (see the module docstring for the method).
 
     Raises :class:`PerceptionError` with the reason when the target cannot be measured, a degenerate
-    fit included (too little of it visible: a singular system); nothing else escapes. An object
+    fit included (too few of its pixels; a singular system): what was seen. Any other exception is a
+    bug, and escapes (the episode ends in ``error`` with its traceback). An object
     nobody described (:class:`~pickdemo.core.shapes.Unknown`) goes to
     :func:`~pickdemo.perception.unknown.estimate_unknown`.
     """
@@ -52,7 +53,7 @@ def estimate_pose(
         return estimate_unknown(frame, model, params, support)
     try:
         return _estimate_pose(frame, model, params or PerceptionParams())
-    except (np.linalg.LinAlgError, cv2.error, ValueError, IndexError) as exc:
+    except np.linalg.LinAlgError as exc:  # a singular system: what was seen leaves the fit undetermined
         reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
         raise PerceptionError(
             f"degenerate fit ({type(exc).__name__}: {reason}): too little of the target seen"
@@ -70,6 +71,8 @@ def _estimate_pose(frame: RGBDFrame, model: TargetModel, params: PerceptionParam
     pts = world_heights(f)
     mask = segment_target(f, model, params, pts)
     face = top_face_mask(f, mask, pts, params)
+    if int(face.sum()) < 3:  # (a plane needs three points)
+        raise PerceptionError(f"degenerate fit: {int(face.sum())} pixel(s) of the target's top face seen")
 
     # Eqs. (9)-(10) for every pixel, with eq. (8) as each pixel's own variance.
     depth = np.where(np.isfinite(f.depth_m), f.depth_m, np.nan)

@@ -365,7 +365,7 @@ def estimate_unknown(
     params = params or PerceptionParams()
     try:
         return _estimate_unknown(frame, model, params, support)
-    except (np.linalg.LinAlgError, cv2.error, ValueError, IndexError) as exc:
+    except np.linalg.LinAlgError as exc:  # a singular system: what was seen leaves the fit undetermined
         reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
         raise PerceptionError(f"degenerate estimate ({type(exc).__name__}: {reason})") from None
 

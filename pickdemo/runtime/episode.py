@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import traceback
 from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -51,6 +52,7 @@ from pickdemo.perception.unknown import survey_objects
 from pickdemo.robot.kinematics import Kinematics, kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
 from pickdemo.robot.self_geometry import robot_body
+from pickdemo.runtime.honest import check_honest
 from pickdemo.runtime.observers import (
     THIRD_PERSON_K,
     THIRD_PERSON_POSE,
@@ -226,7 +228,8 @@ class Episode:
         self.timer = _Timer()
         self.world: World | None = None
         self.robot: RobotInterface | None = None
-        self.machine: Controller | None = None  # the task's controller (a pick, a clear round)
+        self.machine: Controller | None = None  # the controller in the loop (the task's, or an agent's)
+        self.task_controller: Controller | None = None  # the task's (a pick, a clear round)
         self.model: TargetModel | None = None
         self.target_name: str = ""
         self.estimator: Callable[..., PoseEstimate] | None = None
@@ -300,8 +303,9 @@ class Episode:
             return None, part()
         except EpisodeFailure as exc:
             return exc.failure, True
-        except Exception as exc:  # noqa: BLE001
-            return Failure(Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0]), True
+        except Exception as exc:  # noqa: BLE001 - a bug: in error, with where it was raised
+            reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
+            return Failure(Stage.ERROR, reason, traceback="".join(traceback.format_exception(exc))), True
 
     def step(self) -> bool:
         """One control tick; True when the episode is over (then :meth:`result` has it)."""
@@ -392,6 +396,8 @@ class Episode:
             params=machine_params(sc, opts.machine),
         )
         controller = task.controller(sc, world, told, self.referee, opts.open_loop, common)
+        check_honest(controller)  # nothing of the simulator or the scoring handed to it (a bug: TruthLeak)
+        self.task_controller = controller
         if self.wrap_controller is not None:
             controller = self.wrap_controller(controller, common)
         self.machine = self.view.controller = controller
@@ -421,7 +427,9 @@ class Episode:
             return False
         if scene.steps + self.substeps > self.max_steps:
             budget = self.scenario.sim.max_sim_time_s
-            machine.abort(Stage.TIMEOUT, f"simulated-time budget of {budget:.1f} s spent in {machine.state.value}")
+            said = f"{budget:.1f}" if budget >= 0.1 else f"{budget:.2g}"  # (a tiny budget is not 0.0 s)
+            machine.abort(Stage.TIMEOUT, f"simulated-time budget of {said} s spent in {machine.state.value}")
+            self.referee.decided(machine)
             return False
         now = scene.sim_time_s
         obs = self.observation = self.robot.observe()
@@ -429,6 +437,7 @@ class Episode:
         t0 = time.perf_counter()
         cmd = machine.update(obs)
         counts.tick_ms.append((time.perf_counter() - t0) * 1e3)
+        self.referee.decided(machine)  # truth: for scoring only
         self._log_events(now)
         if machine.finished:
             return False
@@ -436,6 +445,7 @@ class Episode:
             self.robot.apply(cmd)
         except ReflexError as exc:  # the robot stopped: nothing was sent
             machine.abort(Stage.REFLEX, str(exc))
+            self.referee.decided(machine)
             self._log_events(now)
             return False
         counts.commanded.append((now, cmd.arm_q))  # always: result.json's limit_exceedances
@@ -469,6 +479,7 @@ class Episode:
         now = self.world.scene.sim_time_s
         while self._pending and self._pending[0].arrival_s <= now + 1e-9:
             f = self._pending.popleft()
+            check_honest(f.result)  # an estimator's (a user's too) carries nothing of the simulator
             status = self.machine.on_estimate(f.result, f.taken_s, f.camera)
             if isinstance(f.result, PlaceView):  # (no estimate of the target: nothing to score or show)
                 continue
@@ -480,6 +491,7 @@ class Episode:
         now = self.world.scene.sim_time_s
         self._log_events(now)
         self._notify("end", now)
+        check_honest((self.task_controller, self.observation))  # nor kept since, nor in what it observed
         if self.machine.failure is not None:
             raise EpisodeFailure(self.machine.failure.stage, self.machine.failure.reason)
 

@@ -151,8 +151,8 @@ class TraceRecorder(Observer):
         ts = self.ticks
         nan4 = np.full(4, np.nan)
 
-        def arr(name: str, width: int) -> np.ndarray:
-            return np.array([getattr(t, name) for t in ts], dtype=float).reshape(-1, width)
+        def arr(name: str, width: int) -> np.ndarray:  # (no tick at all: an episode over before its first)
+            return np.array([getattr(t, name) for t in ts], dtype=float).reshape(len(ts), width)
 
         return EpisodeTrace(
             time_s=np.array([t.time_s for t in ts], dtype=float),

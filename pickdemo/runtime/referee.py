@@ -111,6 +111,10 @@ class Referee:
         """A tick while the target should be in the hand: how high it got."""
         self.max_z_m = max(self.max_z_m, float(self._truth().position[2]))
 
+    def decided(self, controller: object) -> None:
+        """The controller has just decided (or been stopped), before the physics step: a pick has nothing
+        to read of it here."""
+
     def tick(self, carrying: bool) -> None:
         """After a control tick's physics: how high the target got while it should be in the hand."""
         if carrying:
@@ -227,6 +231,12 @@ class ClearReferee:
                 self.entered.pop(n, None)  # (bounced out again)
             elif n not in self.entered and self.world.scene.true_speed(n) < RESTING_SPEED_M_S:
                 self.entered[n] = now
+
+    def decided(self, controller) -> None:  # noqa: ANN001 - a pickdemo.skills.clear.ClearSequencer
+        """The controller has just decided (or been stopped), before the physics step: the picks that
+        ended then, read from its records (the controller is handed nothing of the referee)."""
+        for record in controller.picks[len(self.picks) :]:
+            self.pick_ended(record)
 
     def pick_ended(self, record) -> None:  # noqa: ANN001 - a pickdemo.skills.clear.PickRecord
         """A pick is over. One that let go over the tray is credited with the object that comes into

@@ -177,7 +177,6 @@ class ClearTask:
         return ClearSequencer(
             tray=world.tray,
             max_consecutive_failures=scenario.clear.max_consecutive_failures,
-            on_pick_end=referee.pick_ended,  # truth: for scoring only
             surface_z=scenario.surface_z,
             fixtures=fixture_boxes(tuple(f for f in scenario.fixtures if f.kind == "bin")),
             solids=fixture_boxes(scenario.fixtures),

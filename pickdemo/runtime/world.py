@@ -18,8 +18,9 @@ from pickdemo.core.geometry import Pose
 from pickdemo.core.streams import spawn_rngs
 from pickdemo.robot.description import RobotDescription
 from pickdemo.robot.kinematics import Kinematics, kinematics_of
-from pickdemo.scenario.layout import Placement, Tray, camera_position, sample_layout, sample_place, sample_round
+from pickdemo.scenario.layout import Placement, camera_position, sample_layout, sample_place, sample_round
 from pickdemo.scenario.load import Scenario, WristCameraSpec
+from pickdemo.scenario.tray import Tray
 from pickdemo.sim.render import Camera, WristCamera
 from pickdemo.sim.scene import Scene
 

@@ -23,11 +23,12 @@ from pickdemo.robot.self_geometry import hidden_by_the_base
 from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.belt import ConveyorSpec
 from pickdemo.scenario.fixture_checks import check_fixtures
-from pickdemo.scenario.layout import LayoutError, Tray, sample_layout, sample_place, sample_round
+from pickdemo.scenario.layout import LayoutError, sample_layout, sample_place, sample_round
 from pickdemo.scenario.objects import ObjectSpec, PlaceSpec
 from pickdemo.scenario.reach import grasp_params, reach_from_above
 from pickdemo.scenario.schema import SUPPORT_TOLERANCE_M, Scenario
 from pickdemo.scenario.tasks import TASK_RULES
+from pickdemo.scenario.tray import Tray
 from pickdemo.scenario.twins import check_twins
 
 #: Clearance the open gripper needs around the target's narrower side (m): the grasp planner's.

@@ -17,11 +17,11 @@ from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.fixtures import BinSpec, ModelSpec
-from pickdemo.scenario.layout import Tray
 from pickdemo.scenario.objects import TABLE_THICKNESS_M
 from pickdemo.scenario.reach import grasp_params, reach_from_above
 from pickdemo.scenario.schema import Scenario
 from pickdemo.scenario.tasks import TASK_RULES
+from pickdemo.scenario.tray import Tray
 
 #: The arm must reach into a bin this far inside its walls, at each corner and the middle (m).
 REACH_INSET_M = 0.03

@@ -20,9 +20,10 @@ from pickdemo.core.shapes import Box, Cylinder, Mesh
 from pickdemo.robot import robot_named
 from pickdemo.robot.description import RobotDescription
 from pickdemo.scenario.fixtures import FixtureSpec
-from pickdemo.scenario.layout import Placement, Tray
+from pickdemo.scenario.layout import Placement
 from pickdemo.scenario.load import ObjectSpec, Scenario
 from pickdemo.scenario.objects import TABLE_THICKNESS_M
+from pickdemo.scenario.tray import Tray
 from pickdemo.sim import quiet_c_stdout
 from pickdemo.sim.conveyor import Belt
 

@@ -185,7 +185,8 @@ FILE_CASES: list[tuple[str, str, str]] = [
             'shape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.85, 0.1, 0.1]',
             'shape = "mesh"\nurdf = "pybullet_data:objects/mug.urdf"\nscale = 0.8',
         )
-        + SECOND + "position = [0.5, -0.2]\n",
+        + SECOND
+        + "position = [0.5, -0.2]\n",
         "objects.cube: the robot is told nothing of this target (not its shape, size or colour), so it cannot tell "
         "it from objects.other; state its rough size",
     ),

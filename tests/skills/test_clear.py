@@ -18,8 +18,9 @@ from pickdemo.perception import PerceptionParams
 from pickdemo.perception.unknown import SeenObject, Survey, segment_objects, split_heap, survey_objects
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
-from pickdemo.scenario.layout import Tray, sample_round
+from pickdemo.scenario.layout import sample_round
 from pickdemo.scenario.load import Scenario, load_scenario, parse_scenario
+from pickdemo.scenario.tray import Tray
 from pickdemo.skills.clear import ClearSequencer
 from pickdemo.skills.pick import CameraModel, State
 

@@ -7,9 +7,10 @@ import numpy as np
 from pickdemo.core.camera import Intrinsics, look_at_pose
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
-from pickdemo.scenario.layout import Tray, sample_layout
+from pickdemo.scenario.layout import sample_layout
 from pickdemo.scenario.load import load_scenario
 from pickdemo.scenario.task import target_model
+from pickdemo.scenario.tray import Tray
 from pickdemo.skills.clear import ClearSequencer
 from pickdemo.skills.controller import Controller
 from pickdemo.skills.pick import CameraModel, PickMachine
