@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, TypeAlias
 
+from pickdemo.apps.files import write_atomic
 from pickdemo.core.result import EpisodeRecord, EpisodeResult, Stage, result_key, summary_name
 from pickdemo.core.stats import describe
 from pickdemo.runtime.episode import EpisodeOptions, run_episode
@@ -165,13 +166,16 @@ def run_job(job: Job) -> EpisodeRecord:
 def load_episodes(path: Path) -> list[EpisodeRecord]:
     """Results already in ``episodes.jsonl``, each (scenario, seed, open loop or not) once.
 
-    A line cut short by a kill is dropped, and the file is rewritten with the good lines only, so
-    that appending after it keeps one object per line.
+    A line cut short by a kill (or a repeated episode) is dropped, and the file is rewritten with the
+    good lines only, so that appending after it keeps one object per line. The rewrite is atomic
+    (:func:`~pickdemo.apps.files.write_atomic`): a kill during it leaves the file as it was, every
+    finished result in it.
     """
     if not path.exists():
         return []
+    text = path.read_text()
     good: dict[tuple[str, int], EpisodeRecord] = {}
-    for line in path.read_text().splitlines():
+    for line in text.splitlines():
         if not line.strip():
             continue
         try:
@@ -180,7 +184,9 @@ def load_episodes(path: Path) -> list[EpisodeRecord]:
         except (json.JSONDecodeError, KeyError, TypeError, ValueError):
             continue
         good.setdefault(key, r)
-    path.write_text("".join(json.dumps(r, allow_nan=False) + "\n" for r in good.values()))
+    clean = "".join(json.dumps(r, allow_nan=False) + "\n" for r in good.values())
+    if clean != text:
+        write_atomic(path, clean)
     return list(good.values())
 
 
@@ -427,7 +433,7 @@ def prepare_out_dir(out_dir: Path, jobs: list[Job], *, resume: bool) -> list[Epi
     elif jsonl.exists() and jsonl.stat().st_size > 0:
         raise BenchError(f"{jsonl} exists: pass --resume to continue that run, or remove it")
     else:
-        jsonl.write_text("")
+        write_atomic(jsonl, "")
     for name in DERIVED_FILES:
         (out_dir / name).unlink(missing_ok=True)
     return done

@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 
 from pickdemo.apps import bench, executors, perceive, report
+from pickdemo.apps.files import write_atomic
 from pickdemo.apps.parser import UsageError, build_parser
 from pickdemo.apps.profile import profile
 from pickdemo.apps.summary import summary_line, yaw_modulus_deg
@@ -88,12 +89,11 @@ def _save_result(result: EpisodeResult, out: Path) -> Path:
     text = result.to_json() + "\n"
     path = out / "result.json"
     try:
-        path.write_text(text)
-        return path
+        return write_atomic(path, text)
     except OSError as exc:
         fd, fallback = tempfile.mkstemp(prefix="pickdemo-result-", suffix=".json")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
+        os.close(fd)
+        write_atomic(fallback, text)
         print(f"pickdemo: error: {path}: cannot write ({exc.strerror or exc}); the result is in {fallback}",
               file=sys.stderr)  # fmt: skip
         return Path(fallback)
@@ -279,14 +279,14 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         + (f", {outcome.skipped} already done" if outcome.skipped else "")
     )
     if args.out is not None:
-        (args.out / "summary.json").write_text(json.dumps(outcome.summary, indent=2) + "\n")
+        write_atomic(args.out / "summary.json", json.dumps(outcome.summary, indent=2) + "\n")
         print(f"wrote {args.out / 'episodes.jsonl'} and {args.out / 'summary.json'}")
     if args.out is not None:
         written = _bench_pictures(outcome, args.out, f"{', '.join(names)}; seeds {args.seeds}", args.open_loop)
         print("wrote " + ", ".join(str(p) for p in written))
     if args.junit is not None:
         args.junit.parent.mkdir(parents=True, exist_ok=True)
-        args.junit.write_text(bench.junit_xml(outcome.results))
+        write_atomic(args.junit, bench.junit_xml(outcome.results))
         print(f"wrote {args.junit}")
     low = [n for n, s in outcome.summary.items() if s["success_rate"] < args.min_success]
     if low:

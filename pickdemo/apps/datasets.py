@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from pickdemo.apps.files import write_atomic
 from pickdemo.envs.record import Recorded, Row
 
 STAGING = ".staging"
@@ -50,10 +51,7 @@ def staged(out: Path) -> dict[int, dict]:
 
 
 def write_record(out: Path, recorded: Recorded, extra: dict) -> None:
-    path = out / STAGING / f"seed-{recorded.seed}.json"
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps({**asdict(recorded), **extra}) + "\n")
-    os.replace(tmp, path)
+    write_atomic(out / STAGING / f"seed-{recorded.seed}.json", json.dumps({**asdict(recorded), **extra}) + "\n")
 
 
 def _pad_ticks(ticks: list[np.ndarray], stride: int) -> np.ndarray:
@@ -360,10 +358,10 @@ def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_su
     for cam, paths in videos.items():
         if paths:
             stats[IMAGE_KEY.format(cam)] = _image_stats(paths)
-    (out / "meta" / "stats.json").write_text(json.dumps(stats, indent=1) + "\n")
+    write_atomic(out / "meta" / "stats.json", json.dumps(stats, indent=1) + "\n")
     sim_size = len(table.column("observation.sim_state")[0]) if kept else 0
-    (out / "meta" / "info.json").write_text(json.dumps(_info(meta, len(kept), index, sim_size), indent=2) + "\n")
-    (out / "meta" / "pickdemo.json").write_text(json.dumps(meta, indent=2) + "\n")
+    write_atomic(out / "meta" / "info.json", json.dumps(_info(meta, len(kept), index, sim_size), indent=2) + "\n")
+    write_atomic(out / "meta" / "pickdemo.json", json.dumps(meta, indent=2) + "\n")
     return len(kept)
 
 

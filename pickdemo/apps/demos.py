@@ -20,6 +20,7 @@ import numpy as np
 from pickdemo.apps import datasets
 from pickdemo.apps.bench import parse_seeds
 from pickdemo.apps.datasets import STAGING, DatasetError
+from pickdemo.apps.files import write_atomic
 from pickdemo.envs.record import action_names, make_env, record_episode, replay_episode, state_names, stride_for
 from pickdemo.scenario.load import list_scenarios, resolve_scenario_path
 
@@ -69,7 +70,7 @@ def run_demos(
             changed = sorted(k for k in meta if before.get(k) != meta[k])
             raise DatasetError(f"{meta_path}: recorded with other settings ({', '.join(changed)}): use another --out")
     (out / STAGING).mkdir(parents=True, exist_ok=True)
-    meta_path.write_text(json.dumps(meta) + "\n")
+    write_atomic(meta_path, json.dumps(meta) + "\n")
     todo = [s for s in seeds if s not in done]
     ok = sum(r["success"] for r in done.values() if r["seed"] in seeds)
     t0 = time.perf_counter()

@@ -17,6 +17,7 @@ from typing import Any, TypeAlias
 
 import numpy as np
 
+from pickdemo.apps.files import write_atomic, write_figure
 from pickdemo.core.shapes import Unknown
 from pickdemo.core.stats import describe
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
@@ -238,7 +239,7 @@ def write_plot(samples: list[PerceptionSample], path: Path, title: str) -> bool:
     ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    write_figure(fig, path, dpi=120)
     plt.close(fig)
     return True
 
@@ -248,7 +249,7 @@ def write_outputs(
 ) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / "perception.json"]
-    written[0].write_text(json.dumps({"samples": samples, "summary": summary}, indent=1, allow_nan=False) + "\n")
+    write_atomic(written[0], json.dumps({"samples": samples, "summary": summary}, indent=1, allow_nan=False) + "\n")
     plot = out_dir / "perception.png"
     if write_plot(samples, plot, title):
         written.append(plot)

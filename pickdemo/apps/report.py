@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from pickdemo.apps.bench import ScenarioSummary
+from pickdemo.apps.files import write_atomic, write_figure
 from pickdemo.core.result import (
     EpisodeRecord,
     EpisodeResult,
@@ -114,7 +115,7 @@ def write_motion_plot(trace: EpisodeTrace, path: Path, title: str = "", robot: R
                         "grey lines: Ruckig re-targeted or new limits)", fontsize=9)  # fmt: skip
     fig.suptitle(title or "commanded arm motion", fontsize=11)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    write_figure(fig, path, dpi=90)
     plt.close(fig)
     return path
 
@@ -148,7 +149,7 @@ def write_page(out_dir: Path, title: str, sections: list[tuple[str, str]]) -> Pa
     """``out_dir/report.html``: a self-contained page of (heading, HTML) sections."""
     body = "\n".join((f"<h2>{html.escape(h)}</h2>" if h else "") + content for h, content in sections)
     path = out_dir / "report.html"
-    path.write_text(_page(title, body))
+    write_atomic(path, _page(title, body))
     return path
 
 
@@ -254,7 +255,7 @@ def write_bench_plots(
     # a long list of scenarios wraps within the figure's width (about 8 characters an inch at this size)
     fig.suptitle(textwrap.fill(title or "bench", width=int(fig.get_figwidth() * 8)))
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    write_figure(fig, path, dpi=90)
     plt.close(fig)
     return path
 
@@ -391,5 +392,5 @@ def write_run_report(result: EpisodeResult, out_dir: Path, *, video: Path | None
         f"{attempts}</table>"
     )
     path = out_dir / "report.html"
-    path.write_text(_page(f"pickdemo: {r.scenario} seed {r.seed}", "\n".join(body)))
+    write_atomic(path, _page(f"pickdemo: {r.scenario} seed {r.seed}", "\n".join(body)))
     return path

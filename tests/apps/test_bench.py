@@ -17,6 +17,7 @@ import pytest
 from pickdemo.apps.bench import (
     BenchError,
     Job,
+    failed_result,
     junit_xml,
     load_episodes,
     parse_seeds,
@@ -26,7 +27,7 @@ from pickdemo.apps.bench import (
     wilson_interval,
 )
 from pickdemo.apps.executors import LocalExecutor
-from pickdemo.core.result import WALL_CLOCK_KEYS
+from pickdemo.core.result import WALL_CLOCK_KEYS, Stage
 
 
 def _result(scenario: str, seed: int, ok: bool, stage: str = "grasp") -> dict:
@@ -195,6 +196,55 @@ def test_a_fresh_run_removes_an_old_runs_summary(tmp_path: Path) -> None:
     (tmp_path / "summary.json").write_text("{}")
     out = run_bench([Job("x.toml", "x", 0)], LocalExecutor(1, fn=_job_ok), out_dir=tmp_path, progress=False)
     assert out.ran == 1 and not (tmp_path / "summary.json").exists()
+
+
+#: ``python -c`` this, LIMIT, ARGS...: the command line, in a process whose files may grow to LIMIT bytes. A
+#: write past it kills the process at once (SIGXFSZ, whose default action Python turns off): the kill lands
+#: inside the first write of a file longer than LIMIT, whatever the code that writes it.
+KILLED_MID_WRITE = """
+import resource, signal, sys
+from pickdemo.apps.cli import main
+signal.signal(signal.SIGXFSZ, signal.SIG_DFL)
+resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+resource.setrlimit(resource.RLIMIT_FSIZE, (int(sys.argv[1]), resource.RLIM_INFINITY))
+sys.exit(main(sys.argv[2:]))
+"""
+
+
+def _whole_lines(path: Path) -> list[dict]:
+    """The results a file holds (a line cut short holds none)."""
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGXFSZ"), reason="a POSIX file-size limit")
+def test_a_kill_during_the_resumes_rewrite_loses_no_finished_result(tmp_path: Path) -> None:
+    # Issue 57: --resume rewrote episodes.jsonl in place (truncate, then write): a kill then emptied it.
+    out = tmp_path / "gate"
+    out.mkdir()
+    jsonl = out / "episodes.jsonl"
+    finished = [  # 9 finished episodes, 200 kB each (so that no other file the process writes is as long)
+        json.dumps(failed_result(Job("x.toml", "pick_cube", s), Stage.ERROR, "x" * 200_000, 1.0)) + "\n"
+        for s in range(9)
+    ]
+    jsonl.write_text("".join(finished) + finished[0][:1000])  # and a line a kill cut short: resume rewrites
+    limit = len("".join(finished)) // 2  # killed halfway through the rewrite
+    args = ["bench", "pick_cube", "--seeds", "0-8", "--out", str(out), "--resume", "--no-progress"]
+    proc = subprocess.run([sys.executable, "-c", KILLED_MID_WRITE, str(limit), *args], capture_output=True,
+                          text=True, timeout=300, env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})  # fmt: skip
+    assert proc.returncode == -signal.SIGXFSZ, proc.stdout + proc.stderr  # killed, not finished
+    seeds = {r["seed"] for r in _whole_lines(jsonl)}
+    assert seeds == set(range(9)), f"{len(seeds)} of 9 finished results left"
+    partial = [p for p in out.iterdir() if p.name.startswith(".episodes.jsonl.")]
+    assert [p.stat().st_size for p in partial] == [limit]  # the kill was in the rewrite: of its temporary file
+    again = _cli(*args, "--workers", "1", "--min-success", "0")
+    assert again.returncode == 0 and "ran 0 episode(s)" in again.stdout and "9 already done" in again.stdout
+    assert jsonl.read_text() == "".join(finished)  # rewritten clean
 
 
 def test_bad_scenario_in_a_job_is_an_error_result() -> None:
