@@ -7,6 +7,7 @@ result with stage ``error`` or ``timeout``, and the batch goes on.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import time
 from collections.abc import Iterator
@@ -22,7 +23,9 @@ class LocalExecutor:
     """Worker processes on this machine (pebble), each episode under a wall-clock guard.
 
     A worker whose episode overruns the guard is killed and replaced; a worker that dies (a crash in
-    native code) is replaced too. Neither stops the batch.
+    native code) is replaced too. Neither stops the batch. A failed episode's ``wall_time_s`` is its
+    own, from when its worker started it: a worker says when it starts a job (:func:`_started_job`),
+    and an episode that raises is timed and caught in its worker (:func:`_run_timed`).
     """
 
     def __init__(self, workers: int, guard_s: float = DEFAULT_GUARD_S, fn: JobFn = run_job) -> None:
@@ -33,24 +36,62 @@ class LocalExecutor:
     def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
         from pebble import ProcessExpired, ProcessPool
 
-        with ProcessPool(max_workers=self.workers) as pool:
-            futures = {pool.schedule(self.fn, args=(job,), timeout=self.guard_s): job for job in jobs}
-            started = time.perf_counter()
+        # The workers say which job each starts, and when: a pipe, drained as each job comes back (so
+        # that it never fills), read for a failed job's own wall time.
+        channel = multiprocessing.SimpleQueue()
+        starts: dict[tuple, float] = {}
+
+        def own_wall_s(job: Job) -> float:
+            t0 = starts.get(job.key)
+            return 0.0 if t0 is None else time.monotonic() - t0  # (None: its worker died before it started it)
+
+        with ProcessPool(max_workers=self.workers, initializer=_set_channel, initargs=(channel,)) as pool:
+            futures = {pool.schedule(_run_timed, args=(self.fn, job), timeout=self.guard_s): job for job in jobs}
             try:
                 for fut in as_completed(futures):
                     job = futures[fut]
+                    while not channel.empty():
+                        key, t0 = channel.get()
+                        starts[key] = t0
                     try:
                         yield fut.result()
                     except FutureTimeout:
-                        yield timed_out(job, self.guard_s, self.guard_s)
+                        yield timed_out(job, self.guard_s, max(self.guard_s, own_wall_s(job)))
                     except ProcessExpired as exc:
-                        yield failed_result(
-                            job, Stage.ERROR, f"worker died (exit code {exc.exitcode})", time.perf_counter() - started
-                        )
+                        yield failed_result(job, Stage.ERROR, f"worker died (exit code {exc.exitcode})",
+                                            own_wall_s(job))  # fmt: skip
                     except Exception as exc:  # noqa: BLE001 - one bad episode must not take the batch down
-                        yield raised(job, exc, time.perf_counter() - started)
+                        yield raised(job, exc, own_wall_s(job))
+                    starts.pop(job.key, None)
             finally:
                 pool.stop()
+
+
+#: In a worker process of :class:`LocalExecutor`: where it says which job it starts, and when.
+_CHANNEL: Any = None
+
+
+def _set_channel(channel: Any) -> None:
+    global _CHANNEL
+    _CHANNEL = channel
+
+
+def _started_job(job: Job) -> float:
+    """The job's start (``time.monotonic``, one clock for every process of the machine), said to the
+    executor before the episode runs, so that a worker that dies in it leaves its start behind."""
+    t0 = time.monotonic()
+    if _CHANNEL is not None:
+        _CHANNEL.put((job.key, t0))
+    return t0
+
+
+def _run_timed(fn: JobFn, job: Job) -> EpisodeRecord:
+    """Run one job in a worker; an episode that raises is a failed result timed from its own start."""
+    t0 = _started_job(job)
+    try:
+        return fn(job)
+    except Exception as exc:  # noqa: BLE001 - a job must always come back with a result
+        return raised(job, exc, time.monotonic() - t0)
 
 
 #: How long to wait for a Ray cluster's address to answer before saying it does not.

@@ -151,6 +151,29 @@ def test_one_bad_episode_does_not_take_the_batch_down(tmp_path: Path, fn, stage:
     assert len((tmp_path / "episodes.jsonl").read_text().splitlines()) == 4
 
 
+def _job_slow_then_bad(job: Job) -> dict:
+    """Seed 0 takes a second; seed 1 then raises, kills its worker or hangs (the job's scenario name says which)."""
+    if job.seed == 0:
+        time.sleep(1.0)
+    elif job.scenario_name == "raises":
+        raise RuntimeError("boom")
+    elif job.scenario_name == "dies":
+        os._exit(3)
+    else:
+        time.sleep(60)
+    return _job_ok(job)
+
+
+@pytest.mark.parametrize(("how", "low", "high"), [("raises", 0.0, 0.5), ("dies", 0.0, 0.5), ("hangs", 2.0, 2.9)])
+def test_a_failed_episodes_wall_time_is_its_own(tmp_path: Path, how: str, low: float, high: float) -> None:
+    # Issue 57: it was measured from the batch's start (here 1 s before: seed 0 ran first on the one worker).
+    jobs = [Job("x.toml", how, s) for s in range(2)]
+    out = run_bench(jobs, LocalExecutor(1, guard_s=2.0, fn=_job_slow_then_bad), progress=False)
+    bad = next(r for r in out.results if r["seed"] == 1)
+    assert bad["failure"]["stage"] == ("timeout" if how == "hangs" else "error")
+    assert low <= bad["wall_time_s"] < high, bad
+
+
 def test_existing_results_need_resume(tmp_path: Path) -> None:
     jobs = [Job("x.toml", "x", s) for s in range(3)]
     run_bench(jobs, LocalExecutor(1, fn=_job_ok), out_dir=tmp_path, progress=False)
