@@ -182,3 +182,19 @@ def test_perceive_reads_a_file_without_task_as_perception(tmp_path: Path) -> Non
     said = _run("perceive", str(f), "--seeds", "0", "--methods", "pixel")
     assert said.returncode == 2 and "objects.c: the target of a pick cannot be static" in said.stderr
     assert said.stderr.count("\n") == 1
+
+
+def test_a_shipped_scenario_that_does_not_load_stops_a_suite_bench(tmp_path: Path, monkeypatch, capsys) -> None:
+    # Issue 57: `bench` without names dropped it and gated a smaller suite: now one line, exit 2, its name.
+    from pickdemo.apps.cli import main
+    from pickdemo.scenario import load
+
+    shipped = load.builtin_scenario_dirs()[0]
+    for name in ("pick_cube", "pick_cylinder"):
+        (tmp_path / f"{name}.toml").write_text((shipped / f"{name}.toml").read_text())
+    (tmp_path / "pick_broken.toml").write_text((shipped / "pick_cube.toml").read_text() + "\nnot_a_key = 1\n")
+    monkeypatch.setattr(load, "builtin_scenario_dirs", lambda: [tmp_path])
+    assert main(["bench", "--seeds", "0", "--no-progress", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pickdemo: error: ") and err.count("\n") == 1, err
+    assert "'pick_broken'" in err and "not_a_key" in err and not (tmp_path / "o" / "episodes.jsonl").exists(), err

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pickdemo.scenario import checks
+from pickdemo.scenario import checks, load
 from pickdemo.scenario.checks import check_scenario
 from pickdemo.scenario.layout import sample_layout
-from pickdemo.scenario.load import ScenarioError, list_scenarios, load_scenario
+from pickdemo.scenario.load import ScenarioError, list_scenarios, load_scenario, suite_scenarios
 from pickdemo.scenario.parse import parse_scenario
 
 if sys.version_info >= (3, 11):
@@ -42,6 +42,18 @@ def test_shipped_scenarios_load() -> None:
         sc = load_scenario(name)
         assert sc.name == name
         assert sc.clear is not None if sc.task == "clear" else sc.target.target
+
+
+def test_a_shipped_scenario_that_does_not_load_fails_the_suite(tmp_path: Path, monkeypatch) -> None:
+    # Issue 57: it was left out, and a plain `bench` gated a smaller suite than it said.
+    (tmp_path / "good.toml").write_text(GOOD.replace('name = "t"', 'name = "good"\ntags = ["suite"]'))
+    monkeypatch.setattr(load, "builtin_scenario_dirs", lambda: [tmp_path])
+    assert suite_scenarios() == ["good"]
+    (tmp_path / "broken.toml").write_text(GOOD.replace('name = "t"', 'name = "broken"\ntags = ["suite"]\nspeed = 3'))
+    with pytest.raises(ScenarioError) as err:
+        suite_scenarios()
+    msg = str(err.value)
+    assert "'broken'" in msg and str(tmp_path / "broken.toml") in msg and "speed" in msg and "\n" not in msg, msg
 
 
 def test_issue_keys_of_pick_cube() -> None:
