@@ -1,4 +1,5 @@
-"""pickdemo: a simulated Franka Panda picks an object it has only seen, headless and reproducible.
+"""pickdemo: a simulated robot arm (Panda, SO-101, UR5 ship) picks an object it has only seen, headless
+and reproducible.
 
 One episode from Python::
 
@@ -24,6 +25,8 @@ live beside the simulator in :mod:`pickdemo.runtime.episode`, load it on first u
 one import inside a function; everything else imports at the top).
 """
 
+from importlib.metadata import PackageNotFoundError, version
+
 from pickdemo.core.result import EpisodeResult, Failure, Stage
 from pickdemo.scenario.load import Scenario, ScenarioError, load_scenario
 
@@ -38,7 +41,10 @@ __all__ = [
     "load_scenario",
     "run_episode",
 ]
-__version__ = "0.1.0"
+try:  # the installed distribution's (pyproject.toml's): one version, stated once
+    __version__ = version("pickdemo")
+except PackageNotFoundError:  # pragma: no cover - a source tree on the path that was never installed
+    __version__ = "0+unknown"
 
 
 def run_episode(scenario: Scenario, seed: int, **kwargs):  # type: ignore[no-untyped-def]

@@ -7,7 +7,14 @@ import argparse
 import os
 from pathlib import Path
 
+from pickdemo import __version__
 from pickdemo.apps.bench import DEFAULT_MIN_SUCCESS
+
+#: What ``pickdemo --help`` says pickdemo is (the same words as pyproject.toml's description).
+DESCRIPTION = (
+    "A simulated robot arm (Panda, SO-101, UR5 ship) picks an object it has only seen: RGB-D perception to "
+    "Ruckig control, headless and reproducible."
+)
 
 PERCEPTION_HELP = (
     "perception in the loop: paper (default), icp, centroid, pixel, or module:function for your own "
@@ -25,7 +32,8 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="pickdemo", description="A simulated Franka Panda picks an object it has only seen.")
+    parser = _Parser(prog="pickdemo", description=DESCRIPTION)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     run = sub.add_parser("run", help="run one episode of a scenario")
     run.add_argument("scenario", help="a scenario name (see `pickdemo list`) or a path to a .toml file")

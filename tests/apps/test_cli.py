@@ -184,6 +184,23 @@ def test_perceive_reads_a_file_without_task_as_perception(tmp_path: Path) -> Non
     assert said.stderr.count("\n") == 1
 
 
+def test_version_is_the_installed_distributions() -> None:
+    from importlib.metadata import version
+
+    proc = _run("--version")
+    assert proc.returncode == 0 and proc.stdout == f"pickdemo {version('pickdemo')}\n", proc.stdout + proc.stderr
+    assert "--version" in _help()
+
+
+def test_the_description_names_every_robot_that_ships() -> None:
+    from pickdemo.robot import shipped_robots
+
+    text = _help()
+    assert "Franka Panda picks" not in text
+    shown = {"panda": "Panda", "so101": "SO-101", "ur5_franka_hand": "UR5"}
+    assert set(shipped_robots()) == set(shown) and all(name in text for name in shown.values()), text
+
+
 def test_a_shipped_scenario_that_does_not_load_stops_a_suite_bench(tmp_path: Path, monkeypatch, capsys) -> None:
     # Issue 57: `bench` without names dropped it and gated a smaller suite: now one line, exit 2, its name.
     from pickdemo.apps.cli import main
