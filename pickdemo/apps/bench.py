@@ -311,13 +311,14 @@ def format_summary(summary: dict[str, ScenarioSummary]) -> str:
             trk = s["tracking_error_mm"]
             lines.append(
                 f"  closed loop: perception {s['perception_rate_hz']['median']:.1f} Hz, "
-                f"{s['estimates_rejected']} estimate(s) rejected, {s['target_moves_detected']} target move(s) "
+                f"{s['estimates_rejected']} estimate(s) turned away by the tracker's gate, "
+                f"{s['target_moves_detected']} target move(s) "
                 f"detected" + (f", tracking error at the grasp median {trk['median']:.2f} mm" if trk else "")
             )
         if s["estimates_off"]:
             off, acc, fit = s["estimates_off"], s["estimates_off_accepted"], s.get("estimates_off_fit_rejected", 0)
             lines.append(
-                f"  estimates > 5 mm off the truth: {off}; rejected {off - acc} ({100 * (off - acc) / off:.0f} %: "
+                f"  estimates > 5 mm off the truth: {off}; not acted on {off - acc} ({100 * (off - acc) / off:.0f} %: "
                 f"{fit} by perception's fit check, {off - acc - fit} by the loop's checks), acted on {acc}"
             )
         if s.get("failed_off_table"):

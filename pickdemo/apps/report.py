@@ -364,7 +364,7 @@ def write_run_report(result: EpisodeResult, out_dir: Path, *, video: Path | None
         (
             "perception",
             f"{r.perception_frames} frames, {r.perception_rate_hz or 0:.1f} Hz while tracking, "
-            f"{r.estimates_rejected} rejected, {r.target_moves_detected} target move(s)",
+            f"{r.estimates_rejected} turned away by the tracker's gate, {r.target_moves_detected} target move(s)",
         ),  # fmt: skip
         ("time", f"{r.sim_time_s:.2f} s simulated in {r.wall_time_s:.2f} s"),
         (

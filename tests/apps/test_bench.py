@@ -18,6 +18,7 @@ from pickdemo.apps.bench import (
     BenchError,
     Job,
     failed_result,
+    format_summary,
     junit_xml,
     load_episodes,
     parse_seeds,
@@ -91,6 +92,18 @@ def test_summary_counts_failures_by_stage() -> None:
     assert s["b"]["failures_by_stage"] == {"timeout": 1}
     assert s["a"]["position_error_mm"]["median"] == pytest.approx(0.2)
     assert s["a"]["real_time_factor"] == pytest.approx(10.0)
+
+
+def test_the_two_rejection_counts_say_what_each_counts() -> None:
+    # Issue 57: "0 estimate(s) rejected" beside "rejected 24": two counters, one word.
+    summary = summarise([_result("a", 0, True)])
+    summary["a"] |= {"perception_rate_hz": {"median": 10.0}, "estimates_rejected": 0, "estimates_off": 30,
+                     "estimates_off_accepted": 6, "estimates_off_fit_rejected": 20}  # fmt: skip
+    text = format_summary(summary)
+    assert "0 estimate(s) turned away by the tracker's gate" in text, text
+    said = "off the truth: 30; not acted on 24 (80 %: 20 by perception's fit check, 4 by the loop's checks), acted on 6"
+    assert said in text, text
+    assert "rejected" not in text
 
 
 def test_junit_xml_parses_and_carries_reasons() -> None:
