@@ -137,8 +137,11 @@ def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float,
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> EpisodeRecord:
-    """The record of a job that produced none (it raised, crashed or hung): :meth:`EpisodeResult.failed`."""
+def failed_result(
+    job: Job, stage: Stage, reason: str, wall_time_s: float, traceback: str | None = None
+) -> EpisodeRecord:
+    """The record of a job that produced none (it raised, crashed or hung): :meth:`EpisodeResult.failed`
+    (``traceback``: where it raised, for a bug)."""
     return EpisodeResult.failed(
         job.scenario_name,
         job.seed,
@@ -147,6 +150,7 @@ def failed_result(job: Job, stage: Stage, reason: str, wall_time_s: float) -> Ep
         wall_time_s=wall_time_s,
         open_loop=job.open_loop,
         perception_method=job.perception,
+        traceback=traceback,
     ).to_dict()
 
 

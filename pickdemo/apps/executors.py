@@ -10,6 +10,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import time
+import traceback
 from collections.abc import Iterator
 from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures import as_completed
@@ -187,8 +188,11 @@ def timed_out(job: Job, guard_s: float, wall_s: float) -> EpisodeRecord:
 
 
 def raised(job: Job, exc: BaseException, wall_s: float) -> EpisodeRecord:
-    """The result of an episode whose worker raised (its first line)."""
-    return failed_result(job, Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0], wall_s)
+    """The result of an episode whose worker raised (its first line), with where it raised: a bug (a
+    worker's own traceback, where the pool passed it on as text, as pebble does)."""
+    remote = getattr(exc, "traceback", None)
+    where = remote if isinstance(remote, str) and remote else "".join(traceback.format_exception(exc))
+    return failed_result(job, Stage.ERROR, f"{type(exc).__name__}: {exc}".splitlines()[0], wall_s, where)
 
 
 def _why(exc: BaseException) -> str:

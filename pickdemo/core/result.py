@@ -227,14 +227,16 @@ class EpisodeResult:
         open_loop: bool = False,
         perception_method: str = "paper",
         diagnosis: str | None = "not_committed",
+        traceback: str | None = None,
     ) -> EpisodeResult:
         """The result of an episode that produced none of its own (its job raised, crashed or hung, or
-        it could not start): failed in ``stage``, nothing measured, no simulated time."""
+        it could not start): failed in ``stage``, nothing measured, no simulated time; ``traceback``:
+        where it raised (a bug)."""
         return cls(
             scenario=scenario,
             seed=seed,
             success=False,
-            failure=Failure(stage, reason),
+            failure=Failure(stage, reason, traceback),
             perception=None,
             place_error_mm=None,
             lift_height_mm=None,

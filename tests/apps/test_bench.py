@@ -185,6 +185,8 @@ def test_a_failed_episodes_wall_time_is_its_own(tmp_path: Path, how: str, low: f
     bad = next(r for r in out.results if r["seed"] == 1)
     assert bad["failure"]["stage"] == ("timeout" if how == "hangs" else "error")
     assert low <= bad["wall_time_s"] < high, bad
+    # a job that raised is a bug: where it raised comes with it (a worker that died or hung has none)
+    assert ("_job_slow_then_bad" in bad["failure"].get("traceback", "")) == (how == "raises"), bad["failure"]
 
 
 def test_existing_results_need_resume(tmp_path: Path) -> None:
