@@ -212,7 +212,8 @@ class Scene:
         c = self.client
         flags = p.URDF_USE_INERTIA_FROM_FILE
         desc, gripper = self.robot, self.robot.gripper
-        robot = c.loadURDF(str(desc.render_urdf()), basePosition=[0, 0, 0], useFixedBase=True, flags=flags)
+        with quiet_c_stdout():  # (PyBullet prints a URDF's warnings, a link without inertia, on stdout)
+            robot = c.loadURDF(str(desc.render_urdf()), basePosition=[0, 0, 0], useFixedBase=True, flags=flags)
         self.bodies["robot"] = robot
         self.joint_index: dict[str, int] = {}
         self.link_index: dict[str, int] = {}
