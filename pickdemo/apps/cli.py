@@ -399,6 +399,11 @@ def _cmd_validate(args: argparse.Namespace) -> int:
             bad += 1
         else:
             print(f"ok {scenario.name}")
+            robot = scenario.robot_description
+            if robot.home_proposed:  # (a robot file without a home: say the one it runs with, to paste in)
+                home = ", ".join(f"{q:.4f}" for q in robot.home_q)
+                print(f"  {scenario.robot}: no home given; proposed (the hand down over the table), "
+                      f"to write in its [arm]: home = [{home}]")  # fmt: skip
     return EXIT_BAD_INPUT if bad else EXIT_OK
 
 

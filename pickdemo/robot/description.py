@@ -73,7 +73,8 @@ class Gripper:
     finger_thickness_m: float
     palm_half_length_m: float
     palm_half_width_m: float
-    #: a jaw's opening (m) at its joint's angles (rad), both rising: [(rad, m), ...]
+    #: a jaw's opening (m) at its joint's angles (rad), by rising angle: [(rad, m), ...] (the opening
+    #: rises or falls with the angle)
     jaw_table: tuple[tuple[float, float], ...] = ()
     jaw_lever_m: float = 0.0  # a jaw's axis to where it presses (m)
     jaw_clearance_m: float = 0.0  # the fixed jaw's face lowered this far beside the object (m)
@@ -97,6 +98,8 @@ class Gripper:
         if self.kind == "parallel":
             return [finger_m] * len(self.finger_joints)
         rad, gap = zip(*self.jaw_table, strict=True)
+        if gap[0] > gap[-1]:  # a jaw whose opening falls as its angle rises (the Unitree Z1's)
+            rad, gap = rad[::-1], gap[::-1]
         return [float(np.interp(2.0 * finger_m, gap, rad))]
 
     def joint_positions(self, fingers_m: np.ndarray) -> np.ndarray:
@@ -157,6 +160,7 @@ class RobotDescription:
     #: the heights of a pick where the robot's own differ from the skill's (m, by the names of
     #: :class:`~pickdemo.grasping.top_down.GraspParams`: pregrasp, transport, retreat, the TCP's lowest)
     grasp_heights: tuple[tuple[str, float], ...] = ()
+    home_proposed: bool = False  # its file gave no home: ``home_q`` is :mod:`pickdemo.robot.model_check`'s proposal
 
     @property
     def dof(self) -> int:

@@ -25,6 +25,7 @@ import pinocchio as pin
 
 from pickdemo.core.geometry import Pose
 from pickdemo.robot.description import RobotDescription
+from pickdemo.robot.urdf_files import model_urdf
 
 
 @dataclass(frozen=True)
@@ -84,18 +85,38 @@ class PostureParams:
 POSTURE = PostureParams()
 
 
+def link_frame_id(model: pin.Model, link: str) -> int:
+    """The frame of the URDF link ``link`` in ``model``, looked up by name and type: a URDF may name a
+    joint as its child link (the Unitree Z1's fixed joint ``gripperStator``), and a lookup by bare
+    name then finds two frames and raises. A ``KeyError`` if the model has no such link."""
+    if not model.existFrame(link, pin.FrameType.BODY):
+        raise KeyError(f"{link!r} is not a link of the model")
+    return model.getFrameId(link, pin.FrameType.BODY)
+
+
+def frame_id(model: pin.Model, name: str) -> int:
+    """The frame of a link, or else of a joint, of this name (by name and type, as
+    :func:`link_frame_id`): a camera's mount is a link, the wrist's sensor a joint. A joint's frame and
+    its child link's are one placement, so a joint named as its child link finds the same pose."""
+    for kind in (pin.FrameType.BODY, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT):
+        if model.existFrame(name, kind):
+            return model.getFrameId(name, kind)
+    raise KeyError(f"{name!r} is not a link or a joint of the model")
+
+
 class Kinematics:
     """Forward and inverse kinematics of a robot's TCP, on its own model reduced to its arm (its
     ``robot``: a :class:`~pickdemo.robot.description.RobotDescription`)."""
 
     def __init__(self, robot: RobotDescription) -> None:
         self.robot = robot
-        full = pin.buildModelFromUrdf(str(robot.files().urdf))
-        lock = [full.getJointId(n) for n in robot.gripper.finger_joints]
+        urdf, renamed = model_urdf(robot.files())
+        full = pin.buildModelFromUrdf(str(urdf))
+        lock = [full.getJointId(renamed.get(n, n)) for n in robot.gripper.finger_joints]
         q_ref = pin.neutral(full)
         self.model = pin.buildReducedModel(full, lock, q_ref)
         self.data = self.model.createData()
-        self.tcp_id = self.model.getFrameId(robot.tcp_frame)
+        self.tcp_id = link_frame_id(self.model, robot.tcp_frame)
         revolute = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
         if self.model.nq != robot.dof or any(j.shortname() not in revolute for j in self.model.joints[1:]):
             raise RuntimeError(
@@ -116,9 +137,10 @@ class Kinematics:
         return pin.SE3(self.data.oMf[self.tcp_id])
 
     def tcp_to_frame(self, name: str) -> Pose:
-        """``T_tcp_frame`` of a frame fixed to the hand (a camera's mount): the same at any configuration."""
+        """``T_tcp_frame`` of a frame fixed to the hand (a camera's mount, a link; the wrist's sensor, a
+        joint): the same at any configuration."""
         pin.framesForwardKinematics(self.model, self.data, pin.neutral(self.model))
-        return Pose.from_se3(self.data.oMf[self.tcp_id].actInv(self.data.oMf[self.model.getFrameId(name)]))
+        return Pose.from_se3(self.data.oMf[self.tcp_id].actInv(self.data.oMf[frame_id(self.model, name)]))
 
     def manipulability(self, q: np.ndarray) -> float:
         """Yoshikawa's measure sqrt(det(J J^T)) of the TCP's Jacobian: near 0 close to a singularity."""

@@ -20,8 +20,9 @@ import numpy as np
 import tomllib
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from pickdemo.robot.description import Gripper, JointLimits, RobotDescription
-from pickdemo.robot.urdf_files import joined, lean_urdf_path, locate
+from pickdemo.robot.description import Gripper, JointLimits, RobotDescription, RobotFiles
+from pickdemo.robot.stl import MESH_SUFFIXES
+from pickdemo.robot.urdf_files import ERD_PREFIX, found_mesh, joined, lean_urdf_path, locate, not_one_of
 
 #: Where the shipped robot files are.
 ROBOTS_DIR = Path(__file__).resolve().parent / "robots"
@@ -55,7 +56,7 @@ class _Arm(_Model):
     tcp_frame: str
     hand_frame: str
     wrist_joint: str
-    home: list[Finite]
+    home: list[Finite] | None = None  # rad; None: proposed (pickdemo.robot.home)
     payload_kg: Positive
     base_radius_m: Positive  # its base on the table: nothing may stand within this of the origin (m)
     camera_mounts: list[str] = []
@@ -129,6 +130,18 @@ class _RobotFile(_Model):
     grasp: _Grasp = _Grasp()
 
 
+#: The file's sections as docs/robot-file.md documents them, each with the model that reads it.
+SECTIONS: dict[str, type[BaseModel]] = {
+    "Top level": _RobotFile,
+    "[arm]": _Arm,
+    "[[arm.frames]]": _Frame,
+    "[hand]": _Hand,
+    "[limits]": _Limits,
+    "[gripper]": _Gripper,
+    "[grasp]": _Grasp,
+}
+
+
 def load_robot_file(path: str | Path) -> RobotDescription:
     """The robot a file describes (raises :class:`RobotFileError`, one line, for a bad one)."""
     path = Path(path)
@@ -153,10 +166,11 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         return RobotFileError(f"{path}: {key}: {msg}")
 
     files = locate(spec.arm.urdf, path.parent, fail, "arm.urdf")
-    if spec.hand is not None or spec.arm.frames:
+    label = _source(spec)
+    if spec.hand is not None or spec.arm.frames or _continuous(files, spec.arm.joints):
         hand = None if spec.hand is None else locate(spec.hand.urdf, path.parent, fail, "hand.urdf")
         files = joined(files, hand, spec, fail)
-    _check(spec, files.urdf, fail)
+    _check(spec, files, fail, label)
 
     def mesh_files(key: str, table: dict[str, str]) -> tuple[tuple[str, str], ...]:
         """(a URDF mesh's file name, the file beside the robot file taking its place), each there."""
@@ -171,7 +185,8 @@ def load_robot_file(path: str | Path) -> RobotDescription:
     meshes = mesh_files("collision_meshes", spec.arm.collision_meshes)
     renders = mesh_files("render_meshes", spec.arm.render_meshes)
     a, g, lim = spec.arm, spec.gripper, spec.limits
-    return RobotDescription(
+    lim_lo, lim_hi = np.array(lim.position_min), np.array(lim.position_max)
+    robot = RobotDescription(
         name=spec.name,
         label=spec.label,
         arm_joints=tuple(a.joints),
@@ -192,13 +207,14 @@ def load_robot_file(path: str | Path) -> RobotDescription:
             finger_thickness_m=g.finger_thickness_m,
             palm_half_length_m=g.palm_half_length_m,
             palm_half_width_m=g.palm_half_width_m,
-            jaw_table=tuple((float(a), float(b)) for a, b in g.jaw_table),
+            jaw_table=tuple((float(a), float(b)) for a, b in sorted(g.jaw_table)),
             jaw_lever_m=g.jaw_lever_m or 0.0,
             jaw_clearance_m=g.jaw_clearance_m,
             grip_force_n=g.grip_force_n,
             pad_friction=g.pad_friction,
         ),  # fmt: skip
-        home_q=np.array(a.home),
+        home_q=np.array(a.home if a.home is not None else (lim_lo + lim_hi) / 2.0),
+        home_proposed=a.home is None,
         limits=JointLimits(
             np.array(lim.position_min),
             np.array(lim.position_max),
@@ -214,47 +230,74 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         render_urdf=functools.partial(lean_urdf_path, files, spec.name, meshes, renders),
         grasp_heights=tuple((k, v) for k, v in spec.grasp.model_dump().items() if v is not None),
     )
+    from pickdemo.robot.model_check import check_model, with_proposed_home  # (pinocchio: only once a file is read)
+
+    check_model(robot, fail, label)
+    return robot if a.home is not None else with_proposed_home(robot, fail)
 
 
-def _check(spec: _RobotFile, urdf: Path, fail) -> None:  # noqa: ANN001 - (key, message) -> error
-    """What the URDF must have, the limits' lengths and order, home within them, the stroke."""
+def _source(spec: _RobotFile) -> str:
+    """The user's URDF (and the hand's) as a message names them, never the joined file pickdemo wrote."""
+    arm = Path(spec.arm.urdf.removeprefix(ERD_PREFIX)).name
+    return arm if spec.hand is None else f"{arm} with {Path(spec.hand.urdf.removeprefix(ERD_PREFIX)).name}'s hand"
+
+
+def _continuous(files: RobotFiles, arm_joints: list[str]) -> bool:
+    """Whether one of the arm's joints is continuous in its URDF (written as revolute within the file's
+    limits: the solver steps angles, and the datasheet bounds them)."""
     try:
-        root = ET.fromstring(urdf.read_bytes())
+        root = ET.fromstring(files.urdf.read_bytes())
+    except (OSError, ET.ParseError):
+        return False  # (said by the checks, naming the key)
+    return any(j.get("type") == "continuous" and j.get("name") in arm_joints for j in root.findall("joint"))
+
+
+def _check(spec: _RobotFile, files: RobotFiles, fail, label: str) -> None:  # noqa: ANN001 - (key, message) -> error
+    """What the URDF must have, its meshes on this machine, the limits' lengths and order, home within
+    them, the stroke."""
+    try:
+        root = ET.fromstring(files.urdf.read_bytes())
     except (OSError, ET.ParseError) as exc:
-        raise fail("arm.urdf", f"{urdf} is not a readable URDF ({exc})") from None
+        raise fail("arm.urdf", f"{files.urdf} is not a readable URDF ({exc})") from None
     joints = {j.get("name"): j.get("type") for j in root.findall("joint")}
-    links = {lk.get("name") for lk in root.findall("link")}
+    moving = [n for n, kind in joints.items() if kind in ("revolute", "continuous", "prismatic")]
+    links = [lk.get("name") for lk in root.findall("link")]
     a, g, lim = spec.arm, spec.gripper, spec.limits
     for i, name in enumerate(a.joints):
-        if joints.get(name) not in ("revolute", "continuous", "prismatic"):
-            what = "is not a moving joint" if name in joints else "is not a joint"
-            raise fail(f"arm.joints[{i}]", f"{name!r} {what} of {urdf.name}")
-    for key, name in (("arm.wrist_joint", a.wrist_joint),):
+        if name in joints and name not in moving:
+            raise fail(f"arm.joints[{i}]", f"{name!r} is not a moving joint of {label} (it is {joints[name]}); "
+                                           f"its moving joints: {', '.join(moving)}")  # fmt: skip
         if name not in joints:
-            raise fail(key, f"{name!r} is not a joint of {urdf.name}")
+            raise fail(f"arm.joints[{i}]", not_one_of(name, "joint", moving, label))
+    if len(set(a.joints)) != len(a.joints):
+        raise fail("arm.joints", "a joint named twice")
+    if a.wrist_joint not in joints:
+        raise fail("arm.wrist_joint", not_one_of(a.wrist_joint, "joint", list(joints), label))
     for key, name in (("arm.tcp_frame", a.tcp_frame), ("arm.hand_frame", a.hand_frame)):
         if name not in links:
-            raise fail(key, f"{name!r} is not a link of {urdf.name}")
+            raise fail(key, not_one_of(name, "link", links, label))
     for i, name in enumerate(a.camera_mounts):
         if name not in links:
-            raise fail(f"arm.camera_mounts[{i}]", f"{name!r} is not a link of {urdf.name}")
+            raise fail(f"arm.camera_mounts[{i}]", not_one_of(name, "link", links, label))
     for i, name in enumerate(g.finger_joints):
         if name not in joints:
-            raise fail(f"gripper.finger_joints[{i}]", f"{name!r} is not a joint of {urdf.name}")
+            raise fail(f"gripper.finger_joints[{i}]", not_one_of(name, "joint", moving, label))
+        if name in a.joints:
+            raise fail(f"gripper.finger_joints[{i}]", f"{name!r} is an arm joint too: it is the arm's or the hand's")
     for i, name in enumerate(g.finger_links):
         if name not in links:
-            raise fail(f"gripper.finger_links[{i}]", f"{name!r} is not a link of {urdf.name}")
+            raise fail(f"gripper.finger_links[{i}]", not_one_of(name, "link", links, label))
+    _check_meshes(root, files, fail)
     n = len(a.joints)
-    for key in ("home",):
-        if len(getattr(a, key)) != n:
-            raise fail(f"arm.{key}", f"{len(getattr(a, key))} values for {n} joints")
+    if a.home is not None and len(a.home) != n:
+        raise fail("arm.home", f"{len(a.home)} values for {n} joints")
     for key in ("position_min", "position_max", "velocity", "acceleration", "jerk", "effort"):
         if len(getattr(lim, key)) != n:
             raise fail(f"limits.{key}", f"{len(getattr(lim, key))} values for {n} joints")
     for i, (lo, hi) in enumerate(zip(lim.position_min, lim.position_max, strict=True)):
         if not lo < hi:
             raise fail(f"limits.position_min[{i}]", f"{lo} is not below position_max's {hi}")
-        if not lo <= a.home[i] <= hi:
+        if a.home is not None and not lo <= a.home[i] <= hi:
             raise fail(f"arm.home[{i}]", f"{a.home[i]} is outside the joint's limits [{lo}, {hi}]")
     if 2.0 * g.finger_max_m < MIN_STROKE_M:
         raise fail("gripper.finger_max_m", f"the hand opens {2e3 * g.finger_max_m:.1f} mm in all: it cannot hold "
@@ -263,10 +306,27 @@ def _check(spec: _RobotFile, urdf: Path, fail) -> None:  # noqa: ANN001 - (key, 
         raise fail("gripper.grip_force_n", f"{g.grip_force_n} N is more than max_force_n's {g.max_force_n} N")
     if g.open_force_n > g.max_force_n:
         raise fail("gripper.open_force_n", f"{g.open_force_n} N is more than max_force_n's {g.max_force_n} N")
-    if g.kind == "parallel" and len(g.finger_joints) != 2:
-        raise fail("gripper.finger_joints", f"a parallel gripper has two finger joints, not {len(g.finger_joints)}")
+    if g.kind == "parallel":
+        if len(g.finger_joints) != 2:
+            raise fail("gripper.finger_joints", f"a parallel gripper has two finger joints, not {len(g.finger_joints)}")
+        for i, name in enumerate(g.finger_joints):
+            if joints[name] != "prismatic":
+                msg = f"{name!r} is {joints[name]}: a parallel gripper's fingers slide (prismatic joints)"
+                raise fail(f"gripper.finger_joints[{i}]", msg + '; a turning jaw is kind = "jaw"')
     if g.kind == "jaw":
         _check_jaw(g, joints, fail)
+
+
+def _check_meshes(root: ET.Element, files: RobotFiles, fail) -> None:  # noqa: ANN001 - (key, message) -> error
+    """Every mesh the URDF names is on this machine, and each collision mesh is one the self-filter reads."""
+    for link in root.findall("link"):
+        for mesh in link.iter("mesh"):
+            name = mesh.get("filename", "")
+            path = found_mesh(name, files, "arm.urdf", fail)
+            in_collision = any(mesh in col.iter("mesh") for col in link.findall("collision"))
+            if in_collision and path.suffix.lower() not in MESH_SUFFIXES:
+                raise fail("arm.urdf", f"link {link.get('name')!r}'s collision mesh {name!r} is not one of "
+                                       f"{', '.join(MESH_SUFFIXES)} (the self-filter reads it)")  # fmt: skip
 
 
 def _check_jaw(g: _Gripper, joints: dict, fail) -> None:  # noqa: ANN001 - (key, message) -> error
@@ -280,10 +340,11 @@ def _check_jaw(g: _Gripper, joints: dict, fail) -> None:  # noqa: ANN001 - (key,
     table = g.jaw_table
     if len(table) < 2 or any(len(row) != 2 for row in table):
         raise fail("gripper.jaw_table", "at least two [rad, opening m] rows")
-    rad, gap = np.array(table).T
-    if not (np.all(np.diff(rad) > 0) and np.all(np.diff(gap) > 0)):
-        raise fail("gripper.jaw_table", "its angles and openings must both rise, row by row")
-    if gap[-1] < 2.0 * g.finger_max_m - 1e-9:
+    rad, gap = np.array(sorted(table)).T  # (by angle: a jaw whose opening falls as its angle rises is one too)
+    if not (np.all(np.diff(rad) > 0) and (np.all(np.diff(gap) > 0) or np.all(np.diff(gap) < 0))):
+        raise fail("gripper.jaw_table", "the opening must rise, or fall, with the angle at every row, and no angle "
+                                        "twice (rows of [rad, opening m])")  # fmt: skip
+    if gap.max() < 2.0 * g.finger_max_m - 1e-9:
         raise fail(
-            "gripper.jaw_table", f"it reaches {gap[-1] * 1e3:.1f} mm; the gripper opens {2e3 * g.finger_max_m:.1f}"
+            "gripper.jaw_table", f"it reaches {gap.max() * 1e3:.1f} mm; the gripper opens {2e3 * g.finger_max_m:.1f}"
         )

@@ -2,16 +2,16 @@
 box in the link's frame, posed by forward kinematics. What a real cell's self-filter does (MoveIt's
 ``robot_self_filter``): a camera that sees the arm is told which of its points are the arm.
 
-Pure: Pinocchio and numpy (no simulator). The boxes come from the collision meshes of the installed
-``example-robot-data`` Panda (binary STL, read once per process); the link poses from the arm's seven
-joint angles and the fingers' openings, which the robot measures. Padded by :data:`PAD_M` for the
+Pure: Pinocchio and numpy (no simulator). The boxes come from the robot's URDF: its links' collision
+meshes (STL, OBJ or COLLADA, found as :func:`~pickdemo.robot.urdf_files.mesh_path` finds them, read
+once per process) and boxes; the link poses from the arm's joint angles and the fingers' openings,
+which the robot measures. Padded by :data:`PAD_M` for the
 depth sensor's noise and the encoders' (sub-millimetre) error.
 """
 
 from __future__ import annotations
 
 import functools
-import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -19,7 +19,9 @@ import pinocchio as pin
 
 from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
 from pickdemo.robot.description import RobotDescription
-from pickdemo.robot.stl import stl_vertices
+from pickdemo.robot.kinematics import link_frame_id
+from pickdemo.robot.stl import mesh_vertices
+from pickdemo.robot.urdf_files import mesh_path, model_urdf
 
 #: A point this close to a link's bounding box counts as the link (depth noise, encoders).
 PAD_M = 0.005
@@ -27,7 +29,7 @@ PAD_M = 0.005
 
 @functools.cache
 def link_bounds(robot: RobotDescription) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Each link's collision geometry (meshes and boxes) bounded by a box in the link's frame:
+    """Each link's collision geometry (meshes, boxes, cylinders, spheres) bounded by a box in the link's frame:
     {link: (lo, hi)} (m)."""
     files = robot.files()
     root = ET.fromstring(files.urdf.read_bytes())
@@ -37,11 +39,18 @@ def link_bounds(robot: RobotDescription) -> dict[str, tuple[np.ndarray, np.ndarr
         for col in link.findall("collision"):
             mesh, box = col.find("geometry/mesh"), col.find("geometry/box")
             if mesh is not None:
-                rel = re.sub(r"^package://[^/]+/", "", mesh.get("filename", ""))
-                v = stl_vertices((files.package_root / rel).read_bytes())
+                path = mesh_path(mesh.get("filename", ""), files)
+                if path is None:  # (a robot file's URDF has every mesh: load_robot_file checks)
+                    raise FileNotFoundError(mesh.get("filename", ""))
+                scale = np.array([float(x) for x in mesh.get("scale", "1 1 1").split()])
+                v = mesh_vertices(path) * scale
             elif box is not None:
-                half = np.array([float(x) for x in box.get("size", "0 0 0").split()]) / 2.0
-                v = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+                v = _corners(np.array([float(x) for x in box.get("size", "0 0 0").split()]) / 2.0)
+            elif (cyl := col.find("geometry/cylinder")) is not None:  # (its axis along z)
+                r, length = float(cyl.get("radius", "0")), float(cyl.get("length", "0"))
+                v = _corners(np.array([r, r, length / 2.0]))
+            elif (ball := col.find("geometry/sphere")) is not None:
+                v = _corners(np.full(3, float(ball.get("radius", "0"))))
             else:
                 continue
             origin = col.find("origin")
@@ -56,16 +65,26 @@ def link_bounds(robot: RobotDescription) -> dict[str, tuple[np.ndarray, np.ndarr
     return out
 
 
+def _corners(half: np.ndarray) -> np.ndarray:
+    """The 8 corners of a box of these half sizes about the origin."""
+    return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+
+
 class RobotBody:
     """A robot's links posed by its joint states (forward kinematics of the full model, fingers
     included)."""
 
     def __init__(self, robot: RobotDescription) -> None:
-        self.model = pin.buildModelFromUrdf(str(robot.files().urdf))
+        urdf, renamed = model_urdf(robot.files())
+        self.model = pin.buildModelFromUrdf(str(urdf))
         self.data = self.model.createData()
-        self.bounds = [(self.model.getFrameId(name), lo, hi) for name, (lo, hi) in link_bounds(robot).items()]
-        self._arm = [self.model.joints[self.model.getJointId(n)].idx_q for n in robot.arm_joints]
-        self._fingers = [self.model.joints[self.model.getJointId(n)].idx_q for n in robot.gripper.finger_joints]
+        self.bounds = [(link_frame_id(self.model, name), lo, hi) for name, (lo, hi) in link_bounds(robot).items()]
+
+        def q_index(joint: str) -> int:
+            return self.model.joints[self.model.getJointId(renamed.get(joint, joint))].idx_q
+
+        self._arm = [q_index(n) for n in robot.arm_joints]
+        self._fingers = [q_index(n) for n in robot.gripper.finger_joints]
         self.gripper = robot.gripper
 
     def boxes(self, arm_q: np.ndarray, fingers_m: np.ndarray, pad_m: float = PAD_M) -> tuple[OrientedBox, ...]:

@@ -167,13 +167,13 @@ BAD = [
     ("a flange offset of two numbers", _edit("xyz = [0.0, 0.0, 0.0]", "xyz = [0.0, 0.0]", UR5_FILE), "hand.xyz"),
     (
         "a jaw of two joints",
-        _edit('finger_joints = ["gripper"]', 'finger_joints = ["gripper", "wrist_roll"]', SO101_FILE),
+        _edit('finger_joints = ["gripper"]', 'finger_joints = ["gripper", "gripper"]', SO101_FILE),
         "gripper.finger_joints: a jaw gripper has one revolute finger joint",
     ),
     (
         "a jaw's table that does not rise",
         _edit("[0.0907, 0.020]", "[0.0907, 0.012]", SO101_FILE),
-        "gripper.jaw_table: its angles and openings must both rise",
+        "gripper.jaw_table: the opening must rise, or fall, with the angle at every row",
     ),
     (
         "a jaw that opens less than the gripper says",
