@@ -20,6 +20,7 @@ LAZY = {
     ("pickdemo", "pickdemo.runtime"),
     ("pickdemo.apps.cli", "pickdemo.apps.demos"),  # (an extra's: gymnasium, pyarrow, PyAV, h5py)
     ("pickdemo.apps.cli", "pickdemo.apps.datasets"),
+    ("pickdemo.robot.robot_file", "pickdemo.robot.model_check"),  # (pinocchio: only once a robot file is read)
 }
 #: The Panda's names and constants: in its robot file (pickdemo/robot/robots/panda.toml), no module.
 PANDA_NAMES = re.compile(r"\b(HOME_Q|FINGER_MAX_M|PALM_ABOVE_TCP_M|MAX_VELOCITY_RAD_S|MAX_ACCELERATION_RAD_S2|"
