@@ -9,7 +9,9 @@ from episodes import at_least, episodes
 
 from pickdemo import Stage, run_episode
 from pickdemo.core.result import WALL_CLOCK_KEYS
+from pickdemo.robot import robot_named
 from pickdemo.scenario.load import Scenario, load_scenario
+from pickdemo.scenario.reach import grasp_params
 
 pytestmark = pytest.mark.sim
 
@@ -29,12 +31,22 @@ def _strip_wall(d: dict) -> dict:
 CUBE_SEEDS = tuple(range(10, 18))
 
 
+#: How much higher than the grasp the hand carries what it holds (the robot's skill's own figure).
+HAND_RISE_MM = grasp_params(robot_named()).transport_height_m * 1e3
+
+
 def test_cube_is_picked_and_placed(cube_scenario: Scenario) -> None:
     rs = episodes("pick_cube", CUBE_SEEDS, record_trace=True)
     ok = at_least(rs, len(rs) - 1)  # 100/100 measured; one failure of 8 is allowed, not two
+    # Success says only that the cube rose 50 mm and ended within 20 mm. The truth says more: it rose
+    # as high as the hand did (120 mm; seeds 10-17: 119.85-120.31 mm, so 3 mm is ten times the widest
+    # gap seen), so it did not slip in the fingers; and it was put down a few mm from the place (seeds
+    # 10-17: median 0.63 mm, largest 2.23; the suite's 50 seeds: median 0.40, largest 2.3; an earlier
+    # 100: largest 2.32). For the median of these 8 to pass 3 mm, four would have to land farther off
+    # than any of those.
+    at_least(ok, len(rs) - 1, lambda r: abs(r.lift_height_mm - HAND_RISE_MM) < 3.0, "rise with the hand")
+    assert float(np.median([r.place_error_mm for r in ok])) < 3.0
     for r in ok:
-        assert r.lift_height_mm >= cube_scenario.success.lift_height * 1e3
-        assert r.place_error_mm <= cube_scenario.success.place_tolerance * 1e3
         assert r.perception is not None and r.perception.position_error_mm < 2.0 and r.perception.yaw_error_deg < 1.0
         # It kept looking while it moved: at the scenario's rate, through a region of interest.
         assert r.perception_rate_hz == pytest.approx(cube_scenario.control.perception_rate_hz, rel=0.05)
@@ -138,7 +150,7 @@ def test_slipping_object_is_retried_with_more_force() -> None:
     # 20 N cannot hold the 1 kg steel cube: every first lift slips (by design, 100/100 measured).
     at_least(rs, len(rs), lambda r: r.attempts[0].outcome == "dropped while lifting", "slip on the first lift")
     for r in at_least(rs, len(rs) - 1):
-        assert r.attempts[-1].outcome == "placed"
+        assert len(r.attempts) == 2  # held on the second (100/100 measured), not the third
         assert r.attempts[-1].grip_force_n > r.attempts[0].grip_force_n
         assert r.attempts[-1].lift_speed_scale < 1.0
 
