@@ -188,16 +188,31 @@ def test_a_jaw_comes_down_beside_the_span_it_closes_on_whatever_the_width() -> N
 @pytest.mark.sim
 @pytest.mark.slow
 def test_objects_nobody_described_are_picked_and_put_down() -> None:
-    """The closed loop on a duck and on held-out test-split objects: found, measured at their centre
-    and picked (the success rates themselves are measured by the bench, ``tests/mesh_split.py``)."""
+    """The closed loop on a duck and on held-out test-split objects: found, measured at their centre,
+    carried as high as the hand rose and put down well inside the tolerance (the success rates
+    themselves are measured by the bench, ``tests/mesh_split.py``).
+
+    Bounds from seeds 0-7 (the test's are 0-3), with room for what the robot is told of such objects to
+    change: the first look's error against the truth, median duck 4.9 mm (3.7-6.7), test split 2.5
+    (1.4-3.7); how high it rose (its body's origin, which turns when the object turns in the hand), the
+    hand 120 mm: seeds 0-3 median duck 120.2, test split 119.6, single seeds 106-134; the place error,
+    seeds 0-3 median duck 3.8 mm and test split 2.2 (single seeds up to 15.7 and 8.8), the duck over 100
+    seeds median 6.2 mm and its largest success 11.4: for the median of four to pass 14 mm, two must
+    land farther off than any of those 97."""
     from episodes import at_least, episodes
 
+    from pickdemo.scenario.reach import grasp_params
+
+    rise_mm = grasp_params(ROBOT).transport_height_m * 1e3
     for name in ("pick_duck", "pick_mesh_test"):
         rs = episodes(name, (0, 1, 2, 3))
-        for r in at_least(rs, 3):
+        ok = at_least(rs, 3)
+        for r in ok:
             assert r.perception is not None and r.perception.yaw_error_deg is None  # principal axes: no body yaw
             assert r.perception.position_error_mm < 25.0  # the centre of what the camera sees of it
-            assert r.place_error_mm is not None and r.place_error_mm <= 20.0
+        assert float(np.median([r.perception.position_error_mm for r in ok])) < 12.0, name
+        assert abs(float(np.median([r.lift_height_mm for r in ok])) - rise_mm) < 10.0, name
+        assert float(np.median([r.place_error_mm for r in ok])) < 14.0, name  # the tolerance: 20 mm
 
 
 @pytest.mark.sim
