@@ -7,6 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from episodes import at_least, episodes
 
 from pickdemo.core.geometry import Pose
 from pickdemo.core.result import Stage
@@ -80,10 +81,17 @@ def test_a_miscalibrated_fixed_camera_alone_is_refused_by_name_before_the_arm_mo
 
 @pytest.mark.slow
 def test_a_camera_on_the_hand_makes_the_miscalibrated_cells_grasps_safe() -> None:
-    sc = load_scenario("pick_miscalibrated_wrist")
-    results = [run_episode(sc, seed) for seed in (0, 1, 2, 3)]
-    assert sum(r.success for r in results) >= 3, [r.failure for r in results]
-    assert all(r.place_error_mm < 20.0 for r in results if r.success)
+    """The fixed camera's first look is off (its pose is off by 5 mm and 1 deg: seeds 0-7, 9.4-20.2
+    mm against the truth); what the robot believed when it closed the gripper, seen by the hand's
+    camera, is not (seeds 0-7: 0.006-0.12 mm; 2 mm is over ten times that, and under a fifth of the
+    fixed camera's least error); and the cube is put down a few mm from the place (seeds 0-3: median
+    1.3 mm; 50 seeds: median 0.53, largest 2.4: for the median of four to pass 3 mm, two must land
+    farther off than any of those 50)."""
+    rs = episodes("pick_miscalibrated_wrist", (0, 1, 2, 3))
+    ok = at_least(rs, len(rs) - 1)
+    assert float(np.median([r.perception.position_error_mm for r in rs if r.perception is not None])) > 5.0
+    at_least(ok, len(rs) - 1, lambda r: r.tracking_error_mm < 2.0, "close within 2 mm of the truth")
+    assert float(np.median([r.place_error_mm for r in ok])) < 3.0
 
 
 @pytest.mark.slow
