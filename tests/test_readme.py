@@ -6,7 +6,19 @@ from __future__ import annotations
 import re
 
 import pytest
-from readme_examples import PAGES, README, ROOT, differences, examples, run
+from readme_examples import (
+    FIGURES,
+    NUMBER,
+    PAGES,
+    README,
+    ROOT,
+    Tolerance,
+    claims,
+    differences,
+    examples,
+    figure_kinds,
+    run,
+)
 
 LOG = """\
 pickdemo: pick_pushed seed 1 (closed loop): a pushed cube
@@ -35,9 +47,9 @@ def test_a_push_noticed_once_more_or_not_at_all_reads_true() -> None:
     ("edit", "complaint"),
     [
         (("wrote out/result.json, out/motion.png", "wrote out/result.json, out/motion.png, out/report.html"), "says"),
-        (("3.45 s | wall", "2.06 s | wall"), "descend entered at 2.06 s"),
-        (("52 frames", "39 frames"), "39 frames"),
-        (("14.5 s simulated", "11.8 s simulated"), "11.8 s simulated"),
+        (("3.45 s | wall", "2.06 s | wall"), "a state entered (s simulated): the run printed 2.06, the page says 3.45"),
+        (("52 frames", "39 frames"), "frames or calls: the run printed 39, the page says 52"),
+        (("14.5 s simulated", "11.8 s simulated"), "simulated time (s): the run printed 11.8, the page says 14.5"),
         (("descend   above the target", "descend   over the target"), "says"),
     ],
 )
@@ -79,6 +91,87 @@ def test_a_wall_time_in_another_unit_reads_true() -> None:
 
 
 EXAMPLES = [(page, ex) for page in PAGES for ex in examples(page.read_text())]
+#: Each command's output as its page shows it (a command on several pages, once).
+OUTPUTS = list({ex.command: ex.output for _, ex in EXAMPLES}.values())
+
+
+def _allowance(value: float, kind: Tolerance) -> float:
+    return max(kind.abs_, kind.rel * abs(value))
+
+
+def _moved(text: str, move, only_first: bool = False) -> str:
+    """``text`` with each number that ``move(value, kind)`` turns into a float moved so (None: left as it
+    is); with ``only_first``, only the first it moves."""
+    out, done = [], False
+    for line in text.splitlines(keepends=True):
+        pieces, at = [], 0
+        for m, kind in figure_kinds(line):
+            new = None if done else move(float(m.group()), kind)
+            if new is None:
+                continue
+            pieces += [line[at : m.start()], f"{new:.6f}"]
+            at, done = m.end(), only_first
+        out.append("".join(pieces) + line[at:])
+    return "".join(out)
+
+
+def test_every_rule_names_numbers_with_a_tolerance_each() -> None:
+    for pattern, kinds in FIGURES:
+        assert pattern.groups == len(kinds), pattern.pattern
+    for output in OUTPUTS:
+        for line in output.splitlines():
+            spans = {m.span() for m in NUMBER.finditer(line)}
+            assert set(claims(line)) <= spans, line  # a rule's number is a whole number of the line
+
+
+def test_the_wall_clock_and_the_machine_are_never_compared() -> None:
+    """Every wall-clock figure of every example three times as long (and a machine with 6 cores)."""
+    for output in OUTPUTS:
+        slower = _moved(output, lambda v, kind: 3.0 * v if kind.rel is None else None)
+        assert slower != output
+        assert differences(output, slower) == []
+
+
+def test_figures_within_their_tolerance_read_true() -> None:
+    for output in OUTPUTS:
+        near = _moved(output, lambda v, kind: v + 0.9 * _allowance(v, kind) if kind.rel else None)
+        assert differences(output, near) == []
+
+
+KINDS = list(
+    {kind.what: kind for output in OUTPUTS for line in output.splitlines() for _, kind in figure_kinds(line)}.values()
+)
+
+
+@pytest.mark.parametrize("kind", [k for k in KINDS if k.rel is not None], ids=lambda k: k.what)
+def test_a_figure_beyond_its_tolerance_is_caught(kind: Tolerance) -> None:
+    """For each kind of figure the pages show, one figure moved past its tolerance is named."""
+    output = next(o for o in OUTPUTS if any(k is kind for line in o.splitlines() for _, k in figure_kinds(line)))
+    off = _moved(output, lambda v, k: v + 1.5 * _allowance(v, k) + 1e-3 if k is kind else None, only_first=True)
+    problems = differences(output, off)
+    assert problems and problems[0].startswith(kind.what + ":"), problems
+
+
+def test_a_success_rate_follows_its_counts() -> None:
+    """One episode fewer on another machine: the rate and its interval follow; the same counts with
+    another rate: caught."""
+    page = "pick_cube: 10/10 succeeded (100.0 %, Wilson 95 % [72.2, 100.0]) over seeds 0-9\n"
+    one_fewer = page.replace(
+        "10/10 succeeded (100.0 %, Wilson 95 % [72.2, 100.0]", "9/10 succeeded (90.0 %, Wilson 95 % [59.6, 98.2]"
+    )
+    assert one_fewer != page and differences(page, one_fewer) == []
+    assert differences(page, page.replace("[72.2", "[59.6")), "the same counts, another interval"
+    assert differences(page, page.replace("10/10 succeeded (100.0 %", "8/10 succeeded (80.0 %"))
+
+
+def test_a_bench_failure_said_on_one_machine_only_reads_true() -> None:
+    page = "a: 10/10 succeeded (100.0 %, Wilson 95 % [72.2, 100.0]) over seeds 0-9\n  pose error: median 1 mm\n"
+    there = page.replace("10/10 succeeded (100.0 %", "9/10 succeeded (90.0 %").replace(
+        "  pose",
+        "  failures: place 1 (seeds [3])\n  failures by diagnosis (perception > 5 mm off at the grasp?): "
+        "perception_ok 1\n  pose",
+    )
+    assert differences(page, there) == []
 
 
 def test_the_readme_shows_run_bench_perceive_and_profile() -> None:
