@@ -10,6 +10,11 @@ mass), so the vertices are given in that frame, scaled as the scene loads them (
 times the URDF's own mesh scale). A dynamic body collides with the convex hull of each OBJ object,
 so the vertices hold every point it can touch the table or the fingers with.
 
+It also owns the reading of a description file's XML that :mod:`pickdemo.core.model_file` (a fixture's
+URDF or SDF) shares with it, one way for both: :func:`read_xml` (the guarded read: size, existence,
+well-formed), :func:`floats` (a list of numbers in an attribute), :func:`urdf_origin` and
+:func:`rpy_matrix`.
+
 Every problem with a file is a :class:`MeshFileError` whose message is one line naming the file.
 """
 
@@ -26,7 +31,7 @@ import numpy as np
 
 #: The prefix of a path inside the pybullet wheel's data folder.
 PYBULLET_DATA = "pybullet_data:"
-#: At most this many bytes of a URDF are read (a URDF of an object is a few kB).
+#: At most this many bytes of a URDF or SDF file are read (a URDF of an object is a few kB).
 MAX_URDF_BYTES = 1 << 20
 #: At most this many bytes of an OBJ file are read.
 MAX_OBJ_BYTES = 64 << 20
@@ -78,7 +83,28 @@ def usable(pattern: str) -> tuple[str, ...]:
     return tuple(out)
 
 
-def _floats(text: str | None, n: int, default: float, what: str, where: Path) -> np.ndarray:
+# ------------------------------------------------------------- a description file's XML (shared)
+def read_xml(path: Path, kind: str) -> ET.Element:
+    """The root element of the XML file at ``path``, read at most :data:`MAX_URDF_BYTES` long; a
+    :class:`MeshFileError` (``not {kind}``, e.g. ``a URDF``) for a directory, a missing, unreadable,
+    too large or malformed file."""
+    try:
+        if path.is_dir():
+            raise MeshFileError(f"{path}: is a directory, not {kind}")
+        if path.stat().st_size > MAX_URDF_BYTES:
+            raise MeshFileError(f"{path}: {path.stat().st_size} bytes; {kind} is at most {MAX_URDF_BYTES}")
+        return ET.fromstring(path.read_bytes())
+    except FileNotFoundError:
+        raise MeshFileError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise MeshFileError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except ET.ParseError as exc:
+        raise MeshFileError(f"{path}: not {kind} (not XML: {exc})") from None
+
+
+def floats(text: str | None, n: int, default: float, what: str, where: Path) -> np.ndarray:
+    """``n`` finite numbers from an attribute's (or an element's) text, space-separated; ``default``
+    each if ``text`` is None; a :class:`MeshFileError` naming ``what`` and the file ``where`` else."""
     if text is None:
         return np.full(n, default)
     try:
@@ -90,7 +116,8 @@ def _floats(text: str | None, n: int, default: float, what: str, where: Path) ->
     return values
 
 
-def _rpy_matrix(rpy: np.ndarray) -> np.ndarray:
+def rpy_matrix(rpy: np.ndarray) -> np.ndarray:
+    """The rotation matrix of roll, pitch, yaw (rad) about fixed x, y, z, as URDF and SDF give them."""
     r, p, y = rpy
     cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
     return np.array(
@@ -100,16 +127,17 @@ def _rpy_matrix(rpy: np.ndarray) -> np.ndarray:
     )  # fmt: skip
 
 
-def _origin(element: ET.Element | None, where: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(rotation, translation) of a URDF ``<origin>`` (identity if absent)."""
+def urdf_origin(element: ET.Element | None, where: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation, translation) of the URDF ``<origin>`` in ``element`` (identity if absent)."""
     o = element.find("origin") if element is not None else None
     if o is None:
         return np.eye(3), np.zeros(3)
-    xyz = _floats(o.get("xyz"), 3, 0.0, "origin xyz", where)
-    rpy = _floats(o.get("rpy"), 3, 0.0, "origin rpy", where)
-    return _rpy_matrix(rpy), xyz
+    xyz = floats(o.get("xyz"), 3, 0.0, "origin xyz", where)
+    rpy = floats(o.get("rpy"), 3, 0.0, "origin rpy", where)
+    return rpy_matrix(rpy), xyz
 
 
+# --------------------------------------------------------------------------------- an object's URDF
 def obj_vertices(path: Path) -> np.ndarray:
     """The vertices (N, 3) of a Wavefront OBJ file (its ``v`` lines), in the file's units."""
     try:
@@ -145,21 +173,21 @@ def _geometry_vertices(geometry: ET.Element | None, path: Path) -> np.ndarray:
         mesh_path = (path.parent / filename.removeprefix("package://")).resolve()
         if mesh_path.suffix.lower() != ".obj":
             raise MeshFileError(f"{path}: collision mesh {filename!r} is not a Wavefront .obj file")
-        scale = _floats(shape.get("scale"), 3, 1.0, "mesh scale", path)
+        scale = floats(shape.get("scale"), 3, 1.0, "mesh scale", path)
         if np.any(scale <= 0.0):
             raise MeshFileError(f"{path}: mesh scale {shape.get('scale')!r} is not positive")
         return obj_vertices(mesh_path) * scale
     a = np.radians(np.arange(0.0, 360.0, 5.0))
     if shape.tag == "box":
-        half = _floats(shape.get("size"), 3, 0.0, "box size", path) / 2.0
+        half = floats(shape.get("size"), 3, 0.0, "box size", path) / 2.0
         return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
     if shape.tag == "cylinder":
-        r = float(_floats(shape.get("radius"), 1, 0.0, "cylinder radius", path)[0])
-        h = float(_floats(shape.get("length"), 1, 0.0, "cylinder length", path)[0])
+        r = float(floats(shape.get("radius"), 1, 0.0, "cylinder radius", path)[0])
+        h = float(floats(shape.get("length"), 1, 0.0, "cylinder length", path)[0])
         ring = np.column_stack([r * np.cos(a), r * np.sin(a)])
         return np.vstack([np.column_stack([ring, np.full(len(a), z)]) for z in (-h / 2.0, h / 2.0)])
     if shape.tag == "sphere":
-        r = float(_floats(shape.get("radius"), 1, 0.0, "sphere radius", path)[0])
+        r = float(floats(shape.get("radius"), 1, 0.0, "sphere radius", path)[0])
         el = np.radians(np.arange(-90.0, 90.1, 5.0))
         return r * np.array([[np.cos(e) * np.cos(b), np.cos(e) * np.sin(b), np.sin(e)] for e in el for b in a])
     raise MeshFileError(f"{path}: a collision geometry pickdemo cannot read: <{shape.tag}>")
@@ -176,29 +204,18 @@ class UrdfObject:
 
 
 def _parse(path: Path) -> UrdfObject:
-    try:
-        if path.is_dir():
-            raise MeshFileError(f"{path}: is a directory, not a URDF file")
-        if path.stat().st_size > MAX_URDF_BYTES:
-            raise MeshFileError(f"{path}: {path.stat().st_size} bytes; a URDF file is at most {MAX_URDF_BYTES}")
-        root = ET.fromstring(path.read_bytes())
-    except FileNotFoundError:
-        raise MeshFileError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise MeshFileError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except ET.ParseError as exc:
-        raise MeshFileError(f"{path}: not a URDF (not XML: {exc})") from None
+    root = read_xml(path, "a URDF")
     if root.tag != "robot":
         raise MeshFileError(f"{path}: not a URDF (its root element is <{root.tag}>, not <robot>)")
     link = root.find("link")
     if link is None:
         raise MeshFileError(f"{path}: a URDF with no <link>")
-    R_in, t_in = _origin(link.find("inertial"), path)
+    R_in, t_in = urdf_origin(link.find("inertial"), path)
     mass_el = link.find("inertial/mass")
-    mass = 0.0 if mass_el is None else float(_floats(mass_el.get("value"), 1, 0.0, "mass", path)[0])
+    mass = 0.0 if mass_el is None else float(floats(mass_el.get("value"), 1, 0.0, "mass", path)[0])
     parts = []
     for col in link.findall("collision"):
-        R, t = _origin(col, path)
+        R, t = urdf_origin(col, path)
         parts.append(_geometry_vertices(col.find("geometry"), path) @ R.T + t)  # in the link frame
     if not parts:
         raise MeshFileError(f"{path}: a URDF whose first link has no collision mesh")
@@ -207,7 +224,7 @@ def _parse(path: Path) -> UrdfObject:
     rgba = link.find("visual/material/color")
     color = None
     if rgba is not None and rgba.get("rgba"):
-        c = _floats(rgba.get("rgba"), 4, 1.0, "material rgba", path)
+        c = floats(rgba.get("rgba"), 4, 1.0, "material rgba", path)
         color = (float(c[0]), float(c[1]), float(c[2]))
     vertices.setflags(write=False)
     return UrdfObject(path, vertices, mass, color)

@@ -7,8 +7,9 @@ inertial frame there (PyBullet places a body by its inertial frame). The model's
 link's: for an SDF, the link's pose in the model; the model's own ``<pose>``, which places it in a
 world, is the scenario's to give. A collision mesh is refused: the robot would not know its shape.
 
-Every problem with a file is a :class:`~pickdemo.core.meshes.MeshFileError` whose message is one line
-naming the file.
+Its XML is read the one way :mod:`pickdemo.core.meshes` reads an object's URDF (its ``read_xml``, and
+the ``floats``, ``urdf_origin`` and ``rpy_matrix`` beside it). Every problem with a file is a
+:class:`~pickdemo.core.meshes.MeshFileError` whose message is one line naming the file.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from pickdemo.core.geometry import OrientedBox, Pose
-from pickdemo.core.meshes import MAX_URDF_BYTES, MeshFileError, _floats, _origin, _rpy_matrix
+from pickdemo.core.meshes import MeshFileError, floats, read_xml, rpy_matrix, urdf_origin
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ def _box_of(geometry: ET.Element | None, path: Path, size_key: str) -> tuple[np.
 
     def value(name: str, n: int) -> np.ndarray:
         text = shape.get(name) if size_key == "attr" else (shape.findtext(name) or None)
-        return _floats(text, n, np.nan, f"{shape.tag} {name}", path)
+        return floats(text, n, np.nan, f"{shape.tag} {name}", path)
 
     if shape.tag == "box":
         half = value("size", 3) / 2.0
@@ -73,8 +74,8 @@ def _box_of(geometry: ET.Element | None, path: Path, size_key: str) -> tuple[np.
 def _sdf_pose(element: ET.Element | None, path: Path) -> Pose:
     """An SDF ``<pose>`` (x y z roll pitch yaw; identity if absent)."""
     text = element.findtext("pose") if element is not None else None
-    v = _floats(text, 6, 0.0, "pose", path)
-    return Pose(v[:3], _rpy_matrix(v[3:]))
+    v = floats(text, 6, 0.0, "pose", path)
+    return Pose(v[:3], rpy_matrix(v[3:]))
 
 
 def _read_urdf(root: ET.Element, path: Path) -> tuple[list[tuple[Pose, ET.Element | None]], Pose]:
@@ -84,8 +85,11 @@ def _read_urdf(root: ET.Element, path: Path) -> tuple[list[tuple[Pose, ET.Elemen
     if len(links) > 1:
         raise MeshFileError(f"{path}: {len(links)} links; a model fixture is one rigid body (one link)")
     link = links[0]
-    cols = [(Pose(t, R), col.find("geometry")) for col in link.findall("collision") for R, t in [_origin(col, path)]]
-    R_in, t_in = _origin(link.find("inertial"), path)
+    cols = []
+    for col in link.findall("collision"):
+        R, t = urdf_origin(col, path)
+        cols.append((Pose(t, R), col.find("geometry")))
+    R_in, t_in = urdf_origin(link.find("inertial"), path)
     return cols, Pose(t_in, R_in)
 
 
@@ -105,18 +109,7 @@ def _read_sdf(root: ET.Element, path: Path) -> tuple[list[tuple[Pose, ET.Element
 
 
 def _parse(path: Path) -> ModelFile:
-    try:
-        if path.is_dir():
-            raise MeshFileError(f"{path}: is a directory, not a URDF or SDF file")
-        if path.stat().st_size > MAX_URDF_BYTES:
-            raise MeshFileError(f"{path}: {path.stat().st_size} bytes; a model file is at most {MAX_URDF_BYTES}")
-        root = ET.fromstring(path.read_bytes())
-    except FileNotFoundError:
-        raise MeshFileError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise MeshFileError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except ET.ParseError as exc:
-        raise MeshFileError(f"{path}: not a URDF or SDF file (not XML: {exc})") from None
+    root = read_xml(path, "a URDF or SDF file")
     if root.tag == "robot":
         fmt, (cols, inertial) = "urdf", _read_urdf(root, path)
         key = "attr"

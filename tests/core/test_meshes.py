@@ -3,6 +3,8 @@ placed by the layout, built by the scene where the layout says, one file a seed 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -144,3 +146,27 @@ def test_a_mesh_on_its_edge_is_scored_by_the_middle_of_what_it_covers() -> None:
     assert np.linalg.norm((R @ wedge.box_centre)[:2] - centre[:2]) > 0.005  # (upright's middle: elsewhere)
     yaw = Pose.from_xyz_rpy(np.zeros(3), yaw=np.radians(35.0)).rotation
     assert wedge.centre_turned(yaw) == pytest.approx(wedge.box_centre)
+
+
+def test_an_object_s_urdf_and_a_fixture_s_model_file_are_refused_the_same_way(tmp_path: Path) -> None:
+    """Both readers read XML the one guarded way (``read_xml``): a directory, a missing, a too large or
+    a malformed file is one line naming the file, each in its reader's words."""
+    from pickdemo.core.meshes import MAX_URDF_BYTES, MeshFileError
+    from pickdemo.core.model_file import read_model
+
+    big = tmp_path / "big.urdf"
+    big.write_bytes(b"<robot>" + b" " * MAX_URDF_BYTES + b"</robot>")
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot><link></robot>")
+    cases = [
+        (tmp_path, "is a directory, not {}"),
+        (tmp_path / "none.urdf", "no such file"),
+        (big, f"bytes; {{}} is at most {MAX_URDF_BYTES}"),
+        (bad, "not {} (not XML: mismatched tag"),
+    ]
+    for path, said in cases:
+        for read, kind in ((lambda f: read_urdf(str(f)), "a URDF"), (read_model, "a URDF or SDF file")):
+            with pytest.raises(MeshFileError) as err:
+                read(path)
+            text = str(err.value)
+            assert text.startswith(f"{path}: ") and said.format(kind) in text and "\n" not in text, text
