@@ -28,20 +28,11 @@ from pickdemo.scenario.objects import resolve_path
 InnerSide = Annotated[float, Field(ge=0.05, le=1.5)]  # m, a bin's inside along one axis
 
 
-class BinSpec(Model):
-    """A walled bin: its inside ``inner_size`` (x, y, in its own frame) on a floor ``floor_thickness_m``
-    thick, walls ``wall_thickness_m`` thick rising ``wall_height_m`` above the floor, its centre at
-    ``position`` on the table, turned ``yaw_deg`` about the vertical."""
+class _Fixture(Model):
+    """What every fixture has: a name (not a body of the scene's), solid parts (``boxes``, given by
+    each kind), and the tops of those an object stands on (``support_z``)."""
 
-    kind: Literal["bin"]
     name: Name
-    position: Vec2  # m, x, y of its centre on the table
-    yaw_deg: Angle = 0.0
-    inner_size: tuple[InnerSide, InnerSide]
-    wall_height_m: Annotated[float, Field(ge=0.01, le=0.5)] = 0.08  # above the floor
-    wall_thickness_m: Annotated[float, Field(ge=0.003, le=0.05)] = 0.01
-    floor_thickness_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.01  # 0: no floor, it stands on the table
-    color: tuple[UnitFloat, UnitFloat, UnitFloat] = (0.35, 0.45, 0.6)
 
     @field_validator("name")
     @classmethod
@@ -49,6 +40,33 @@ class BinSpec(Model):
         if name in RESERVED_NAMES:
             raise ValueError(f"{name!r} is the name of a body of the scene; choose another")
         return name
+
+    def boxes(self, grown_m: float = 0.0) -> tuple[OrientedBox, ...]:
+        raise NotImplementedError
+
+    @functools.cached_property
+    def _solid(self) -> tuple[OrientedBox, ...]:
+        return self.boxes()
+
+    def support_z(self, x: float, y: float, z: float) -> float | None:
+        """The highest top of its solid parts under (x, y) at or below ``z`` (a bin's floor inside it,
+        a shelf's board), or None."""
+        return top_below(self._solid, x, y, z)
+
+
+class BinSpec(_Fixture):
+    """A walled bin: its inside ``inner_size`` (x, y, in its own frame) on a floor ``floor_thickness_m``
+    thick, walls ``wall_thickness_m`` thick rising ``wall_height_m`` above the floor, its centre at
+    ``position`` on the table, turned ``yaw_deg`` about the vertical."""
+
+    kind: Literal["bin"]
+    position: Vec2  # m, x, y of its centre on the table
+    yaw_deg: Angle = 0.0
+    inner_size: tuple[InnerSide, InnerSide]
+    wall_height_m: Annotated[float, Field(ge=0.01, le=0.5)] = 0.08  # above the floor
+    wall_thickness_m: Annotated[float, Field(ge=0.003, le=0.05)] = 0.01
+    floor_thickness_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.01  # 0: no floor, it stands on the table
+    color: tuple[UnitFloat, UnitFloat, UnitFloat] = (0.35, 0.45, 0.6)
 
     @property
     def pose(self) -> Pose:
@@ -101,16 +119,8 @@ class BinSpec(Model):
         local = np.array([[-ox, -oy, 0.0], [ox, -oy, 0.0], [ox, oy, 0.0], [-ox, oy, 0.0]])
         return self.pose.transform_points(local)[:, :2]
 
-    @functools.cached_property
-    def _solid(self) -> tuple[OrientedBox, ...]:
-        return self.boxes()
 
-    def support_z(self, x: float, y: float, z: float) -> float | None:
-        """The top of its part under (x, y) at or below ``z`` (its floor inside it), or None."""
-        return top_below(self._solid, x, y, z)
-
-
-class ModelSpec(Model):
+class ModelSpec(_Fixture):
     """A rigid model fixed in the cell, from a URDF or SDF file (``pybullet_data:kiva_shelf/model.sdf``,
     or a path relative to the scenario file): its frame (the root link's) at ``position`` (x, y, and z
     above the table's top: a shelf standing on the floor beside the table has it below 0), turned
@@ -118,7 +128,6 @@ class ModelSpec(Model):
     (:mod:`pickdemo.core.model_file`)."""
 
     kind: Literal["model"]
-    name: Name
     file: Annotated[str, Field(min_length=1, max_length=500)]
     position: Vec3
     yaw_deg: Angle = 0.0
@@ -127,13 +136,6 @@ class ModelSpec(Model):
     #: how far the surfaces the camera sees (its visual mesh) may stand off its collision boxes (m): what
     #: perception leaves out around them (the kiva shelf's mesh: up to 23 mm, measured)
     visual_margin_m: Annotated[float, Field(ge=0.0, le=0.1)] = 0.0
-
-    @field_validator("name")
-    @classmethod
-    def _not_reserved(cls, name: str) -> str:
-        if name in RESERVED_NAMES:
-            raise ValueError(f"{name!r} is the name of a body of the scene; choose another")
-        return name
 
     @field_validator("file")
     @classmethod
@@ -171,14 +173,6 @@ class ModelSpec(Model):
         (x0, y0), (x1, y1) = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
         local = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
         return self.pose.transform_points(local)[:, :2]
-
-    @functools.cached_property
-    def _solid(self) -> tuple[OrientedBox, ...]:
-        return self.boxes()
-
-    def support_z(self, x: float, y: float, z: float) -> float | None:
-        """The highest top of its boxes under (x, y) at or below ``z`` (a shelf's board), or None."""
-        return top_below(self._solid, x, y, z)
 
 
 #: A fixture of any kind (``kind`` says which).

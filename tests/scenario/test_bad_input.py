@@ -457,6 +457,16 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "fixtures.cube: an object has that name",
     ),
     (
+        "bin: named as a body of the scene",
+        GOOD + _bin("position = [0.5, -0.3]", name="table"),
+        "'table' is the name of a body of the scene",
+    ),
+    (
+        "model: named as a body of the scene",
+        GOOD + _model("position = [0.0, 1.05, -0.75]", name="robot"),
+        "'robot' is the name of a body of the scene",
+    ),
+    (
         "bin: a wall of no height",
         GOOD + _bin("position = [0.5, -0.3]\nwall_height_m = 0.0"),
         "fixtures.bin.wall_height_m",
