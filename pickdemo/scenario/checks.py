@@ -352,17 +352,7 @@ def _check_pick(sc: Scenario) -> None:
 
     target = sc.target
     key = f"objects.{target.name}"
-    opening = robot.gripper.max_opening_m
-    narrow = 0.0 if target.shape == "mesh" else target.largest_shape.grasp_width_m  # a mesh: _check_mesh_files
-    if narrow > opening - GRIPPER_CLEARANCE_M:
-        raise ScenarioError(
-            f"{key}.size: its narrower side is {narrow * 1e3:.0f} mm; the gripper opens to {opening * 1e3:.0f} mm "
-            f"and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance, so at most "
-            f"{(opening - GRIPPER_CLEARANCE_M) * 1e3:.0f} mm"
-        )
-    if target.mass > robot.payload_kg:
-        carries = f"the {robot.label} carries ({robot.payload_kg} kg)"
-        raise ScenarioError(f"{key}.mass: {target.mass} kg is more than {carries}")
+    narrow = _check_holdable(target, key, robot)
     grasp = grasp_params(robot)
     carried = grasp.transport_height_m
     if sc.success.lift_height >= carried - 0.005:
@@ -379,6 +369,24 @@ def _check_pick(sc: Scenario) -> None:
         z = max(target.largest_shape.height_m / 2.0, grasp.min_tcp_height_m) + sc.surface_z(x, y, level)
         for dz in (0.0, grasp.pregrasp_height_m):
             reach_from_above(kin, np.array([x, y, z + dz]), rng, what, narrow)
+
+
+def _check_holdable(obj: ObjectSpec, key: str, robot: RobotDescription) -> float:
+    """An object the robot picks fits its open hand with the clearance the grasp planner keeps, across
+    its narrower side (a mesh's: :func:`_check_mesh_holdable`, from its files), and weighs no more than
+    the arm carries. Returns that side's width (0 for a mesh)."""
+    opening = robot.gripper.max_opening_m
+    narrow = 0.0 if obj.shape == "mesh" else obj.largest_shape.grasp_width_m
+    if narrow > opening - GRIPPER_CLEARANCE_M:
+        raise ScenarioError(
+            f"{key}.size: its narrower side is {narrow * 1e3:.0f} mm; the gripper opens to {opening * 1e3:.0f} mm "
+            f"and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance, so at most "
+            f"{(opening - GRIPPER_CLEARANCE_M) * 1e3:.0f} mm"
+        )
+    if obj.mass > robot.payload_kg:
+        carries = f"the {robot.label} carries ({robot.payload_kg} kg)"
+        raise ScenarioError(f"{key}.mass: {obj.mass} kg is more than {carries}")
+    return narrow
 
 
 def _check_mesh_holdable(target: ObjectSpec, key: str, widest_m: float, robot: RobotDescription) -> None:
@@ -481,14 +489,7 @@ def _check_clear(sc: Scenario) -> None:
         area, _ = cv2.intersectConvexConvex(_grown_mm(_region_mm(obj), shape.footprint_radius_m * 1e3), tray_mm)
         if area > 0.0:
             raise ScenarioError(f"{key}: where it may stand reaches under the tray (place.position)")
-        if obj.shape != "mesh" and shape.grasp_width_m > robot.gripper.max_opening_m - GRIPPER_CLEARANCE_M:
-            raise ScenarioError(
-                f"{key}.size: its narrower side is {shape.grasp_width_m * 1e3:.0f} mm; the gripper opens to "
-                f"{robot.gripper.max_opening_m * 1e3:.0f} mm and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance"
-            )
-        if obj.mass > robot.payload_kg:
-            carries = f"the {robot.label} carries ({robot.payload_kg} kg)"
-            raise ScenarioError(f"{key}.mass: {obj.mass} kg is more than {carries}")
+        _check_holdable(obj, key, robot)
     kin = kinematics_of(robot)
     rng = np.random.default_rng(0)
     grasp = grasp_params(robot)

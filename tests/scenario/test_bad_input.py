@@ -47,6 +47,12 @@ CLEAR = (
     'objects_from = "pybullet_data:random_urdfs/??0/*.urdf"\nscale_range = [0.5, 0.5]\n' + TRAY
 )
 
+#: An object listed in a clear round (it joins the round), in the region, clear of the tray.
+BRICK = (
+    '\n[[objects]]\nname = "brick"\nshape = "box"\nsize = {size}\ncolor = [0.8, 0.5, 0.2]\nmass = {mass}\n'
+    "position = [0.55, -0.05]\n"
+)
+
 
 def _clear(old: str, new: str) -> str:
     assert old in CLEAR, old
@@ -313,6 +319,17 @@ FILE_CASES: list[tuple[str, str, str]] = [
     ),
     ("invalid TOML", GOOD + "\n[[objects]\n", "invalid TOML"),
     # ---- a clear round
+    (
+        "clear: a listed object too wide for the gripper",
+        CLEAR + BRICK.format(size="[0.077, 0.09, 0.05]", mass=0.1),
+        "objects.brick.size: its narrower side is 77 mm; the gripper opens to 80 mm and needs 5 mm of clearance, "
+        "so at most 75 mm",
+    ),
+    (
+        "clear: a listed object too heavy",
+        CLEAR + BRICK.format(size="[0.05, 0.05, 0.05]", mass=5.0),
+        "objects.brick.mass: 5.0 kg is more than the Panda carries",
+    ),
     ("clear: count 0", _clear("count = 5", "count = 0"), "clear.count: Input should be greater than or equal to 1"),
     ("clear: count 21", _clear("count = 5", "count = 21"), "clear.count: Input should be less than or equal to 20"),
     (
