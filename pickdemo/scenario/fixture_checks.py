@@ -19,7 +19,7 @@ from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.fixtures import BinSpec, ModelSpec
 from pickdemo.scenario.objects import TABLE_THICKNESS_M
 from pickdemo.scenario.reach import grasp_params, reach_from_above
-from pickdemo.scenario.schema import Scenario
+from pickdemo.scenario.schema import SUPPORT_TOLERANCE_M, Scenario
 from pickdemo.scenario.tasks import TASK_RULES
 from pickdemo.scenario.tray import Tray
 
@@ -89,21 +89,29 @@ def _check_reach(sc: Scenario, f: BinSpec, key: str) -> None:
         reach_from_above(kin, at, rng, f"{key}: its floor at ({at[0]:.2f}, {at[1]:.2f})")
 
 
+def _standing(sc: Scenario) -> list[tuple[str, float, float, float, float | None]]:
+    """What will stand at a fixed spot, for the fixtures to keep clear of: the place's spots (where the
+    target is put down on the table, not into a tray) and every object at a fixed position, on the
+    table or on a fixture's top (a mesh's size is its file's: the layout's check). Each as (its key,
+    x, y, its footprint's radius, its ``level_m``: None on the table)."""
+    spots: list[tuple[str, float, float, float, float | None]] = []
+    if sc.place.tray is None and TASK_RULES[sc.task].places_target:
+        r = sc.target.largest_shape.footprint_radius_m
+        spots += [(sc.place.key, x, y, r, None) for x, y in sc.place.spots]
+    spots += [
+        (f"objects.{o.name}.position", o.position[0], o.position[1], o.largest_shape.footprint_radius_m, o.level_m)
+        for o in sc.objects
+        if o.position is not None and o.shape != "mesh"
+    ]
+    return spots
+
+
 def _check_walls_free(sc: Scenario, f: BinSpec, key: str) -> None:
     """No place spot and no object standing at a fixed position is on the bin's walls or against them:
     the target put down there, or the object, would stand on a wall (inside the bin clear of them, or
     outside clear of them, is fine)."""
-    spots = []
-    if sc.place.tray is None and TASK_RULES[sc.task].places_target:
-        r = sc.target.largest_shape.footprint_radius_m
-        spots += [(sc.place.key, x, y, r) for x, y in sc.place.spots]
-    spots += [
-        (f"objects.{o.name}.position", o.position[0], o.position[1], o.largest_shape.footprint_radius_m)
-        for o in sc.objects
-        if o.position is not None and o.shape != "mesh"  # (a mesh's size is its file's: the layout's check)
-    ]
     outer = _mm(f.footprint())
-    for what, x, y, r in spots:
+    for what, x, y, r, _level in _standing(sc):
         off = cv2.pointPolygonTest(outer, (float(x) * 1e3, float(y) * 1e3), True) * 1e-3  # > 0: inside
         if off > -r and not f.inside(float(x), float(y), margin=r):
             raise ScenarioError(
@@ -118,7 +126,9 @@ TABLE_TOUCH_M = 0.001
 
 def _check_model(sc: Scenario, f: ModelSpec, key: str) -> None:
     """A model is not inside the table's slab (it may stand on the table, or beside it), and no place
-    spot and no object standing at a fixed position on the table is inside it or against it."""
+    spot and no object standing at a fixed position is inside it or against it, on the table or on a
+    fixture's top (``level_m``: a shelf's board; the model's boxes no higher than that top are under
+    it, holding it up, not against it)."""
     boxes = f.boxes()
     t = sc.table
     slab = OrientedBox(
@@ -128,18 +138,14 @@ def _check_model(sc: Scenario, f: ModelSpec, key: str) -> None:
     )
     if boxes_meet(boxes, [slab]):
         raise ScenarioError(f"{key}.position: the model at {_xy(f)} reaches into the table (raise it or move it aside)")
-    spots = []
-    if sc.place.tray is None and TASK_RULES[sc.task].places_target:
-        r = sc.target.largest_shape.footprint_radius_m
-        spots += [(sc.place.key, x, y, r) for x, y in sc.place.spots]
-    spots += [
-        (f"objects.{o.name}.position", o.position[0], o.position[1], o.largest_shape.footprint_radius_m)
-        for o in sc.objects
-        if o.position is not None and o.level_m is None and o.shape != "mesh"
-    ]
-    for what, x, y, r in spots:
+    for what, x, y, r, level in _standing(sc):
+        base = 0.0 if level is None else sc.surface_z(x, y, level)
         grown = f.boxes(grown_m=r)
-        column = np.array([[x, y, z] for z in (0.005, 0.02, 0.05, 0.1)])  # what stands there, up its height
+        if level is not None:  # on a top: the boxes no higher than it are under it
+            grown = tuple(
+                g for g, b in zip(grown, boxes, strict=True) if b.corners()[:, 2].max() > base + SUPPORT_TOLERANCE_M
+            )
+        column = np.array([[x, y, base + dz] for dz in (0.005, 0.02, 0.05, 0.1)])  # what stands there, up its height
         if any(b.contains(column).any() for b in grown):
             raise ScenarioError(
                 f"{what}: ({x:.3f}, {y:.3f}) m is inside or against {key} (what stands there needs "

@@ -4,13 +4,16 @@ the simulator builds it where the robot is told it is, and perception leaves it 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from pickdemo.core.geometry import box_surface_points
 from pickdemo.perception import PerceptionParams
 from pickdemo.perception.unknown import survey_objects
 from pickdemo.runtime.world import World
+from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.fixtures import fixture_boxes
 from pickdemo.scenario.load import load_scenario
 
@@ -85,3 +88,52 @@ def test_the_simulated_shelf_stands_where_its_boxes_say_and_its_item_on_its_boar
         scene.settle(240)
         p = world.true_pose(item.name).position
         assert abs(p[2] - item.pose.position[2]) < 0.005  # it stood on the board, as placed
+
+
+def _cubby(gap_m: float) -> str:
+    """A cubby's URDF: a board whose top is 20 mm above the table, two side walls, and a roof ``gap_m``
+    above the board (160 x 160 mm inside)."""
+    roof_z = 0.02 + gap_m + 0.005
+
+    def box(size: tuple[float, float, float], xyz: tuple[float, float, float]) -> str:
+        return (
+            f'<collision><origin xyz="{xyz[0]} {xyz[1]} {xyz[2]}"/><geometry><box size="{size[0]} {size[1]} '
+            f'{size[2]}"/></geometry></collision>'
+        )
+
+    parts = [
+        box((0.16, 0.16, 0.02), (0.0, 0.0, 0.01)),
+        box((0.16, 0.16, 0.01), (0.0, 0.0, roof_z)),
+        *(box((0.16, 0.01, roof_z), (0.0, y, roof_z / 2.0)) for y in (-0.085, 0.085)),
+    ]
+    return f'<robot name="cubby"><link name="cubby">{"".join(parts)}</link></robot>'
+
+
+def _block_in_a_cubby(tmp_path: Path, gap_m: float) -> Path:
+    """A pick whose other object, a 40 mm block, stands at a fixed position on a cubby's board (a folder
+    of its own for each cubby: a model file is read once per path)."""
+    folder = tmp_path / f"gap_{gap_m * 1e3:.0f}mm"
+    folder.mkdir()
+    (folder / "cubby.urdf").write_text(_cubby(gap_m))
+    f = folder / "s.toml"
+    f.write_text(
+        'name = "t"\n[camera]\nposition = [1.1, 0.0, 0.75]\nlook_at = [0.5, 0.0, 0.0]\n'
+        '[[objects]]\nname = "cube"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.85, 0.1, 0.1]\n'
+        "position_range = [[0.45, 0.55], [-0.05, 0.05]]\ntarget = true\n"
+        '[[objects]]\nname = "block"\nshape = "box"\nsize = [0.04, 0.04, 0.04]\ncolor = [0.1, 0.1, 0.9]\n'
+        "position = [0.5, -0.3]\nlevel_m = 0.03\n"
+        '[[fixtures]]\nkind = "model"\nname = "cubby"\nfile = "cubby.urdf"\nposition = [0.5, -0.3, 0.0]\n'
+        "[place]\nposition = [0.45, 0.3]\n"
+    )
+    return f
+
+
+def test_an_object_on_a_model_s_board_is_checked_against_the_model(tmp_path: Path) -> None:
+    """An object at a fixed position standing on a model's top (``level_m``) must not be inside the
+    model either: a 40 mm block on a cubby's board under a roof 30 mm above it is refused (the model's
+    check used to leave every object with a ``level_m`` out, where the bin's took them in); under a roof
+    150 mm up it stands, the board it stands on not taken for an obstacle."""
+    with pytest.raises(ScenarioError, match=r"objects\.block\.position: \(0\.500, -0\.300\) m is inside or against "):
+        load_scenario(_block_in_a_cubby(tmp_path, gap_m=0.03))
+    sc = load_scenario(_block_in_a_cubby(tmp_path, gap_m=0.15))
+    assert sc.surface_z(0.5, -0.3, 0.03) == pytest.approx(0.02)  # it stands on the board
