@@ -376,7 +376,9 @@ class Episode:
         view.dt_ctl, view.frame_ticks = self.dt_ctl, self.frame_ticks
         self._add_observers()
         with self.timer("settle"):
-            scene.settle(int(task.settle_max_s / dt))
+            settling = scene.settle(int(task.settle_max_s / dt))
+        if settling.note is not None:  # the first look sees them move: said in the result, not hidden
+            self._phase(PhaseRecord("settle", round(scene.sim_time_s, 6), settling.note))
         task.settled(world)
         scene.start_belt()  # a conveyor runs from the robot's first tick
         self.referee.started()  # truth: for scoring only

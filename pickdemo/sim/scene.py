@@ -35,6 +35,10 @@ FIXTURES = ("robot", "table", "conveyor", "tray")
 #: A rubber pad pressed onto a patch of radius a resists with about (2/3) mu a: 0.003 m is a 4.5 mm
 #: patch (evidence: docs/decisions.md#physics-and-the-scene).
 PAD_TORSIONAL_FRICTION_M = 0.003
+#: The objects are at rest when each moves slower than this (m/s) ...
+REST_SPEED_M_S = 2e-3
+#: ... for this many steps in a row (:meth:`Scene.settle`).
+REST_STEPS = 10
 #: Rolling friction of round objects (cylinders, meshes); a box rests and is held on its faces and
 #: has none: its rolling-friction rows would cost a held step's solver time for nothing (evidence:
 #: docs/decisions.md#speed).
@@ -79,6 +83,15 @@ class JointState:
     arm_q: np.ndarray  # (7,) rad
     arm_dq: np.ndarray  # (7,) rad/s
     fingers_m: np.ndarray  # (2,) m, each finger's opening from the centre (a jaw's: half the gap, each)
+
+
+@dataclass(frozen=True)
+class Settling:
+    """How the objects settled before the robot's first tick: the steps it took, and a note when they
+    had not come to rest within the steps allowed (the episode records it among its phases)."""
+
+    steps: int
+    note: str | None = None
 
 
 @dataclass(frozen=True)
@@ -404,10 +417,16 @@ class Scene:
         lin, ang = self.client.getBaseVelocity(self.bodies[name])
         return float(np.linalg.norm(lin))
 
-    def objects_at_rest(self, speed_m_s: float = 2e-3) -> bool:
+    def objects_at_rest(self, speed_m_s: float = REST_SPEED_M_S) -> bool:
         """Whether every movable object is (nearly) still: for setting the world up, never for control."""
         robotless = (b for n, b in self.bodies.items() if n not in FIXTURES)
         return all(np.linalg.norm(self.client.getBaseVelocity(b)[0]) < speed_m_s for b in robotless)
+
+    def _fastest_object(self) -> tuple[str, float]:
+        """The movable object moving fastest now, and its speed (m/s): what a note on settling names."""
+        speeds = [(self.true_speed(n), n) for n in self.bodies if n not in FIXTURES]
+        speed, name = max(speeds, default=(0.0, ""))
+        return name, speed
 
     def let_objects_sleep(self) -> None:
         """Let the movable objects sleep once at rest (Bullet's deactivation: a body still for a while
@@ -417,16 +436,24 @@ class Scene:
             if name not in FIXTURES:
                 self.client.changeDynamics(body, -1, activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING)
 
-    def settle(self, max_steps: int) -> int:
-        """Step until the objects have come to rest (10 steps in a row), at most ``max_steps``; the
-        robot holds its pose meanwhile. Returns the steps taken. World set-up, not robot behaviour."""
+    def settle(self, max_steps: int) -> Settling:
+        """Step until the objects have come to rest (:data:`REST_STEPS` steps in a row), at most
+        ``max_steps``; the robot holds its pose meanwhile. World set-up, not robot behaviour. Objects
+        still moving when the steps run out are not passed over in silence: the note names the fastest
+        (the robot's first look then sees the scene in motion)."""
         still = 0
         for i in range(max_steps):
             self.step()
             still = still + 1 if self.objects_at_rest() else 0
-            if still >= 10:
-                return i + 1
-        return max_steps
+            if still >= REST_STEPS:
+                return Settling(i + 1)
+        name, speed = self._fastest_object()
+        return Settling(
+            max_steps,
+            f"the objects had not come to rest in {max_steps * self.time_step_s:.2f} s of settling ({REST_STEPS} "
+            f"steps in a row each slower than {REST_SPEED_M_S * 1e3:.0f} mm/s): {name} at {speed * 1e3:.1f} mm/s "
+            "at the end",
+        )
 
     def set_pose(self, name: str, pose: Pose) -> None:
         """Move a body kinematically (a disturbance): pose set, velocity zeroed."""
