@@ -35,7 +35,9 @@ FIXTURES = ("robot", "table", "conveyor", "tray")
 #: A rubber pad pressed onto a patch of radius a resists with about (2/3) mu a: 0.003 m is a 4.5 mm
 #: patch (evidence: docs/decisions.md#physics-and-the-scene).
 PAD_TORSIONAL_FRICTION_M = 0.003
-#: The objects are at rest when each moves slower than this (m/s) ...
+#: The objects are at rest when each moves slower than this (m/s), and turns slowly enough that no
+#: point of it moves faster than this from the turning (its angular speed times its bounding radius:
+#: the farthest a point of it is from its centre of mass; a 5 cm duck: 0.04 rad/s) ...
 REST_SPEED_M_S = 2e-3
 #: ... for this many steps in a row (:meth:`Scene.settle`).
 REST_STEPS = 10
@@ -141,6 +143,7 @@ class Scene:
         self.time_step_s = scenario.sim.time_step_s
         self.steps = 0
         self.bodies: dict[str, int] = {}
+        self.radius_m: dict[str, float] = {}  # each object's bounding radius (about its centre of mass)
         self.fixture_bodies: dict[str, list[int]] = {}  # a bin's parts (not objects on the table)
         self.still_boxes: list[StillBox] = []  # in the order they were built
         self.belt = None
@@ -276,6 +279,7 @@ class Scene:
 
     def _build_object(self, spec: ObjectSpec, placement: Placement) -> None:
         c, pose, shape = self.client, placement.pose, placement.geometry
+        self.radius_m[spec.name] = shape.bounding_radius_m
         if isinstance(shape, Box):
             half = [s / 2.0 for s in shape.size_m]
             col = c.createCollisionShape(p.GEOM_BOX, halfExtents=half)
@@ -417,15 +421,27 @@ class Scene:
         lin, ang = self.client.getBaseVelocity(self.bodies[name])
         return float(np.linalg.norm(lin))
 
+    def _speeds(self) -> list[tuple[float, str]]:
+        """Each movable object's speed (m/s) and its points' speed from its turning (angular speed
+        times its bounding radius), whichever is larger, with its name."""
+        out = []
+        for name, body in self.bodies.items():
+            if name in FIXTURES:
+                continue
+            lin, ang = self.client.getBaseVelocity(body)
+            turning = float(np.linalg.norm(ang)) * self.radius_m.get(name, 0.0)
+            out.append((max(float(np.linalg.norm(lin)), turning), name))
+        return out
+
     def objects_at_rest(self, speed_m_s: float = REST_SPEED_M_S) -> bool:
-        """Whether every movable object is (nearly) still: for setting the world up, never for control."""
-        robotless = (b for n, b in self.bodies.items() if n not in FIXTURES)
-        return all(np.linalg.norm(self.client.getBaseVelocity(b)[0]) < speed_m_s for b in robotless)
+        """Whether every movable object is (nearly) still, travelling and turning: for setting the world
+        up, never for control."""
+        return all(speed < speed_m_s for speed, _ in self._speeds())
 
     def _fastest_object(self) -> tuple[str, float]:
-        """The movable object moving fastest now, and its speed (m/s): what a note on settling names."""
-        speeds = [(self.true_speed(n), n) for n in self.bodies if n not in FIXTURES]
-        speed, name = max(speeds, default=(0.0, ""))
+        """The movable object moving fastest now (travelling or turning), and that speed (m/s): what a
+        note on settling names."""
+        speed, name = max(self._speeds(), default=(0.0, ""))
         return name, speed
 
     def let_objects_sleep(self) -> None:
@@ -451,8 +467,8 @@ class Scene:
         return Settling(
             max_steps,
             f"the objects had not come to rest in {max_steps * self.time_step_s:.2f} s of settling ({REST_STEPS} "
-            f"steps in a row each slower than {REST_SPEED_M_S * 1e3:.0f} mm/s): {name} at {speed * 1e3:.1f} mm/s "
-            "at the end",
+            f"steps in a row each slower than {REST_SPEED_M_S * 1e3:.0f} mm/s, travelling and turning): {name} at "
+            f"{speed * 1e3:.1f} mm/s at the end",
         )
 
     def set_pose(self, name: str, pose: Pose) -> None:

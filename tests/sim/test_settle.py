@@ -38,3 +38,19 @@ def test_an_episode_whose_objects_never_came_to_rest_says_so_in_its_result(monke
     assert first["phase"] == "settle" and first["sim_time_s"] == pytest.approx(5 * sc.sim.time_step_s, abs=1e-6)
     assert first["message"].startswith("the objects had not come to rest in 0.02 s of settling")
     assert [p["phase"] for p in phases[1:]].count("settle") == 0
+
+
+def test_an_object_turning_in_place_is_not_at_rest() -> None:
+    """At rest means its points move slower than REST_SPEED_M_S from its turning too: the 50 mm cube
+    (43 mm bounding radius) turning at 0.1 rad/s (4.3 mm/s at its corners) is not; at 0.03 (1.3 mm/s) it is."""
+    sc = load_scenario("pick_cube")
+    with World.build(sc, 0) as world:
+        scene = world.scene
+        assert scene.settle(480).note is None and scene.objects_at_rest()
+        assert scene.radius_m["cube"] == pytest.approx(0.05 * 3**0.5 / 2)
+        cube = scene.bodies["cube"]
+        for spin, at_rest in ((0.1, False), (0.03, True)):
+            scene.client.resetBaseVelocity(cube, [0.0, 0.0, 0.0], [0.0, 0.0, spin])
+            assert scene.objects_at_rest() is at_rest, spin
+        scene.client.resetBaseVelocity(cube, [0.0, 0.0, 0.0], [0.0, 0.0, 0.1])
+        assert scene._fastest_object() == ("cube", pytest.approx(0.1 * scene.radius_m["cube"]))  # what a note says
