@@ -7,6 +7,7 @@ valid names when a name is wrong), exit 2, never a traceback, never the URDF pic
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -48,6 +49,11 @@ def _z1_urdf() -> str:
     return next(d / "robots/z1_description/urdf/z1.urdf" for d in _erd_share_dirs() if d.is_dir())
 
 
+def _beside(tmp_path: Path) -> None:
+    """The files ``z1.toml`` names beside it (its gripper's convex decompositions) copied into ``tmp_path``."""
+    shutil.copytree(FILES / "z1", tmp_path / "z1")
+
+
 def _links_with_collision() -> int:
     return sum(1 for link in ET.parse(_z1_urdf()).getroot().findall("link") if link.find("collision") is not None)
 
@@ -70,6 +76,7 @@ def test_the_z1_reads_as_shipped_and_builds_its_kinematics_and_self_filter() -> 
 
 def test_a_local_copy_of_an_installed_urdf_finds_its_package_meshes(tmp_path: Path) -> None:
     (tmp_path / "z1.urdf").write_text(Path(_z1_urdf()).read_text())  # package://example-robot-data/... inside
+    _beside(tmp_path)
     f = tmp_path / "robot.toml"
     f.write_text(Z1.replace('"example-robot-data:z1_description/urdf/z1.urdf"', '"z1.urdf"'))
     r = load_robot_file(f)
@@ -79,6 +86,7 @@ def test_a_local_copy_of_an_installed_urdf_finds_its_package_meshes(tmp_path: Pa
 
 def test_validate_prints_the_proposed_home(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "robot.toml").write_text(Z1)
+    _beside(tmp_path)
     (tmp_path / "s.toml").write_text(SCENARIO)
     assert main(["validate", str(tmp_path / "s.toml")]) == 0
     out = capsys.readouterr().out
@@ -181,9 +189,9 @@ CASES: list[tuple[str, str, dict[str, str], str]] = [
      "arm.frames[0].parent: 'gripper' is not a link of z1.urdf"),
     ("a frame named as a link", _edit('name = "z1_tcp", parent', 'name = "link06", parent'), {},
      "arm.frames[0].name: 'link06' is a link of z1.urdf already"),
-    ("a jaw's table with an angle twice", _edit("[-0.2, 0.0151]", "[-0.3, 0.0151]"), {},
+    ("a jaw's table with an angle twice", _edit("[-0.3355, 0.020]", "[-0.4109, 0.020]"), {},
      "gripper.jaw_table: the opening must rise, or fall, with the angle at every row, and no angle twice"),
-    ("a jaw's table that turns back", _edit("[-0.2, 0.0151]", "[-0.2, 0.0251]"), {},
+    ("a jaw's table that turns back", _edit("[-0.3355, 0.020]", "[-0.3355, 0.030]"), {},
      "gripper.jaw_table: the opening must rise, or fall, with the angle"),
     ("a hand's flange misspelt: the arm's links listed",
      _edit('flange_link = "link_eef"', 'flange_link = "link8"', XARM), {},
@@ -228,6 +236,7 @@ def test_a_bad_robot_file_is_one_line_from_validate(
 ) -> None:
     f = tmp_path / "robot.toml"
     f.write_text(robot)
+    _beside(tmp_path)
     for name, text in files.items():
         if text.startswith("Z1:"):  # the installed Z1's URDF copied beside the file, a package renamed
             old, new = text[3:].split("=")
