@@ -401,7 +401,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
             print(f"ok {scenario.name}")
             robot = scenario.robot_description
             if robot.home_proposed:  # (a robot file without a home: say the one it runs with, to paste in)
-                home = ", ".join(f"{q:.4f}" for q in robot.home_q)
+                home = ", ".join(f"{q if abs(q) >= 5e-5 else 0.0:.4f}" for q in robot.home_q)  # (no "-0.0000")
                 print(f"  {scenario.robot}: no home given; proposed (the hand down over the table), "
                       f"to write in its [arm]: home = [{home}]")  # fmt: skip
     return EXIT_BAD_INPUT if bad else EXIT_OK

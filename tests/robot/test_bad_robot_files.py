@@ -91,6 +91,15 @@ def test_validate_prints_the_proposed_home(tmp_path: Path, capsys: pytest.Captur
     assert main(["validate", str(tmp_path / "s.toml")]) == 0
     out = capsys.readouterr().out
     assert "no home given; proposed" in out and "home = [" in out, out
+    # pasted into the file as printed, it is the home the robot ran with (and no "-0.0000" in it)
+    import tomllib
+
+    from pickdemo.scenario.load import load_scenario
+
+    printed = tomllib.loads(out[out.index("home = [") :].strip())["home"]
+    ran = load_scenario(tmp_path / "s.toml").robot_description.home_q
+    assert len(printed) == len(ran) and max(abs(a - b) for a, b in zip(printed, ran, strict=True)) < 1e-4
+    assert "-0.0000" not in out
 
 
 def test_pybullet_s_warnings_stay_off_stdout(tmp_path: Path) -> None:
