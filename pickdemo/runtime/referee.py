@@ -15,6 +15,7 @@ import numpy as np
 from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.core.result import EpisodeFailure, Failure, PerceptionScore, Stage
 from pickdemo.core.shapes import Mesh
+from pickdemo.grasping.top_down import GraspParams
 from pickdemo.perception import PerceptionError, PoseEstimate
 from pickdemo.runtime.metrics import score_perception, score_place, seen_truth
 from pickdemo.runtime.world import World
@@ -24,12 +25,17 @@ from pickdemo.scenario.load import Scenario
 PERCEPTION_OFF_MM = 5.0
 
 
-def diagnose(failure: Failure | None, tracking_error_mm: float | None) -> str | None:
+def diagnose(failure: Failure | None, tracking_error_mm: float | None, fits_hand: bool | None = None) -> str | None:
     """For a failed episode, from the truth (for reading, never for control): was perception off
     when the robot committed to the grasp? ``perception_off``, ``perception_ok`` (the failure lies
-    elsewhere), or ``not_committed`` (it never closed the gripper)."""
+    elsewhere), or ``not_committed`` (it never closed the gripper). A pick the grasp planner refused
+    is checked against the truth (``fits_hand``: the target's true narrowest width fits the open hand,
+    :meth:`Referee.fits_hand`): ``refused_fits_hand`` (the object itself did not force the refusal: a
+    neighbour, a fixture or the planner did) or ``refused_too_wide``."""
     if failure is None:
         return None
+    if failure.stage is Stage.GRASP_PLANNING and fits_hand is not None:
+        return "refused_fits_hand" if fits_hand else "refused_too_wide"
     if tracking_error_mm is None:
         return "not_committed"
     return "perception_off" if tracking_error_mm > PERCEPTION_OFF_MM else "perception_ok"
@@ -168,6 +174,14 @@ class Referee:
             stage = Stage.LIFT if outcome.lifted_m < sc.success.lift_height else Stage.PLACE
             raise EpisodeFailure(stage, outcome.reason)
 
+    def fits_hand(self) -> bool:
+        """Whether the target, as this seed drew it, fits the open hand with the grasp's clearance across
+        its narrowest width (any direction, for a mesh): a refusal of it is then not the object's. The
+        truth, for scoring a refusal only."""
+        shape = self.world.placement(self.target).geometry
+        width = shape.min_width_m if isinstance(shape, Mesh) else shape.grasp_width_m
+        return width <= self.world.robot.gripper.max_opening_m - GraspParams().width_margin_m
+
     def lifted_mm(self) -> float | None:
         if self.start_pose is None:
             return None
@@ -292,6 +306,10 @@ class ClearReferee:
         return self.clear_score(controller.picks, controller.attempts)
 
     def lifted_mm(self) -> None:
+        return None
+
+    def fits_hand(self) -> None:
+        """A round has no one target: its refusals are not judged here."""
         return None
 
     def named_moves(self, failure: Failure | None) -> Failure | None:

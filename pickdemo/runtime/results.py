@@ -85,7 +85,7 @@ def episode_result(
         retargets=m.counters.retargets if m is not None else 0,
         tracking_error_mm=tracking_error_mm,
         tracking_yaw_error_deg=ref.tracking_yaw_deg if ref is not None else None,
-        diagnosis=diagnose(failure, tracking_error_mm),
+        diagnosis=diagnose(failure, tracking_error_mm, ref.fits_hand() if ref is not None else None),
         estimates_off=ref.wrong_estimates if ref is not None else 0,
         estimates_off_accepted=ref.wrong_estimates_accepted if ref is not None else 0,
         estimates_off_fit_rejected=ref.wrong_estimates_self_rejected if ref is not None else 0,

@@ -129,3 +129,26 @@ def test_the_papers_method_names_a_singular_fit_and_lets_a_bug_through(monkeypat
     monkeypatch.setattr("pickdemo.perception.pipeline.fit_outline", bug)
     with pytest.raises(IndexError):
         estimate_pose(frame, model)
+
+
+def test_a_refusal_is_judged_against_the_truth(tmp_path) -> None:  # noqa: ANN001
+    """A pick the grasp planner refused is scored on the truth: whether the object as drawn fits the
+    open hand (then the refusal was not the object's: a neighbour, a fixture or the planner's)."""
+    from pickdemo.core.result import Failure
+    from pickdemo.runtime.referee import Referee, diagnose
+    from pickdemo.runtime.world import World
+    from pickdemo.scenario.load import builtin_scenario_dirs
+
+    refused = Failure(Stage.GRASP_PLANNING, "no grasp")
+    assert diagnose(refused, None, True) == "refused_fits_hand"
+    assert diagnose(refused, None, False) == "refused_too_wide"
+    assert diagnose(refused, None, None) == "not_committed"  # (a clear round's: not judged)
+    assert diagnose(Failure(Stage.IK, "out of reach"), None, True) == "not_committed"
+    text = next(d / "pick_mug.toml" for d in builtin_scenario_dirs()).read_text()
+    verdicts = []
+    for scale in ("0.8", "2.0"):  # the mug's body 66 mm across, then 164 mm: the open hand takes 75 mm
+        f = tmp_path / f"mug_{scale}.toml"
+        f.write_text(text.replace("scale = 0.8", f"scale = {scale}"))
+        sc = load_scenario(f, check=False)
+        verdicts.append(Referee(sc, World(sc, 0), sc.target.name).fits_hand())
+    assert verdicts == [True, False]
