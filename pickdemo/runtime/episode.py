@@ -430,8 +430,7 @@ class Episode:
         if scene.steps + self.substeps > self.max_steps:
             budget = self.scenario.sim.max_sim_time_s
             said = f"{budget:.1f}" if budget >= 0.1 else f"{budget:.2g}"  # (a tiny budget is not 0.0 s)
-            machine.abort(Stage.TIMEOUT, f"simulated-time budget of {said} s spent in {machine.state.value}")
-            self.referee.decided(machine)
+            self._abort(Stage.TIMEOUT, f"simulated-time budget of {said} s spent in {machine.state.value}")
             return False
         now = scene.sim_time_s
         obs = self.observation = self.robot.observe()
@@ -446,8 +445,7 @@ class Episode:
         try:
             self.robot.apply(cmd)
         except ReflexError as exc:  # the robot stopped: nothing was sent
-            machine.abort(Stage.REFLEX, str(exc))
-            self.referee.decided(machine)
+            self._abort(Stage.REFLEX, str(exc))
             self._log_events(now)
             return False
         counts.commanded.append((now, cmd.arm_q))  # always: result.json's limit_exceedances
@@ -470,6 +468,11 @@ class Episode:
         self.tick += 1
         self.view.tick = self.tick
         return True
+
+    def _abort(self, stage: Stage, reason: str) -> None:
+        """Stop the controller from outside, and let the referee read what it recorded then."""
+        self.machine.abort(stage, reason)
+        self.referee.decided(self.machine)
 
     def observe(self) -> Observation:
         """The robot's observation now, between ticks (the next tick reads the same)."""
