@@ -66,7 +66,8 @@ def _children(obj: object, path: str) -> list[tuple[object, str]]:
     if isinstance(attrs, dict):
         out += [(v, f"{path}.{k}") for k, v in attrs.items()]
     for cls in type(obj).__mro__:
-        for name in getattr(cls, "__slots__", ()) if isinstance(getattr(cls, "__slots__", ()), tuple) else ():
+        slots = getattr(cls, "__slots__", ())
+        for name in (slots,) if isinstance(slots, str) else slots:  # (a single slot may be a bare string)
             if hasattr(obj, name) and name not in ("__dict__", "__weakref__"):
                 out.append((getattr(obj, name), f"{path}.{name}"))
     return out

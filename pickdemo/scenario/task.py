@@ -8,7 +8,7 @@ Never anything a seed drew: what the robot is told is the file's words, the same
 
 from __future__ import annotations
 
-from pickdemo.core.shapes import Mesh, Unknown
+from pickdemo.core.shapes import Unknown
 from pickdemo.perception import TargetModel
 from pickdemo.scenario.layout import Placement
 from pickdemo.scenario.schema import Scenario
@@ -19,7 +19,7 @@ def target_model(scenario: Scenario, placement: Placement) -> TargetModel:
     placed) and colour; of a mesh, or a cylinder lying on its side, only the rough size its file states
     (a cue to tell it from other objects), or nothing: it is found and grasped by its geometry."""
     spec = next(o for o in scenario.objects if o.name == placement.name)
-    if isinstance(placement.geometry, Mesh) or spec.told_nothing:  # (the shapes' models stand upright)
+    if spec.told_nothing:  # a mesh, or a cylinder lying (the shapes' models stand upright)
         return TargetModel(geometry=Unknown(size_cue_m=spec.rough_size_m), color=None)
     assert spec.color is not None  # the schema requires it of a box or cylinder
     return TargetModel(geometry=placement.geometry, color=tuple(spec.color))
