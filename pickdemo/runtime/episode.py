@@ -24,11 +24,9 @@ import dataclasses
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass
 
-from pickdemo.core.camera import RGBDFrame
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import (
     EpisodeFailure,
@@ -37,21 +35,17 @@ from pickdemo.core.result import (
     PhaseRecord,
     Stage,
 )
-from pickdemo.core.shapes import Unknown
 from pickdemo.perception import (
-    PerceptionError,
     PerceptionParams,
     PlaceView,
     PoseEstimate,
     TargetModel,
     look_at_place,
-    with_neighbours,
 )
-from pickdemo.perception.estimators import Estimator
 from pickdemo.perception.unknown import survey_objects
-from pickdemo.robot.kinematics import Kinematics, kinematics_of
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
-from pickdemo.robot.self_geometry import robot_body
+from pickdemo.runtime.frames import InFlight, Timer, estimate, take_frame
 from pickdemo.runtime.honest import check_honest
 from pickdemo.runtime.observers import (
     THIRD_PERSON_K,
@@ -69,7 +63,6 @@ from pickdemo.runtime.results import LoopCounts, episode_result
 from pickdemo.runtime.tasks import episode_task, machine_params
 from pickdemo.runtime.view import EpisodeView
 from pickdemo.runtime.world import World
-from pickdemo.scenario.fixtures import seen_boxes
 from pickdemo.scenario.layout import LayoutError
 from pickdemo.scenario.load import Scenario
 from pickdemo.sim.controller import RobotInterface
@@ -131,65 +124,6 @@ def run_episode(
     return episode.result()
 
 
-class _Timer:
-    def __init__(self) -> None:
-        self.times: dict[str, float] = {}
-
-    @contextmanager
-    def __call__(self, name: str) -> Iterator[None]:
-        t0 = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - t0
-
-
-@dataclass(frozen=True)
-class _InFlight:
-    """A frame's result on its way to the controller (perception's latency)."""
-
-    arrival_s: float
-    taken_s: float
-    result: PoseEstimate | PerceptionError | PlaceView
-    error_mm: float | None  # against the truth when the frame was taken: for the referee only
-    camera: str = "camera"  # which camera took the frame
-
-
-def _estimate(
-    estimator: Estimator, frame: RGBDFrame, model: TargetModel, params: PerceptionParams
-) -> PoseEstimate | PerceptionError:
-    """The estimator's estimate of the target in ``frame`` (or its word that it found none), with what
-    stands around a described target (:func:`~pickdemo.perception.with_neighbours`)."""
-    try:
-        result = estimator(frame, model)
-        if not isinstance(result, PoseEstimate):
-            raise TypeError(f"the perception method returned {type(result).__name__}, not a PoseEstimate")
-        if not isinstance(model.geometry, Unknown):  # (one nobody described: its cloud's obstacles)
-            result = with_neighbours(frame, result, model, params)
-        return result
-    except PerceptionError as exc:
-        return exc
-
-
-def _take_frame(
-    world: World, scenario: Scenario, request: FrameRequest, obs: Observation | None, kin: Kinematics
-) -> RGBDFrame:
-    """The requested frame, rendered, with what is no object on the table in it: the robot's own body at
-    the joint states ``obs`` (when the frame was taken), the cell's tray and its fixtures."""
-    rig = world.cameras[request.camera]
-    # on the hand: told where it was by the arm's kinematics at those joint states
-    T_world_tcp = kin.forward(obs.arm_q) if rig.on_hand and obs is not None else None
-    frame = rig.take(world.scene, request.roi, T_world_tcp)
-    frame = dataclasses.replace(frame, camera=request.camera)
-    if obs is not None:
-        boxes = robot_body(world.robot).boxes(obs.arm_q, obs.fingers_m)
-        if world.tray is not None:  # the cell's tray, and what is in it, is no object on the table
-            boxes = (*boxes, world.tray.box())
-        # nor are its fixtures, as near them as the depth noise reaches
-        frame = dataclasses.replace(frame, robot_boxes=boxes, fixture_boxes=seen_boxes(scenario.fixtures))
-    return frame
-
-
 class Episode:
     """One seeded episode of a scenario, stepped one control tick at a time::
 
@@ -225,7 +159,7 @@ class Episode:
         self._clear()
 
     def _clear(self) -> None:
-        self.timer = _Timer()
+        self.timer = Timer()
         self.world: World | None = None
         self.robot: RobotInterface | None = None
         self.machine: Controller | None = None  # the controller in the loop (the task's, or an agent's)
@@ -245,7 +179,7 @@ class Episode:
         self.video_ticks = 1  # control ticks between video frames (and debug drawings)
         self.tick = 0  # the control tick now (counted from 0)
         self.observation: Observation | None = None  # the robot's newest observation
-        self._pending: deque[_InFlight] = deque()
+        self._pending: deque[InFlight] = deque()
         self._last_frame_tick = -(10**9)
         self._events_logged = 0
         self._started = False
@@ -505,16 +439,16 @@ class Episode:
         world = self.world
         rig = world.cameras[request.camera]
         with self.timer("render wrist" if rig.on_hand else "render"):
-            frame = _take_frame(world, self.scenario, request, self.observation, self.machine.kin)
+            frame = take_frame(world, self.scenario, request, self.observation, self.machine.kin)
         if request.survey:  # a clear round's look at the whole table
             with self.timer("perceive"):
                 survey = survey_objects(frame, self.options.perception)
             self.counts.frames += 1
-            self._pending.append(_InFlight(now + self.scenario.control.perception_latency_s, now, survey, None))
+            self._pending.append(InFlight(now + self.scenario.control.perception_latency_s, now, survey, None))
             self._notify("frame", now, frame, survey)
             return
         with self.timer("perceive wrist" if rig.on_hand else "perceive"):
-            result = _estimate(self.estimator, frame, self.machine.model, self.options.perception)
+            result = estimate(self.estimator, frame, self.machine.model, self.options.perception)
         self.counts.frames += 1
         self.referee.first_estimate(result)  # truth: for scoring only
         if self.counts.frames == 1:  # the first look: disturbances are timed from here
@@ -525,12 +459,12 @@ class Episode:
         # Truth: for scoring only (an estimate that perception's own checks rejected included).
         error_mm = self.referee.error_mm(result)
         latency = self.scenario.control.perception_latency_s
-        self._pending.append(_InFlight(now + latency, now, result, error_mm, frame.camera))
+        self._pending.append(InFlight(now + latency, now, result, error_mm, frame.camera))
         if request.place is not None:  # what stands at the place, from the same frame
             with self.timer("perceive"):
                 place = look_at_place(frame, request.place[0], request.place[1], self.options.perception)
             if place is not None:
-                self._pending.append(_InFlight(now + latency, now, place, None, frame.camera))
+                self._pending.append(InFlight(now + latency, now, place, None, frame.camera))
         self._notify("frame", now, frame, result)
 
     def _log_events(self, now: float) -> None:
