@@ -28,7 +28,6 @@ from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.grasping.selection import GraspSelector, selector_for
 from pickdemo.grasping.top_down import GraspPlan
-from pickdemo.motion.online import MotionSample
 from pickdemo.perception import PerceptionError, PlaceView, PoseEstimate, TargetModel
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.actions import Grip, Scale
@@ -52,15 +51,15 @@ from pickdemo.skills.pick.params import (
 )
 from pickdemo.skills.pick.place import PlaceFinder
 from pickdemo.skills.pick.plans import PlacedHigher
+from pickdemo.skills.pick.readout import MachineReadout
 from pickdemo.skills.pick.sightline import Sightline
 from pickdemo.skills.pick.states import STATES
 from pickdemo.skills.pick.views import ViewPlanner
 from pickdemo.skills.pick.watch import MoveWatch
 from pickdemo.tracking.belief import Counters, TargetBelief, Verdict
-from pickdemo.tracking.tracker import TargetTracker
 
 
-class PickMachine:
+class PickMachine(MachineReadout):
     """Pick and place as a state machine; see the module docstring and :mod:`pickdemo.skills.pick`."""
 
     def __init__(
@@ -196,37 +195,6 @@ class PickMachine:
         self.failing: Failure | None = None  # the last attempt failed: backing off before failing so
 
     # ================================================================================ interface
-    @property
-    def finished(self) -> bool:
-        return self.state in (State.DONE, State.FAILED)
-
-    @property
-    def at_rest(self) -> bool:
-        """Finished, and the arm at rest (with ``end_at_rest`` a failure brakes it first)."""
-        return self.state is State.DONE or (self.state is State.FAILED and (self.arm.braked or not self.p.end_at_rest))
-
-    @property
-    def tracker(self) -> TargetTracker:
-        """The belief's tracker (read by observers: the video, the trace, the scoring)."""
-        return self.belief.tracker
-
-    @property
-    def progress(self) -> str:
-        """Where it is, said for a viewer: the attempt under way."""
-        return f"attempt {self.attempt}"
-
-    @property
-    def last_sample(self) -> MotionSample | None:
-        return self.arm.sample
-
-    @property
-    def commanded_q(self) -> np.ndarray:
-        """The joint command last sent (where the next controller takes over)."""
-        return self.arm.limiter.q.copy()
-
-    def cartesian_limits(self) -> tuple[list[float], list[float], list[float]]:
-        return self.arm.cartesian_limits()
-
     def views(self, now_s: float) -> list[FrameRequest]:
         """The frames its cameras should take now (the loop applies the frame rate)."""
         ready = self.entered and self.arm.finished
