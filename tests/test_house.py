@@ -29,7 +29,7 @@ PANDA_NAMES = re.compile(r"\b(HOME_Q|FINGER_MAX_M|PALM_ABOVE_TCP_M|MAX_VELOCITY_
 
 
 #: The packages the controller is built from: what the robot runs on.
-CONTROLLER_PACKAGES = ("core", "robot", "perception", "tracking", "grasping", "motion", "skills")
+CONTROLLER_PACKAGES = ("core", "robot", "perception", "tracking", "worldmodel", "grasping", "motion", "skills")
 #: ... and what they may import of pickdemo: each other, and of the scenario only what its file states
 #: of the cell (a tray), never a seed's draw (``scenario.layout``), the simulator (``sim``), the episode,
 #: the referee and the scoring (``runtime``), the apps or the environments.

@@ -246,7 +246,29 @@ def summarise(results: Iterable[EpisodeRecord]) -> dict[str, ScenarioSummary]:
         rounds = [r["clear"] for r in rs if r.get("clear")]
         if rounds:
             out[name]["clear"] = clear_summary(rounds)
+        worlds = [r["world"] for r in rs if r.get("world")]
+        if worlds:
+            out[name]["world"] = world_summary(worlds)
     return out
+
+
+def world_summary(worlds: list[dict]) -> dict:
+    """The world models' scores over a scenario's episodes: the objects found of those in view (recall,
+    with its Wilson 95 % interval), the phantoms and the id switches, each per 100 episodes."""
+    in_view, found = sum(w["in_view"] for w in worlds), sum(w["found"] for w in worlds)
+    lo, hi = wilson_interval(found, in_view) if in_view else (0.0, 1.0)
+    n = len(worlds)
+    return {
+        "episodes": n,
+        "in_view": in_view,
+        "found": found,
+        "recall": found / in_view if in_view else None,
+        "recall_wilson95": [lo, hi],
+        "phantoms": sum(w["phantoms"] for w in worlds),
+        "phantoms_per_100": 100.0 * sum(w["phantoms"] for w in worlds) / n,
+        "id_switches": sum(w["id_switches"] for w in worlds),
+        "id_switches_per_100": 100.0 * sum(w["id_switches"] for w in worlds) / n,
+    }
 
 
 def clear_summary(rounds: list[dict]) -> dict:
@@ -327,6 +349,12 @@ def format_summary(summary: dict[str, ScenarioSummary]) -> str:
             )
         if s.get("failed_off_table"):
             lines.append(f"  failed episodes that left the target off the table: {s['failed_off_table']}")
+        w = s.get("world")
+        if w and w["in_view"]:
+            lines.append(
+                f"  world model: found {w['found']}/{w['in_view']} objects in view (recall {w['recall']:.3f}), "
+                f"{w['phantoms']} phantom(s), {w['id_switches']} id switch(es) over {w['episodes']} episodes"
+            )
         c = s.get("clear")
         if c and c["objects"]:
             clo, chi = c["percent_cleared_wilson95"]

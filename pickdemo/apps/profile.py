@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+import pickdemo.runtime.episode as episode_module
 from pickdemo.core.interfaces import Command
 from pickdemo.runtime.episode import Episode, EpisodeOptions
 from pickdemo.runtime.observers import Observer
@@ -43,6 +44,7 @@ STAGES: dict[str, str] = {
     "robot I/O": "joint states, contacts and the wrist's force read; the arm's command checked and sent",
     "render": "the cameras' frames (only the region perception asked for)",
     "perception": "the pose estimate of each frame",
+    "world model": "each frame split into instances, matched to the objects with their ids",
     "tracker": "estimates gated and fused, the track predicted",
     "skill": "the pick's state machine, its plans and frame requests (the rest of the control decision)",
     "motion": "Ruckig: the hand's online trajectory and joint-space transfers",
@@ -128,6 +130,8 @@ def _wrap_episode(prof: Profiler, ep: Any) -> None:
     for rig in world.cameras.values():
         prof.wrap(rig, "take", "render")
     prof.wrap(ep, "estimator", "perception")
+    prof.wrap(episode_module, "split_view", "world model")
+    prof.wrap(getattr(m, "world", None), "update", "world model")
     belief, arm = getattr(m, "belief", None), getattr(m, "arm", None)  # (a pick's: a clear round's own are not)
     for name in ("offer", "predict", "lost", "moving_velocity"):
         prof.wrap(belief, name, "tracker")

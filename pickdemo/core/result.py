@@ -213,6 +213,9 @@ class EpisodeResult:
     #: a clear round's figures: each object's fate, its picks, cleared, percent_cleared, grasp_success_rate,
     #: picks_per_hour (simulated time); None for a pick
     clear: dict[str, Any] | None = None
+    #: the robot's world model at the end, each object scored against the truth, and its scores over the
+    #: episode (found, missed, phantoms, id switches: :mod:`pickdemo.runtime.world_score`); None: none kept
+    world: dict[str, Any] | None = None
     trace: EpisodeTrace | None = field(default=None, repr=False, compare=False)
 
     @classmethod
@@ -289,6 +292,7 @@ class EpisodeResult:
                 else dict(self.peak_joint_limit_ratio),
                 "others_moved_mm": None if self.others_moved_mm is None else dict(self.others_moved_mm),
                 **({} if self.clear is None else {"clear": self.clear}),
+                **({} if self.world is None else {"world": self.world}),
             }
         )
 

@@ -23,6 +23,7 @@ from pickdemo.skills.pick.views import ViewPlanner
 from pickdemo.skills.pick.watch import MoveWatch
 from pickdemo.tracking.belief import Counters, TargetBelief, Verdict
 from pickdemo.tracking.tracker import TargetTracker
+from pickdemo.worldmodel import SceneView
 
 
 class Eye(Protocol):
@@ -110,7 +111,7 @@ class Watcher:
     def on_estimate(
         self, result: PoseEstimate | PerceptionError | PlaceView, frame_time_s: float, camera: str = "camera"
     ) -> Verdict:
-        if isinstance(result, PlaceView):
+        if isinstance(result, (PlaceView, SceneView)):  # (the agent keeps no world model)
             return Verdict.UNUSED
         return self.belief.offer(result, frame_time_s, hand_over_target=False, camera=camera).verdict
 

@@ -144,7 +144,10 @@ class TopDownFaceGrasps:
         tcp = plan.grasp.position.copy()
         tcp[:2] = request.pose.position[:2]  # (the grasp's centre: a jaw's TCP is beside it)
         gripper = request.gripper
-        highest = max(top - gripper.pad_half_height_m - float(tcp[2]), 0.0)  # (the pads wholly on the target)
+        # up as far as the pads keep half their height on the target's side: raised past a lower
+        # neighbour, half a pad holds what the whole pad would (the grip's force is scaled by the share)
+        highest = max(top - p.min_pad_on_target * 2.0 * gripper.pad_half_height_m + gripper.pad_half_height_m
+                      - float(tcp[2]), 0.0)  # fmt: skip
         steps = np.arange(0.0, highest, p.raise_step_m)
         for raise_m in (*steps, highest):  # up in steps, and the highest last
             at = tcp + [0.0, 0.0, raise_m]

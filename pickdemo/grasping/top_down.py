@@ -43,8 +43,10 @@ class GraspParams:
     #: ... so many of them at least (a speck of depth noise, or a pixel of the arm's edge, is not a neighbour)
     neighbour_min_points: int = 5
     #: a grasp whose hand would meet something beside the target is tried this much higher, step by
-    #: step, while the pads stay wholly on the object (m)
+    #: step (m)
     raise_step_m: float = 0.003
+    #: ... up to where this share of the pads' height stays on the target's side
+    min_pad_on_target: float = 0.5
 
     def __post_init__(self) -> None:
         if min(self.pregrasp_height_m, self.transport_height_m, self.retreat_height_m) <= 0:

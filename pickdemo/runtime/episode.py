@@ -69,6 +69,7 @@ from pickdemo.sim.controller import RobotInterface
 from pickdemo.sim.disturb import PushPlayer, draw_push
 from pickdemo.skills.controller import Controller
 from pickdemo.skills.pick import HELD_STATES, TRACKING_STATES, CameraModel, FrameRequest, MachineParams, State
+from pickdemo.worldmodel import SceneView, split_view
 
 __all__ = [
     "PERCEPTION_OFF_MM",
@@ -418,6 +419,11 @@ class Episode:
         now = self.world.scene.sim_time_s
         while self._pending and self._pending[0].arrival_s <= now + 1e-9:
             f = self._pending.popleft()
+            if isinstance(f.result, SceneView):  # the frame's instances: into the robot's world model
+                with self.timer("world"):
+                    self.machine.on_estimate(f.result, f.taken_s, f.camera)
+                self.referee.world_seen(self.machine, f.result)  # truth: for scoring only
+                continue
             check_honest(f.result)  # an estimator's (a user's too) carries nothing of the simulator
             status = self.machine.on_estimate(f.result, f.taken_s, f.camera)
             if isinstance(f.result, PlaceView):  # (no estimate of the target: nothing to score or show)
@@ -447,6 +453,10 @@ class Episode:
             self._pending.append(InFlight(now + self.scenario.control.perception_latency_s, now, survey, None))
             self._notify("frame", now, frame, survey)
             return
+        latency = self.scenario.control.perception_latency_s
+        with self.timer("world"):  # every frame's instances, from every camera (the robot's world model)
+            view = split_view(frame, self.options.perception)
+        self._pending.append(InFlight(now + latency, now, view, None, frame.camera))
         with self.timer("perceive wrist" if rig.on_hand else "perceive"):
             result = estimate(self.estimator, frame, self.machine.model, self.options.perception)
         self.counts.frames += 1
@@ -458,7 +468,6 @@ class Episode:
             ]
         # Truth: for scoring only (an estimate that perception's own checks rejected included).
         error_mm = self.referee.error_mm(result)
-        latency = self.scenario.control.perception_latency_s
         self._pending.append(InFlight(now + latency, now, result, error_mm, frame.camera))
         if request.place is not None:  # what stands at the place, from the same frame
             with self.timer("perceive"):
@@ -488,6 +497,7 @@ class Episode:
         try:
             if self.referee is not None:
                 self.referee.ended()
+                self.referee.judge(failure)  # (a refusal, on the truth: before the scene closes)
                 failure = self.referee.named_moves(failure)
                 self._round_score = self.referee.round_score(self.machine)  # (truth: read before the scene closes)
             phases = self.counts.phases

@@ -25,6 +25,7 @@ from pickdemo.runtime.world import World
 from pickdemo.scenario.fixtures import seen_boxes
 from pickdemo.scenario.load import Scenario
 from pickdemo.skills.pick import FrameRequest
+from pickdemo.worldmodel import SceneView
 
 
 class Timer:
@@ -46,7 +47,7 @@ class InFlight:
 
     arrival_s: float
     taken_s: float
-    result: PoseEstimate | PerceptionError | PlaceView
+    result: PoseEstimate | PerceptionError | PlaceView | SceneView
     error_mm: float | None  # against the truth when the frame was taken: for the referee only
     camera: str = "camera"  # which camera took the frame
 

@@ -17,9 +17,13 @@ from pickdemo.core.result import EpisodeFailure, Failure, PerceptionScore, Stage
 from pickdemo.core.shapes import Mesh
 from pickdemo.grasping.top_down import GraspParams
 from pickdemo.perception import PerceptionError, PoseEstimate
+from pickdemo.runtime.grasp_truth import grasp_exists, true_box
 from pickdemo.runtime.metrics import score_perception, score_place, seen_truth
 from pickdemo.runtime.world import World
+from pickdemo.runtime.world_score import WorldScore
+from pickdemo.scenario.fixtures import seen_boxes
 from pickdemo.scenario.load import Scenario
+from pickdemo.worldmodel import SceneView, WorldModel
 
 #: Above this, the tracker's belief was off when the robot committed to the grasp (scored on the truth).
 PERCEPTION_OFF_MM = 5.0
@@ -29,9 +33,9 @@ def diagnose(failure: Failure | None, tracking_error_mm: float | None, fits_hand
     """For a failed episode, from the truth (for reading, never for control): was perception off
     when the robot committed to the grasp? ``perception_off``, ``perception_ok`` (the failure lies
     elsewhere), or ``not_committed`` (it never closed the gripper). A pick the grasp planner refused
-    is checked against the truth (``fits_hand``: the target's true narrowest width fits the open hand,
-    :meth:`Referee.fits_hand`): ``refused_fits_hand`` (the object itself did not force the refusal: a
-    neighbour, a fixture or the planner did) or ``refused_too_wide``."""
+    is checked against the truth (``fits_hand``: a grasp the hand can make exists among the true
+    objects and fixtures, :meth:`Referee.grasp_exists`): ``refused_fits_hand`` (one exists: the
+    refusal was the robot's mistake) or ``refused_too_wide`` (none does)."""
     if failure is None:
         return None
     if failure.stage is Stage.GRASP_PLANNING and fits_hand is not None:
@@ -46,8 +50,25 @@ def diagnose(failure: Failure | None, tracking_error_mm: float | None, fits_hand
 OTHER_MOVED_MM = 10.0
 
 
+class _WorldScoring:
+    """The referee's scoring of the robot's world model (:mod:`pickdemo.runtime.world_score`), a pick's
+    and a round's alike: its ``world_score`` and ``world`` (the simulator's)."""
+
+    def world_seen(self, controller: object, view: SceneView) -> None:
+        """The controller took a view's instances into its world model (``controller.world``, if it
+        keeps one): scored against the truth now."""
+        world_model = getattr(controller, "world", None)
+        if isinstance(world_model, WorldModel):
+            self.world_score.view(world_model, view, self.world)
+
+    def world_summary(self, controller: object) -> dict | None:
+        """``result.json``'s ``world`` (None: the controller keeps no world model)."""
+        world_model = getattr(controller, "world", None)
+        return self.world_score.summary(world_model) if isinstance(world_model, WorldModel) else None
+
+
 @dataclass
-class Referee:
+class Referee(_WorldScoring):
     """The truth's view of one episode (filled in as it runs; read into the result at its end)."""
 
     scenario: Scenario
@@ -66,6 +87,9 @@ class Referee:
     #: the other objects that ended this far (mm) or more from where they started: {name: mm}
     others_moved_mm: dict[str, float] | None = None
     _others_at_start: dict[str, np.ndarray] = field(default_factory=dict)  # where they stood once settled
+    world_score: WorldScore = field(default_factory=WorldScore)  # the robot's world model against the truth
+    #: a refusal in grasp_planning judged on the truth (:meth:`judge`): a grasp the hand can make existed
+    grasp_existed: bool | None = None
 
     def _truth(self) -> Pose:
         return self.world.true_pose(self.target)
@@ -182,6 +206,23 @@ class Referee:
         width = shape.min_width_m if isinstance(shape, Mesh) else shape.grasp_width_m
         return width <= self.world.robot.gripper.max_opening_m - GraspParams().width_margin_m
 
+    def judge(self, failure: Failure | None) -> None:
+        """At the end, before the scene closes: a refusal in ``grasp_planning`` judged on the truth."""
+        if failure is not None and failure.stage is Stage.GRASP_PLANNING:
+            self.grasp_existed = self.grasp_exists()
+
+    def grasp_exists(self) -> bool:
+        """Whether a grasp the hand can make exists on the truth (:func:`~pickdemo.runtime.grasp_truth.grasp_exists`:
+        the other objects' true boxes and the fixtures kept out of); a shape it does not judge, by
+        :meth:`fits_hand`. The truth, for scoring a refusal only."""
+        placement = self.world.placement(self.target)
+        others = [
+            true_box(self.world.true_pose(p.name), p.geometry) for p in self.world.layout if p.name != self.target
+        ]
+        others += list(seen_boxes(self.scenario.fixtures))
+        found = grasp_exists(self._truth(), placement.geometry, others, self.world.robot.gripper)
+        return self.fits_hand() if found is None else found
+
     def lifted_mm(self) -> float | None:
         if self.start_pose is None:
             return None
@@ -195,7 +236,7 @@ RESTING_SPEED_M_S = 0.02
 
 
 @dataclass
-class ClearReferee:
+class ClearReferee(_WorldScoring):
     """The truth's view of a clear round: which objects the round started with (those on the table once
     they came to rest), which ended in the tray and by which pick. It has the calls of a pick's
     :class:`Referee` (those about one target do nothing here)."""
@@ -208,6 +249,8 @@ class ClearReferee:
     tried: dict[str, int] | None = None  # name -> grasp attempts at it
     start_s: float = 0.0
     picks: list = field(default_factory=list)  # the picks' records, as they ended
+    world_score: WorldScore = field(default_factory=WorldScore)  # the robot's world model against the truth
+    grasp_existed = None
     perception = None
     place_error_mm = None
     tracking_error_mm = None
@@ -311,6 +354,9 @@ class ClearReferee:
     def fits_hand(self) -> None:
         """A round has no one target: its refusals are not judged here."""
         return None
+
+    def judge(self, failure: Failure | None) -> None:
+        """A round has no one target: its refusals are not judged here."""
 
     def named_moves(self, failure: Failure | None) -> Failure | None:
         """(A clear round moves every object: its failures say which were left.)"""

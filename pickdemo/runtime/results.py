@@ -85,7 +85,7 @@ def episode_result(
         retargets=m.counters.retargets if m is not None else 0,
         tracking_error_mm=tracking_error_mm,
         tracking_yaw_error_deg=ref.tracking_yaw_deg if ref is not None else None,
-        diagnosis=diagnose(failure, tracking_error_mm, ref.fits_hand() if ref is not None else None),
+        diagnosis=diagnose(failure, tracking_error_mm, ref.grasp_existed if ref is not None else None),
         estimates_off=ref.wrong_estimates if ref is not None else 0,
         estimates_off_accepted=ref.wrong_estimates_accepted if ref is not None else 0,
         estimates_off_fit_rejected=ref.wrong_estimates_self_rejected if ref is not None else 0,
@@ -102,6 +102,7 @@ def episode_result(
         place_position_m=None if world is None else world.place_xy,
         others_moved_mm=getattr(ref, "others_moved_mm", None),
         clear=round_score,
+        world=ref.world_summary(m) if ref is not None else None,
         trace=trace.freeze() if trace is not None else None,
     )
 

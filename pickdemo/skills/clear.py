@@ -43,6 +43,7 @@ from pickdemo.skills.clear_choice import TRIED_RADIUS_M, Choice, ObjectChooser
 from pickdemo.skills.pick import CameraModel, Event, FrameRequest, MachineParams, PickMachine, State
 from pickdemo.tracking.belief import Counters, Verdict
 from pickdemo.tracking.tracker import TargetTracker
+from pickdemo.worldmodel import SceneView, WorldModel
 
 #: Let go of an object this far above the tray's rim (its bottom): it drops in.
 TRAY_DROP_M = 0.02
@@ -114,6 +115,7 @@ class ClearSequencer:
         self.kin = kin
         self.surface_z, self.fixtures, self.solids, self.grasp_rng = surface_z, fixtures, solids, grasp_rng
         self.tray = tray
+        self.world = WorldModel()  # every object seen, kept across the round's picks
         # A clear round looks through its fixed camera alone (not yet through one on the hand).
         self.cameras = [c for c in cameras if not c.on_hand][:1]
         self.camera = self.cameras[0]
@@ -254,6 +256,9 @@ class ClearSequencer:
     ) -> Verdict:
         if self._done:
             return Verdict.UNUSED
+        if isinstance(result, SceneView):  # (the round's world model, whatever it is doing)
+            self.world.update(result)
+            return Verdict.UNUSED
         if isinstance(result, Survey):
             if self._surveying and self._survey_asked:
                 self._surveyed(result)
@@ -300,6 +305,7 @@ class ClearSequencer:
             fixtures=self.fixtures,
             solids=self.solids,
             grasp_rng=self.grasp_rng,
+            world=self.world,
             **kw,
         )
 

@@ -17,6 +17,7 @@ from pickdemo.grasping.top_down import GraspPlan, GraspPlanningError
 from pickdemo.motion.ik_goals import along_line, goal_candidates, line_reach, line_speed_scale
 from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import TargetModel
+from pickdemo.perception.neighbours import NEIGHBOURHOOD_M, OWN_MARGIN_M
 from pickdemo.robot.kinematics import IKParams, Kinematics
 from pickdemo.robot.self_geometry import arm_meets
 from pickdemo.skills.pick.arm import ArmDriver
@@ -24,6 +25,7 @@ from pickdemo.skills.pick.intercept import Interceptor, leaves_reach
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.tracking.belief import TargetBelief
+from pickdemo.worldmodel import WorldModel
 
 DESCENT_OUT_OF_REACH = "the straight descent onto the grasp is out of reach"
 #: A fixture's boxes this near the target are the grasps' concern (m): the open hand about it, from its pregrasp
@@ -48,10 +50,13 @@ class GraspChooser:
         intercept: Interceptor,
         fixture_points: np.ndarray | None = None,
         solids: tuple[OrientedBox, ...] = (),
+        world: WorldModel | None = None,
     ) -> None:
         """``fixture_points``: points on the cell's fixtures' faces (a bin's walls), known from the task:
         the hand keeps out of them as it does out of what the camera sees beside the target; ``solids``:
-        every fixture's boxes (a shelf's too), which the open hand and the arm keep out of."""
+        every fixture's boxes (a shelf's too), which the open hand and the arm keep out of; ``world``:
+        the robot's world model, whose objects but the target the hand keeps out of."""
+        self.world = world
         self.kin, self.rng, self.p, self.model, self.place_xy = kin, rng, params, model, place_xy
         self.fixture_points, self.solids = fixture_points, solids
         #: this target's grasps that held nothing or let it slip: the selector's grasps from any side
@@ -67,7 +72,7 @@ class GraspChooser:
     def request(self, pose: Pose, hand_yaws: tuple[float | None, ...]) -> GraspRequest:
         """What the selector is asked: the target at ``pose`` (and, seen as a cloud, its newest view)."""
         surface = self.belief.surface_z(*(float(v) for v in pose.position))
-        cloud, obstacles = self.belief.cloud, self.belief.neighbours
+        cloud, obstacles = self.belief.cloud, self._obstacles(pose)
         near = self._fixtures_near(pose)
         if near is not None:
             obstacles = near if obstacles is None else np.vstack([obstacles, near])
@@ -87,6 +92,16 @@ class GraspChooser:
             still=self.still,
             fixtures=boxes_near(self.solids, pose.position, SOLIDS_NEAR_M) if self.solids else (),
         )
+
+    def _obstacles(self, pose: Pose) -> np.ndarray | None:
+        """What stands around a described target, from the world model: every object but the target
+        within the hand's reach (None: the world has no object there at all, or the target is one
+        nobody described: its cloud says what stands beside it)."""
+        if self.world is None or self.belief.unknown or not self.world.objects:
+            return self.belief.neighbours
+        shape = self.model.geometry
+        own = (shape.footprint_radius_m + OWN_MARGIN_M, float(pose.position[2]) + shape.height_m / 2.0 + OWN_MARGIN_M)
+        return self.world.obstacles(pose.position, NEIGHBOURHOOD_M, own)
 
     def _fixtures_near(self, pose: Pose) -> np.ndarray | None:
         """The fixtures' points within the open hand's reach of the target (None: none)."""

@@ -57,6 +57,7 @@ from pickdemo.skills.pick.states import STATES
 from pickdemo.skills.pick.views import ViewPlanner
 from pickdemo.skills.pick.watch import MoveWatch
 from pickdemo.tracking.belief import Counters, TargetBelief, Verdict
+from pickdemo.worldmodel import SceneView, WorldModel
 
 
 class PickMachine(MachineReadout):
@@ -85,6 +86,7 @@ class PickMachine(MachineReadout):
         fixtures: tuple[OrientedBox, ...] = (),
         solids: tuple[OrientedBox, ...] = (),
         grasp_rng: np.random.Generator | None = None,
+        world: WorldModel | None = None,
     ) -> None:
         """``cameras``: the robot's cameras (a fixed one at least; one on the hand looks too whenever
         the target is wholly in its view). ``surface_z(x, y, z)``: the height of what a target at (x, y),
@@ -126,10 +128,11 @@ class PickMachine(MachineReadout):
         self.belief = TargetBelief(
             model, symmetry_rad, p.tracker, p.gate, surface_z=surface_z or _on_the_table, counters=self.counters
         )
+        self.world = world if world is not None else WorldModel()  # every object seen, with its id
         self.intercept = Interceptor(kin, rng, p, self.belief, self.arm, open_loop=open_loop)
         self.chooser = GraspChooser(
             kin, rng, p, model, place_xy, selector, self.belief, self.arm, self.intercept,
-            fixture_points=box_surface_points(fixtures) if fixtures else None, solids=solids,
+            fixture_points=box_surface_points(fixtures) if fixtures else None, solids=solids, world=self.world,
         )  # fmt: skip
         self.watch = MoveWatch(kin, p, model, self.belief, self.hand_cameras, open_loop=open_loop)
         self.place_finder = PlaceFinder(
@@ -204,12 +207,18 @@ class PickMachine(MachineReadout):
         )  # fmt: skip
 
     def on_estimate(
-        self, result: PoseEstimate | PerceptionError | PlaceView, frame_time_s: float, camera: str = "camera"
-    ) -> Verdict:
+        self, result: PoseEstimate | PerceptionError | PlaceView | SceneView, frame_time_s: float,
+        camera: str = "camera",
+    ) -> Verdict:  # fmt: skip
         """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``
-        by ``camera``, or what it saw at the place; what became of it (:class:`~pickdemo.tracking.belief.Verdict`)."""
+        by ``camera``, or what it saw at the place, or the frame's instances (into the world model); what
+        became of it (:class:`~pickdemo.tracking.belief.Verdict`)."""
         if isinstance(result, PlaceView):
             self.place_view = result
+            return Verdict.UNUSED
+        if isinstance(result, SceneView):
+            self.world.update(result)
+            self._mark_target(frame_time_s)
             return Verdict.UNUSED
         if self.state is State.VERIFY:
             self._verify_frame(result if isinstance(result, PoseEstimate) else None)
@@ -230,12 +239,18 @@ class PickMachine(MachineReadout):
             self.note(f"the target moved{moved} (seen in the frame of t = {frame_time_s:.2f} s): tracking it again")
         if offered.verdict is Verdict.ACCEPTED:
             self.fresh_estimate = True
+            self._mark_target(frame_time_s)
         seen = result.pose.position if isinstance(result, PoseEstimate) else None
         whole = offered.verdict is Verdict.ACCEPTED or (offered.off_m is not None and not offered.partial)
         if self.state is State.CLOSE and camera in self.hand_cameras and seen is not None and whole:
             self.watch.hold_view(frame_time_s, seen)  # (a plausible whole view, accepted or not)
         self.watch.offered(offered, camera, frame_time_s, seen, hand_over_target=over)
         return offered.verdict
+
+    def _mark_target(self, time_s: float) -> None:
+        """Tell the world model where the target is tracked (which of its objects is the target)."""
+        if self.belief.initialised:
+            self.world.mark_target(self.belief.predict(time_s).position, self.model.geometry.footprint_radius_m)
 
     def update(self, obs: Observation) -> Command:
         """One control tick: the state's entry action (once), its exit test, then the motion's tick."""
@@ -307,7 +322,13 @@ class PickMachine(MachineReadout):
 
     # ============================================================================== transitions
     def go(self, state: State, message: str) -> None:
-        self.state = state
+        held, self.state = self.state in HELD_STATES, state
+        if held != (state in HELD_STATES):  # the world model's target goes with the hand, and stays where let go
+            if held:
+                off = (0.0, 0.0) if self.plan is None else self.plan.place_offset_xy
+                self.world.release(self.kin.forward(self.arm_q).position[:2] - np.asarray(off))
+            else:
+                self.world.hold()
         self.entered = False
         self.arm.legs.clear()  # each state starts its own motion
         self.events.append(Event(state, self.now_s, message))

@@ -1,0 +1,315 @@
+"""One frame split into instances: every object standing on the table in view, each a blob of points
+with its footprint, its top, its colour and how sure its centre is; the table, the robot's own links
+and the cell's fixtures left out (:class:`SceneView`).
+
+Pure: a frame in, a :class:`SceneView` out; no simulator. What makes a pixel evidence of a surface
+is the sensor's own noise model at that range (:meth:`~pickdemo.core.camera.RGBDFrame.depth_variance`,
+which the presets carry): a pixel is above the table when the 3x3 mixture of its height (eq. 9)
+stands 4 of that mixture's sigmas above the table's plane, and a blob is an object when its
+footprint on the table covers :data:`MIN_OBJECT_AREA_M2`. So a far D415's speckle makes no object
+(single pixels a few sigmas off), and a flat object near the camera stays one. Objects touching one
+another are told apart where the depth steps between neighbouring pixels (a nearer object's edge)
+by more than the noise allows, or the colour steps (:func:`~pickdemo.perception.unknown.colour_steps`).
+
+The frame is read every :data:`STRIDE` pixels: the instances are for what the hand must keep out of
+and which object is which (a pose estimate reads the full frame).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from pickdemo.core.camera import Intrinsics, RGBDFrame, backproject_image, holes_as_nan, strided_intrinsics
+from pickdemo.core.geometry import Pose
+from pickdemo.perception.equations import MIXTURE_KERNEL
+from pickdemo.perception.model import PerceptionParams
+from pickdemo.perception.neighbours import TABLE_BAND_M, TABLE_OFF_MAX_M, TABLE_OFF_SIGMAS, TABLE_SLOPE_MAX
+from pickdemo.perception.segmentation import crop_frame, robot_pixels
+from pickdemo.perception.unknown import MIXTURE_NOISE_FRACTION, colour_steps, footprint
+
+#: Every this many pixels across and down are read.
+STRIDE = 2
+#: A pixel is above the table when its mixed height is this many of the mixture's sigmas above it.
+ABOVE_SIGMAS = 4.0
+PIXEL_SIGMAS = 2.0
+#: Neighbouring pixels whose depth differs by more than this (m), and this many sigmas of a
+#: difference of two readings, are on two objects (one in front of the other).
+DEPTH_STEP_M = 0.01
+DEPTH_STEP_SIGMAS = 4.0
+#: A step's pixel joins the blob beside it nearest in colour (this far in RGB weighs as a depth step)
+COLOUR_UNIT = 30.0
+#: The least footprint an object covers on the table, as seen (m^2): 1 cm x 1 cm. A blob smaller is
+#: noise (a pixel or two off by a few sigmas) or a sliver of an edge.
+MIN_OBJECT_AREA_M2 = 1e-4
+#: ... and it has at least this many (strided) pixels.
+MIN_OBJECT_PX = 4
+#: A blob most of whose points (this share) lie this many sigmas of their depth's noise from the
+#: robot's boxes or the fixtures' is theirs.
+ROBOT_NOISE_SIGMAS = 3.0
+ROBOT_SHARE = 0.5
+#: Points an instance keeps at most (a regular thinning beyond).
+MAX_INSTANCE_POINTS = 2000
+#: An instance's footprint, top and colour are read off this many of its points at most.
+STATS_POINTS = 300
+
+
+@dataclass(frozen=True)
+class Instance:
+    """One object as one frame shows it."""
+
+    points: np.ndarray  # (N, 3) world, m
+    centre: np.ndarray  # (3,): the middle of its footprint, at half its top
+    extents: tuple[float, float]  # its footprint's longer and shorter side seen (m)
+    yaw_rad: float  # the footprint's longer side's direction
+    top_m: float  # its top's height over the table
+    colour: tuple[float, float, float]  # its median colour, 0..1
+    area_m2: float  # its footprint seen, as the pixels' footprints on the table add up
+    cov: np.ndarray  # (3, 3) the centre's covariance: the points' spread over their count, and the calibration's
+    clipped: bool = False  # it reaches the image's edge (a region's): only part of it is in view
+    hidden: bool = False  # something nearer stands beside it in the image (it may hide part of it)
+
+
+@dataclass(frozen=True)
+class SceneView:
+    """Every object one frame showed, and what is needed to tell what it could not show: the frame's
+    (strided) depth, intrinsics and pose (:meth:`sees`)."""
+
+    instances: tuple[Instance, ...]
+    time_s: float
+    camera: str
+    depth_m: np.ndarray = dataclasses.field(repr=False)  # (h, w) strided depth, NaN: no reading
+    intrinsics: Intrinsics = dataclasses.field(repr=False)  # of the strided depth
+    T_world_cam: Pose = dataclasses.field(repr=False)
+
+    def sees(self, points: np.ndarray, margin_m: float = 0.02) -> np.ndarray:
+        """(N,) bool: which world ``points`` this view would have shown had they been there: in its
+        image, and nothing read nearer than them (by ``margin_m``) where they project (a hole is no
+        reading: not seen)."""
+        p = np.atleast_2d(points)
+        cam = (p - self.T_world_cam.position) @ self.T_world_cam.rotation
+        K = self.intrinsics
+        out = np.zeros(len(p), dtype=bool)
+        front = cam[:, 2] > 1e-3
+        z = np.where(front, cam[:, 2], 1.0)
+        u = np.round(K.fx * cam[:, 0] / z + K.cx).astype(int)
+        v = np.round(K.fy * cam[:, 1] / z + K.cy).astype(int)
+        h, w = self.depth_m.shape
+        inside = front & (u >= 0) & (v >= 0) & (u < w) & (v < h)
+        d = self.depth_m[v[inside], u[inside]]
+        out[inside] = np.isfinite(d) & (d >= cam[inside, 2] - margin_m)
+        return out
+
+
+def split_view(frame: RGBDFrame, params: PerceptionParams | None = None) -> SceneView:
+    """The frame's instances (see the module docstring), largest first."""
+    params = params or PerceptionParams()
+    s = STRIDE
+    small = dataclasses.replace(
+        frame,
+        rgb=np.ascontiguousarray(frame.rgb[::s, ::s]),
+        depth_m=holes_as_nan(frame.depth_m[::s, ::s]),
+        intrinsics=strided_intrinsics(frame.intrinsics, s),
+    )
+    depth = small.depth_m
+    R, t = frame.T_world_cam.rotation, frame.T_world_cam.position
+    pts = backproject_image(depth, small.intrinsics) @ R.T + t
+    valid = np.isfinite(depth)
+    height = _above_table(pts, valid, frame)
+    # The 3x3 mixture of the heights over the readings there are (a hole pulls nothing to 0).
+    w = cv2.filter2D(valid.astype(np.float64), cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    hm = cv2.filter2D(np.where(valid, height, 0.0), cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        h_mix = np.where(w > 0.3, hm / np.maximum(w, 1e-9), np.nan)
+    sigma = np.sqrt(small.depth_variance(np.nan_to_num(depth, nan=0.0)))
+    with np.errstate(invalid="ignore"):
+        # (and the pixel itself 2 of its own sigmas up: the mixture of a table pixel beside an object
+        # takes some of the object's height)
+        above = valid & (height > np.maximum(params.min_height_m, PIXEL_SIGMAS * sigma))
+        above &= h_mix > np.maximum(params.min_height_m, ABOVE_SIGMAS * MIXTURE_NOISE_FRACTION * sigma)
+    if above.any():
+        above &= ~robot_pixels(small, above)
+    empty = SceneView((), frame.time_s, frame.camera, depth, small.intrinsics, frame.T_world_cam)
+    if not above.any():
+        return empty
+    # (the colour's steps only about what stands above the table: they need a pixel or two beyond it)
+    ys, xs = np.nonzero(above)
+    y0, y1, x0, x1 = max(ys.min() - 2, 0), ys.max() + 3, max(xs.min() - 2, 0), xs.max() + 3
+    cut, behind = _steps(depth, sigma)
+    cut[y0:y1, x0:x1] |= colour_steps(crop_frame(small, x0, y0, x1, y1))
+    labels = _labels(above, cut, depth, small.rgb)
+    # hidden in part: beside something nearer (the hand over it, another object in front), or the
+    # robot's own body in front of it (what of it is the robot's was left out above)
+    near_robot = cv2.dilate(
+        (valid & ~above & robot_pixels(small, valid & ~above)).astype(np.uint8), np.ones((3, 3), np.uint8)
+    )
+    hidden = set(np.unique(labels[behind | near_robot.astype(bool)]).tolist()) - {0}
+    return dataclasses.replace(empty, instances=_instances(labels, pts, small, depth, frame, hidden))
+
+
+def _above_table(pts: np.ndarray, valid: np.ndarray, frame: RGBDFrame) -> np.ndarray:
+    """(h, w) each point's height above the table as this view sees it: a plane fitted to the points
+    near z = 0 (a camera known to its calibration sees the table some millimetres off and tilted),
+    else the world's z."""
+    z = pts[..., 2]
+    cal = frame.calibration_cov_at(frame.T_world_cam.position * np.array([1.0, 1.0, 0.0]))
+    off = TABLE_OFF_MAX_M if cal is None else max(TABLE_OFF_MAX_M, TABLE_OFF_SIGMAS * float(np.sqrt(cal[2, 2])))
+    sub = pts[::4, ::4][valid[::4, ::4]]
+    sel = np.abs(sub[:, 2]) < off
+    if sel.sum() < 50:
+        return z
+    # the table's points lie within 3 sigmas of one reading's noise of its plane
+    cam_z = (sub - frame.T_world_cam.position) @ frame.T_world_cam.rotation[:, 2]
+    band = max(TABLE_BAND_M, 3.0 * float(np.sqrt(frame.depth_variance(float(np.median(cam_z))))))
+    coef = np.zeros(3)
+    for _ in range(3):
+        A = np.column_stack([sub[sel, 0], sub[sel, 1], np.ones(int(sel.sum()))])
+        coef = np.linalg.lstsq(A, sub[sel, 2], rcond=None)[0]
+        inliers = np.abs(sub[:, 2] - (sub[:, :2] @ coef[:2] + coef[2])) < band
+        if inliers.sum() < 30:
+            break
+        sel = inliers
+    if float(np.hypot(coef[0], coef[1])) > TABLE_SLOPE_MAX or abs(coef[2]) > off:
+        return z
+    return z - (pts[..., 0] * coef[0] + pts[..., 1] * coef[1] + coef[2])
+
+
+def _steps(depth: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(h, w) bool each: pixels whose depth steps to a 4-neighbour's by more than :data:`DEPTH_STEP_M`
+    and the noise of such a difference allows; and those of them behind the step (something nearer
+    beside them hides what lies beyond)."""
+    d = np.nan_to_num(depth, nan=0.0)
+    thr = np.maximum(DEPTH_STEP_M, DEPTH_STEP_SIGMAS * np.sqrt(2.0) * sigma)
+    out = np.zeros(d.shape, dtype=bool)
+    behind = np.zeros(d.shape, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        both_x = (d[:, 1:] > 0) & (d[:, :-1] > 0)
+        tx = np.minimum(thr[:, 1:], thr[:, :-1])
+        right_nearer = both_x & (d[:, :-1] - d[:, 1:] > tx)
+        left_nearer = both_x & (d[:, 1:] - d[:, :-1] > tx)
+        both_y = (d[1:] > 0) & (d[:-1] > 0)
+        ty = np.minimum(thr[1:], thr[:-1])
+        down_nearer = both_y & (d[:-1] - d[1:] > ty)
+        up_nearer = both_y & (d[1:] - d[:-1] > ty)
+    dx, dy = right_nearer | left_nearer, down_nearer | up_nearer
+    out[:, 1:] |= dx
+    out[:, :-1] |= dx
+    out[1:] |= dy
+    out[:-1] |= dy
+    behind[:, :-1] |= right_nearer
+    behind[:, 1:] |= left_nearer
+    behind[:-1] |= down_nearer
+    behind[1:] |= up_nearer
+    return out, behind
+
+
+def _labels(above: np.ndarray, cut: np.ndarray, depth: np.ndarray, rgb: np.ndarray) -> np.ndarray:
+    """(h, w) int32: the blobs of ``above`` cut along ``cut`` (1, 2, ...; 0 none). A cut's own pixels
+    join the neighbouring blob most like them: the nearest in colour, then in depth (a step between two
+    objects is a pixel or two wide, its pixels each one object's or the other's)."""
+    inner = (above & ~cut).astype(np.uint8)
+    _, labels = cv2.connectedComponents(inner, connectivity=4)
+    labels = labels.astype(np.int32)
+    rest = above & (labels == 0)
+    if not rest.any():
+        return labels
+    d = np.nan_to_num(depth, nan=0.0)
+    c = rgb[..., :3].astype(np.float32)
+    h, w = labels.shape
+    for _ in range(2):
+        ys, xs = np.nonzero(rest)
+        if len(ys) == 0:
+            break
+        best = np.full(len(ys), np.inf)
+        take = np.zeros(len(ys), dtype=np.int32)
+        for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)):
+            yy, xx = np.clip(ys + dy, 0, h - 1), np.clip(xs + dx, 0, w - 1)
+            lab = labels[yy, xx]
+            cost = (
+                np.linalg.norm(c[yy, xx] - c[ys, xs], axis=1) / COLOUR_UNIT
+                + np.abs(d[yy, xx] - d[ys, xs]) / DEPTH_STEP_M
+            )
+            better = (lab > 0) & (cost < best)
+            best[better], take[better] = cost[better], lab[better]
+        done = take > 0
+        labels[ys[done], xs[done]] = take[done]
+        rest[ys[done], xs[done]] = False
+    return labels
+
+
+def _robots(points: np.ndarray, depth: np.ndarray, frame: RGBDFrame) -> bool:
+    """Whether a blob is the robot's own body (or a fixture): most of its points lie as near one of
+    the frame's robot boxes as their depth noise reaches (:data:`ROBOT_NOISE_SIGMAS`), a sliver of a
+    link that the boxes, padded for a near camera, leave out seen from afar."""
+    boxes = (*frame.robot_boxes, *frame.fixture_boxes)
+    if not boxes or len(points) == 0:
+        return False
+    margin = ROBOT_NOISE_SIGMAS * float(np.sqrt(frame.depth_variance(float(np.median(depth)))))
+    near = np.zeros(len(points), dtype=bool)
+    for box in boxes:
+        local = (points - box.pose.position) @ box.pose.rotation
+        near |= np.linalg.norm(local - np.clip(local, box.lo, box.hi), axis=1) <= margin
+    return float(np.mean(near)) > ROBOT_SHARE
+
+
+def _instances(
+    labels: np.ndarray, pts: np.ndarray, small: RGBDFrame, depth: np.ndarray, frame: RGBDFrame, hidden: set[int]
+) -> tuple[Instance, ...]:
+    n = int(labels.max())
+    if n == 0:
+        return ()
+    flat = labels.ravel()
+    order = np.argsort(flat, kind="stable")
+    bounds = np.searchsorted(flat[order], np.arange(1, n + 2))
+    P = pts.reshape(-1, 3)
+    D = depth.ravel()
+    rgb = small.rgb.reshape(-1, small.rgb.shape[-1])[:, :3]
+    fx = small.intrinsics.fx
+    edge = set(np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])).tolist())
+    out = []
+    for k in range(n):
+        idx = order[bounds[k] : bounds[k + 1]]
+        if len(idx) < MIN_OBJECT_PX:
+            continue
+        # each pixel's footprint on the table, seen straight on: (depth / f)^2
+        area = float(np.sum(np.square(D[idx] / fx)))
+        if area < MIN_OBJECT_AREA_M2:
+            continue
+        p = P[idx]
+        if _robots(p[:: max(1, len(p) // STATS_POINTS)], D[idx], frame):
+            continue
+        if len(p) > MAX_INSTANCE_POINTS:
+            p = p[:: int(np.ceil(len(p) / MAX_INSTANCE_POINTS))]
+        few = p[:: max(1, len(p) // STATS_POINTS)]  # (its figures from a few hundred of them)
+        centre_xy, extents = footprint(few)
+        cov_xy = np.cov(few[:, :2].T) if len(few) > 2 else np.eye(2) * 1e-4
+        yaw = 0.5 * float(np.arctan2(2.0 * cov_xy[0, 1], cov_xy[0, 0] - cov_xy[1, 1]))
+        # its top: the highest of its points less what the depth noise adds to the highest (2.33 sigma
+        # is the 99th percentile's), no lower than their median
+        sigma_z = float(np.sqrt(frame.depth_variance(float(np.median(D[idx])))))
+        top = max(float(np.quantile(few[:, 2], 0.99)) - 2.33 * sigma_z, float(np.median(few[:, 2])))
+        cov = np.zeros((3, 3))
+        cov[:2, :2] = cov_xy / len(idx)
+        cov[2, 2] = float(np.var(few[:, 2])) / len(idx)
+        cal = frame.calibration_cov_at(np.array([centre_xy[0], centre_xy[1], 0.5 * top]))
+        if cal is not None:
+            cov = cov + cal
+        colour = tuple(float(c) for c in np.median(rgb[idx[:: max(1, len(idx) // STATS_POINTS)]], axis=0) / 255.0)
+        out.append(
+            Instance(
+                p,
+                np.array([*centre_xy, 0.5 * top]),
+                (float(extents.max()), float(extents.min())),
+                yaw,
+                top,
+                colour,
+                area,
+                cov,
+                clipped=k + 1 in edge,
+            )  # fmt: skip
+        )
+    out.sort(key=lambda i: -i.area_m2)
+    return tuple(out)

@@ -1,0 +1,261 @@
+"""The robot's world: every object it has seen, each with a persistent id, kept across frames and
+cameras (:class:`WorldModel`), and which of them is its target.
+
+Pure: :class:`~pickdemo.worldmodel.instances.SceneView` in, answers out; no simulator. Each view's
+instances are matched to the tracked objects by where their footprints stand (nearest first, within
+the larger of the two footprints' half sides and :data:`MATCH_M`); an instance nothing matches is a
+new object with the next id. An object a view should have shown (in its image, nothing nearer in
+front of it) and did not is missed; missed :data:`GONE_AFTER` views in a row, it is gone (picked,
+pushed away). An object's points are its newest view's from each camera while it has not moved
+(they add up: a hand camera sees the side the fixed one does not), and the newest alone once it has.
+The target is the object whose footprint holds where the skill tracks its target
+(:meth:`WorldModel.mark_target`); the rest is what the hand and the arm must keep out of
+(:meth:`WorldModel.obstacles`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.worldmodel.instances import Instance, SceneView
+
+#: An instance matches an object whose footprint's centre is within this (m), or within half the
+#: shorter side of the larger of the two footprints.
+MATCH_M = 0.02
+#: An object moved when its footprint's centre moved this far (m): its older views are dropped.
+MOVED_M = 0.008
+#: An instance narrower than this across (m) makes no object of its own: a sliver of an edge.
+MIN_SIDE_M = 0.006
+#: An instance hidden in part whose centre is this near a known object's footprint is a piece of it (m).
+PIECE_MARGIN_M = 0.01
+#: Views in a row that should have shown an object and did not, and it is gone.
+GONE_AFTER = 2
+#: An instance whose top is this far above the held object's, as it stood, is it in the hand (m).
+HELD_ABOVE_M = 0.01
+#: Points an object keeps at most.
+MAX_OBJECT_POINTS = 3000
+
+
+@dataclass
+class TrackedObject:
+    """One object of the world, as seen so far."""
+
+    id: int
+    centre: np.ndarray  # (3,) m: the middle of its footprint, at half its top
+    extents: tuple[float, float]  # its footprint's longer and shorter side seen (m)
+    yaw_rad: float
+    top_m: float
+    colour: tuple[float, float, float]
+    cov: np.ndarray  # (3, 3) its centre's covariance (m^2)
+    first_seen_s: float
+    last_seen_s: float
+    views: int = 1
+    missed: int = 0
+    is_target: bool = False
+    #: each camera's newest view of its points (world, m)
+    by_camera: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+
+    @property
+    def points(self) -> np.ndarray:
+        pts = [p for p in self.by_camera.values() if len(p)]
+        return np.vstack(pts) if pts else np.zeros((0, 3))
+
+    @property
+    def box(self) -> OrientedBox:
+        """Its footprint's box, from the table to its top."""
+        c, s = np.cos(self.yaw_rad), np.sin(self.yaw_rad)
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        half = np.array([self.extents[0] / 2.0, self.extents[1] / 2.0, self.top_m / 2.0])
+        return OrientedBox(Pose(np.array([self.centre[0], self.centre[1], self.top_m / 2.0]), R), -half, half)
+
+    def summary(self) -> dict:
+        """What ``result.json``'s ``world`` says of it."""
+        return {
+            "id": self.id,
+            "target": self.is_target,
+            "centre_m": [round(float(v), 4) for v in self.centre],
+            "size_m": [round(self.top_m, 4), round(self.extents[0], 4), round(self.extents[1], 4)],
+            "sigma_mm": [round(float(np.sqrt(max(self.cov[i, i], 0.0))) * 1e3, 2) for i in range(3)],
+            "colour": [round(c, 3) for c in self.colour],
+            "first_seen_s": round(self.first_seen_s, 4),
+            "last_seen_s": round(self.last_seen_s, 4),
+            "views": self.views,
+        }
+
+
+class WorldModel:
+    """Every object seen, kept across views (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.objects: dict[int, TrackedObject] = {}
+        self.next_id = 1
+        self.views = 0
+        self.gone: list[int] = []  # the ids of objects gone, in order
+        #: where the skill tracks its target (x, y) and how far from that its footprint may reach
+        self._target_at: tuple[np.ndarray, float] | None = None
+        self._held: int | None = None  # the id of the object in the hand
+
+    # ---------------------------------------------------------------------------------- update
+    def update(self, view: SceneView) -> None:
+        """A view's instances matched to the objects (new ones added, missed ones counted)."""
+        self.views += 1
+        matched: set[int] = set()
+        pairs = []
+        if self._held is not None:
+            matched.add(self._held)  # (in the hand: no view moves it or misses it)
+        for k, inst in enumerate(view.instances):
+            for obj in self.objects.values():
+                if obj.id == self._held:
+                    continue
+                d = float(np.hypot(*(inst.centre[:2] - obj.centre[:2])))
+                if d <= max(MATCH_M, 0.5 * max(min(inst.extents), min(obj.extents))):
+                    pairs.append((d, k, obj.id))
+        pairs.sort()
+        taken: set[int] = set()
+        for _, k, oid in pairs:
+            if k in taken or oid in matched:
+                continue
+            taken.add(k)
+            matched.add(oid)
+            self._seen(self.objects[oid], view.instances[k], view)
+        for k, inst in enumerate(view.instances):
+            if k not in taken and not self._piece(inst) and not self._in_hand(inst):  # (no object of its own)
+                self._add(inst, view)
+        self._missed(view, matched)
+        self._mark()
+
+    def _add(self, inst: Instance, view: SceneView) -> None:
+        obj = TrackedObject(self.next_id, inst.centre.copy(), inst.extents, inst.yaw_rad, inst.top_m,
+                            inst.colour, inst.cov.copy(), view.time_s, view.time_s,
+                            by_camera={view.camera: inst.points})  # fmt: skip
+        self.objects[obj.id] = obj
+        self.next_id += 1
+
+    @staticmethod
+    def _seen(obj: TrackedObject, inst: Instance, view: SceneView) -> None:
+        obj.last_seen_s = view.time_s
+        obj.missed = 0
+        if inst.clipped:  # seen there, in part: what it is stays the whole views'
+            return
+        # (a view of it in part, something nearer hiding the rest, neither moves it nor shrinks it)
+        moved = not inst.hidden and float(np.hypot(*(inst.centre[:2] - obj.centre[:2]))) > MOVED_M
+        if moved:
+            obj.by_camera = {}
+        if moved or not inst.hidden or view.camera not in obj.by_camera:
+            obj.by_camera[view.camera] = inst.points
+        if len(obj.points) > MAX_OBJECT_POINTS:
+            obj.by_camera = {view.camera: inst.points}
+        # its footprint: the view's that shows more of it (a partial view of it keeps the whole one's)
+        if moved or (not inst.hidden and inst.area_m2 >= 0.8 * obj.extents[0] * obj.extents[1]):
+            obj.centre, obj.extents, obj.yaw_rad = inst.centre.copy(), inst.extents, inst.yaw_rad
+            obj.top_m = inst.top_m if moved else max(obj.top_m, inst.top_m)
+            obj.colour, obj.cov = inst.colour, inst.cov.copy()
+        obj.centre[2] = 0.5 * obj.top_m
+        obj.views += 1
+
+    def _piece(self, inst: Instance) -> bool:
+        """Whether an instance nothing matched is a piece of something: cut off at the image's edge, a
+        sliver narrower than :data:`MIN_SIDE_M`, or hidden in part with its centre in a known object's
+        footprint (1 cm grown)."""
+        if inst.clipped or inst.extents[1] < MIN_SIDE_M:  # (a sliver beside the hand is an edge, not a thing)
+            return True
+        if not inst.hidden:
+            return False
+        at = np.array([[inst.centre[0], inst.centre[1], 0.0]])
+        for obj in self.objects.values():
+            box = obj.box
+            grown = OrientedBox(box.pose, box.lo - PIECE_MARGIN_M, box.hi + PIECE_MARGIN_M)
+            if bool(grown.contains(at + np.array([0.0, 0.0, obj.top_m / 2.0]))[0]):
+                return True
+        return False
+
+    def _in_hand(self, inst: Instance) -> bool:
+        """Whether the instance is the held object seen in the hand (off the table, above where it was)."""
+        if self._held is None or self._held not in self.objects:
+            return False
+        return inst.top_m - 2.0 * float(np.sqrt(inst.cov[2, 2])) > self.objects[self._held].top_m + HELD_ABOVE_M
+
+    def _missed(self, view: SceneView, matched: set[int]) -> None:
+        for oid in [o for o in self.objects if o not in matched]:
+            obj = self.objects[oid]
+            # it should have been seen: its top's middle in view, nothing nearer in front of it
+            if bool(view.sees(np.array([[obj.centre[0], obj.centre[1], obj.top_m]]))[0]):
+                obj.missed += 1
+                if obj.missed >= GONE_AFTER:
+                    del self.objects[oid]
+                    self.gone.append(oid)
+
+    # ---------------------------------------------------------------------------------- target
+    def hold(self) -> None:
+        """The hand holds the target: its object goes with the hand (no view misses it, none moves it;
+        what is seen of it in the hand is the hand's), until :meth:`release`."""
+        target = self.target
+        self._held = None if target is None else target.id
+
+    def release(self, position: np.ndarray) -> None:
+        """The hand let the target go with its centre at ``position``: its object stands there now."""
+        if self._held is not None and self._held in self.objects:
+            obj = self.objects[self._held]
+            shift = np.asarray(position, dtype=float)[:2] - obj.centre[:2]
+            obj.centre[:2] += shift
+            obj.by_camera = {k: v + np.array([shift[0], shift[1], 0.0]) for k, v in obj.by_camera.items()}
+        self._held = None
+
+    def mark_target(self, position: np.ndarray, reach_m: float) -> None:
+        """The skill tracks its target at ``position``; its footprint reaches ``reach_m`` from there."""
+        self._target_at = (np.asarray(position, dtype=float)[:2].copy(), float(reach_m))
+        self._mark()
+
+    def _mark(self) -> None:
+        target = self._find_target()
+        for obj in self.objects.values():
+            obj.is_target = target is not None and obj.id == target.id
+
+    def _find_target(self) -> TrackedObject | None:
+        if self._target_at is None:
+            return None
+        xy, reach = self._target_at
+        best, best_d = None, np.inf
+        for obj in self.objects.values():
+            d = float(np.hypot(*(obj.centre[:2] - xy)))
+            if d <= reach + 0.5 * obj.extents[1] and d < best_d:
+                best, best_d = obj, d
+        return best
+
+    @property
+    def target(self) -> TrackedObject | None:
+        return next((o for o in self.objects.values() if o.is_target), None)
+
+    # --------------------------------------------------------------------------------- queries
+    def obstacles(self, at: np.ndarray, within_m: float, own: tuple[float, float] | None = None) -> np.ndarray:
+        """The points (M, 3) of every object but the target within ``within_m`` (across the table) of
+        ``at``, the target's position. ``own``: the target's known size, (the radius of its footprint's
+        circle with its margin, its top's height with it): then an object standing within that circle
+        no taller than the target is a piece of it (a view cut it in two where its colour steps), and the target's own
+        object, when its footprint is wider than the target (something flush against it that no view
+        told apart from it), keeps its points outside the circle, whatever the target's yaw; None
+        (nothing known of its size): the target's object is the target."""
+        out = []
+        for obj in self.objects.values():
+            p = obj.points
+            if len(p) == 0:
+                continue
+            d_obj = float(np.hypot(*(obj.centre[:2] - at[:2])))
+            if own is not None and not obj.is_target and d_obj <= own[0] and obj.top_m <= own[1]:
+                continue  # a piece of the target: no taller than it, standing within it
+            if obj.is_target and (own is None or obj.extents[0] <= 2.0 * own[0]):
+                continue
+            d = np.hypot(p[:, 0] - at[0], p[:, 1] - at[1])
+            keep = d <= within_m
+            if obj.is_target:
+                keep &= (d > own[0]) | (p[:, 2] > own[1])
+            if keep.any():
+                out.append(p[keep])
+        return np.vstack(out) if out else np.zeros((0, 3))
+
+    def summary(self) -> list[dict]:
+        """Every object, for ``result.json``."""
+        return [o.summary() for o in sorted(self.objects.values(), key=lambda o: o.id)]
