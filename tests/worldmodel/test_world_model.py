@@ -11,9 +11,9 @@ import pytest
 from pickdemo import load_scenario
 from pickdemo.core.camera import Intrinsics, RGBDFrame, depth_noise_coeff
 from pickdemo.core.geometry import Pose
+from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.runtime.frames import take_frame
 from pickdemo.runtime.world import World
-from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.skills.pick import FrameRequest
 from pickdemo.worldmodel import WorldModel, split_view
 
