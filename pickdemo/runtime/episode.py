@@ -125,6 +125,18 @@ def run_episode(
     return episode.result()
 
 
+def _guarded(part: Callable[[], bool]) -> tuple[Failure | None, bool]:
+    """Run a part of the episode: (None, whether it ended the episode), or a failure that ends it
+    (a typed one, or any error as ``error``: one bad episode must not take a batch down)."""
+    try:
+        return None, part()
+    except EpisodeFailure as exc:
+        return exc.failure, True
+    except Exception as exc:  # noqa: BLE001 - a bug: in error, with where it was raised
+        reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        return Failure(Stage.ERROR, reason, traceback="".join(traceback.format_exception(exc))), True
+
+
 class Episode:
     """One seeded episode of a scenario, stepped one control tick at a time::
 
@@ -221,7 +233,7 @@ class Episode:
             self._build()
             return False
 
-        failure, over = self._guarded(build)
+        failure, over = _guarded(build)
         if over:
             self._finish(failure)
         self._wall_s += time.perf_counter() - t0
@@ -229,18 +241,6 @@ class Episode:
             return None
         self.observation = self.robot.observe()
         return self.observation
-
-    @staticmethod
-    def _guarded(part: Callable[[], bool]) -> tuple[Failure | None, bool]:
-        """Run a part of the episode: (None, whether it ended the episode), or a failure that ends it
-        (a typed one, or any error as ``error``: one bad episode must not take a batch down)."""
-        try:
-            return None, part()
-        except EpisodeFailure as exc:
-            return exc.failure, True
-        except Exception as exc:  # noqa: BLE001 - a bug: in error, with where it was raised
-            reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
-            return Failure(Stage.ERROR, reason, traceback="".join(traceback.format_exception(exc))), True
 
     def step(self) -> bool:
         """One control tick; True when the episode is over (then :meth:`result` has it)."""
@@ -257,7 +257,7 @@ class Episode:
             self.referee.score()
             return True
 
-        failure, over = self._guarded(tick)
+        failure, over = _guarded(tick)
         if over:
             self._finish(failure)
         self._wall_s += time.perf_counter() - t0
