@@ -293,7 +293,7 @@ def profile_episode(scenario: Scenario, seed: int, options: EpisodeOptions | Non
     ep.close()
     replay = replay_physics(scenario, seed, log, options) if started and log.end_step > log.start_step else None
     times = result.stage_wall_times_s
-    known = {"scene", "settle", "render", "render wrist", "perceive", "perceive wrist", "physics"}
+    known = {"scene", "settle", "render", "render wrist", "perceive", "perceive wrist", "world", "physics"}
     observers = sum(v for k, v in times.items() if k not in known)
     stages = {name: prof.stages.get(name, StageTime()) for name in STAGES if name not in ("observers", "loop")}
     stages["observers"] = StageTime(calls=0, seconds=observers)
