@@ -1,6 +1,7 @@
 """The robot's world model scored against the simulator's truth (the referee's; nothing of it reaches
 the controller), MOT-style: after every view the world took in, its objects are matched to the true
-objects (nearest first, a world object's centre within the true object's footprint and 1 cm), and
+objects (a world object's centre within the true object's footprint's circle and 1 cm; the nearest in
+place and in footprint area first), and
 
 - a true object in that view (2 cm across or more, at rest, a third of its top's points shown: the
   view's own depth says so) is **found** when an object matches it, **missed** when none does;
@@ -57,12 +58,15 @@ class WorldScore:
             for name, (pose, geometry) in truth.items():
                 d = float(np.hypot(*(obj.centre[:2] - pose.position[:2])))
                 if d <= geometry.footprint_radius_m + MATCH_SLACK_M:
-                    pairs.append((d, obj.id, name))
+                    # the nearest in place and in size first (a sliver beside the true object is not it)
+                    a, b = geometry.top_extents_m
+                    size = abs(float(np.log(max(obj.extents[0] * obj.extents[1], 1e-6) / (a * b))))
+                    pairs.append((d / geometry.footprint_radius_m + size, d, obj.id, name))
         pairs.sort()
         matched: dict[str, int] = {}
         used: set[int] = set()
         self._matches = {}
-        for d, oid, name in pairs:
+        for _, d, oid, name in pairs:
             if oid in used or name in matched:
                 continue
             used.add(oid)

@@ -118,6 +118,10 @@ class TargetTracker:
     def initialised(self) -> bool:
         return self._x is not None
 
+    def share_of(self, source: str) -> float:
+        """The share of a camera's estimates in the track (0: none of it is that camera's)."""
+        return self._share.get(source, 0.0)
+
     @property
     def last_accept_s(self) -> float | None:
         """Frame time of the newest accepted estimate."""

@@ -21,6 +21,7 @@ import numpy as np
 
 from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.worldmodel.instances import Instance, SceneView
+from pickdemo.worldmodel.occupancy import Occupancy
 
 #: An instance matches an object whose footprint's centre is within this (m), or within half the
 #: shorter side of the larger of the two footprints.
@@ -97,11 +98,13 @@ class WorldModel:
         #: where the skill tracks its target (x, y) and how far from that its footprint may reach
         self._target_at: tuple[np.ndarray, float] | None = None
         self._held: int | None = None  # the id of the object in the hand
+        self.occupancy = Occupancy()  # the space seen free, apart from the never seen
 
     # ---------------------------------------------------------------------------------- update
     def update(self, view: SceneView) -> None:
         """A view's instances matched to the objects (new ones added, missed ones counted)."""
         self.views += 1
+        self.occupancy.add(view)
         matched: set[int] = set()
         pairs = []
         if self._held is not None:
@@ -255,6 +258,14 @@ class WorldModel:
             if keep.any():
                 out.append(p[keep])
         return np.vstack(out) if out else np.zeros((0, 3))
+
+    def classify(self, points: np.ndarray) -> np.ndarray:
+        """(N,) int8 per point: occupied, free or never seen (:mod:`~pickdemo.worldmodel.occupancy`)."""
+        return self.occupancy.classify(points, [o.box for o in self.objects.values()])
+
+    def octree(self, *, but_target: bool = True):  # noqa: ANN201 - a coal.OcTree or None
+        """The objects' boxes as coal's octree (the target's left out: the hand goes to it)."""
+        return self.occupancy.octree([o.box for o in self.objects.values() if not (but_target and o.is_target)])
 
     def summary(self) -> list[dict]:
         """Every object, for ``result.json``."""

@@ -121,3 +121,26 @@ def test_a_rendered_scene_splits_into_its_objects_and_the_robot_is_none() -> Non
         assert d < 0.03, inst.centre
     found = {n for n, t in truth.items() if any(np.hypot(*(i.centre[:2] - t[:2])) < 0.03 for i in view.instances)}
     assert len(found) >= 5  # (an object hidden behind another may not be seen)
+
+
+def test_free_space_is_kept_apart_from_the_never_seen_and_goes_to_coal() -> None:
+    import coal
+
+    from pickdemo.worldmodel import FREE, OCCUPIED, UNKNOWN
+
+    depth = _noisy_table(0, "kinect")
+    depth[230:250, 310:330] -= 0.10  # a 10 cm tall box under the camera
+    world = WorldModel()
+    world.update(split_view(_overhead(depth, "kinect")))
+    (box,) = world.objects.values()
+    x, y = box.centre[:2]
+    above = [x, y, 0.3]  # between the camera and the box: seen free
+    inside = [x, y, 0.05]  # in the box: its points' cells
+    beyond = [0.5, 0.0, -0.05]  # under the table: never seen
+    assert world.classify(np.array([above, inside, beyond])).tolist() == [FREE, OCCUPIED, UNKNOWN]
+    tree = world.octree(but_target=False)
+    assert isinstance(tree, coal.OcTree) and tree.size() > 0
+    probe = coal.Box(0.02, 0.02, 0.02)
+    request, result = coal.CollisionRequest(), coal.CollisionResult()
+    t = coal.Transform3s(np.eye(3), np.array([x, y, 0.095]))
+    assert coal.collide(probe, t, tree, coal.Transform3s(), request, result) > 0

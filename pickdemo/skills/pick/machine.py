@@ -52,6 +52,7 @@ from pickdemo.skills.pick.params import (
 from pickdemo.skills.pick.place import PlaceFinder
 from pickdemo.skills.pick.plans import PlacedHigher
 from pickdemo.skills.pick.readout import MachineReadout
+from pickdemo.skills.pick.search import Searcher
 from pickdemo.skills.pick.sightline import Sightline
 from pickdemo.skills.pick.states import STATES
 from pickdemo.skills.pick.views import ViewPlanner
@@ -143,6 +144,7 @@ class PickMachine(MachineReadout):
             place_look=self.place_finder.look,
         )  # fmt: skip
         self.sight = Sightline(kin, self.view_planner.fixed)
+        self.searcher = Searcher(kin, cameras, p)
         # What happened.
         self.state = State.LOOK
         self.failure: Failure | None = None
@@ -194,6 +196,8 @@ class PickMachine(MachineReadout):
         #: this look's postures looked from without finding the target (the arm hid the table from the
         #: fixed camera); no other posture would show more of it
         self.looked_from: list[np.ndarray] = []
+        self.searched: list[np.ndarray] = []  # where the hand's camera looked for the target from above
+        self.search_camera: str | None = None  # ... and which: its whole frames while it looks
         self.no_aside = False
         self.failing: Failure | None = None  # the last attempt failed: backing off before failing so
 
@@ -204,6 +208,7 @@ class PickMachine(MachineReadout):
         return self.view_planner.requests(
             now_s, self.state, ready=ready, since_s=self.since_s, verify_asked=self.verify_asked, plan=self.plan,
             arm_q=self.arm_q, near=self.last_at if self.look_frames < self.p.look_aside_frames else None,
+            searching=self.search_camera,
         )  # fmt: skip
 
     def on_estimate(

@@ -77,6 +77,8 @@ class MachineParams:
     #: there is the target, not a look-alike elsewhere; then the whole view
     relook_margin_m: float = 0.06
     look_asides: int = 2
+    #: ... then, with a camera on the hand, this many looks from above where no view has seen the table
+    look_searches: int = 3
     max_relooks: int = 2  # the target lost while approaching: look again from home, at most this often
     #: a target that stood still when the pick was planned and now moves out of the arm's reach (it
     #: tipped over, it rolls): the arm looks again from home, waiting this long (s) for it to stop

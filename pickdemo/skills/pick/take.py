@@ -51,6 +51,7 @@ def enter_look(m: PickMachine, obs: Observation) -> None:
     m.weighed_force_n = 0.0
     m.look_frames = 0
     m.looked_from, m.no_aside = [], False
+    m.searched, m.search_camera = [], None
     m.keep_hold = False
     m.fresh_estimate = False
     if m.look_here:  # the first look, from where the arm is (at rest)
@@ -124,6 +125,22 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
                 f"moving aside to look again (it still hides {still:.0%} of that)"
             )
             m.look_frames = 0
+            m.arm.transfer_to(q, m.p.transfer_scale)
+            return None
+    if (
+        m.look_frames >= m.p.look_aside_frames and len(m.searched) < m.p.look_searches and m.belief.accepted == 0
+        and m.arm.finished and (m.no_aside or len(m.looked_from) >= m.p.look_asides)
+    ):  # fmt: skip
+        found = m.searcher.spot(m.world, m.searched, m.arm.q, m.rng)
+        if found is not None:  # (no camera on the hand, or nothing left never seen: it fails below)
+            at, q, area = found
+            m.searched.append(at)
+            m.note(
+                f"no estimate in {m.look_frames} frames: looking with the hand's camera from above "
+                f"({at[0]:.2f}, {at[1]:.2f}), where no view has seen {area * 1e4:.0f} cm^2 of the table"
+            )
+            m.look_frames = 0
+            m.search_camera = m.searcher.camera.name
             m.arm.transfer_to(q, m.p.transfer_scale)
             return None
     if m.look_frames >= m.p.look_max_frames:

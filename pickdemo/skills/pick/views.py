@@ -91,12 +91,16 @@ class ViewPlanner:
         plan: GraspPlan | None,
         arm_q: np.ndarray,
         near: np.ndarray | None = None,
+        searching: str | None = None,
     ) -> list[FrameRequest]:
         """The frames to take now (the loop applies the frame rate): ``ready``, the state's motion has
         finished since it was entered; ``arm_q``: the joint states last observed (where the hand is);
-        ``near``: looking again, where the target was last known (its track)."""
+        ``near``: looking again, where the target was last known (its track); ``searching``: the camera on
+        the hand that looks for the target from above (its whole frames, once the arm is there)."""
         fixed = self._fixed(now_s, state, ready=ready, since_s=since_s, verify_asked=verify_asked, near=near)
         hand = [r for c in self.on_hand if (r := self._from_the_hand(c, now_s, state, plan, arm_q)) is not None]
+        if state is State.LOOK and searching is not None and ready:
+            hand.append(FrameRequest(None, camera=searching))
         if hand and state in HAND_OVER_TARGET:
             fixed = None  # the hand's camera sees the target whole; the fixed one, the hand over it
         return [r for r in (fixed, *hand) if r is not None]
@@ -134,7 +138,9 @@ class ViewPlanner:
         if self.open_loop or state not in TRACKING_STATES or not self.belief.initialised:
             return None
         finger = self.kin.robot.gripper.finger_max_m
-        if state is State.APPROACH and (plan is None or not unsure(self.belief, plan, now_s, self.p, finger)):
+        seen_fixed = self.belief.tracker.share_of(self.fixed.name) > 0.0  # (else the hand's camera found it)
+        sure = plan is None or not unsure(self.belief, plan, now_s, self.p, finger)
+        if state is State.APPROACH and seen_fixed and sure:
             return None  # on its way, the fixed camera sees it whole: the hand's looks when that is not sure enough
         T_world_cam = self.kin.forward(arm_q) @ cam.pose
         tp = self.belief.predict(now_s)
