@@ -190,6 +190,21 @@ class Box:
         return local @ rot.T
 
 
+    def surface_points(self, spacing_m: float = 0.004) -> np.ndarray:
+        """Points (N, 3) on its six faces, a grid about ``spacing_m`` apart, in its frame."""
+        half = np.asarray(self.size_m, dtype=float) / 2.0
+        out = []
+        for axis in range(3):
+            u, v = [a for a in range(3) if a != axis]
+            n = [max(int(np.ceil(2.0 * half[a] / spacing_m)), 1) + 1 for a in (u, v)]
+            mu, mv = np.meshgrid(np.linspace(-half[u], half[u], n[0]), np.linspace(-half[v], half[v], n[1]))
+            for side in (-half[axis], half[axis]):
+                local = np.empty((mu.size, 3))
+                local[:, u], local[:, v], local[:, axis] = mu.ravel(), mv.ravel(), side
+                out.append(local)
+        return np.vstack(out)
+
+
 @dataclass(frozen=True)
 class Cylinder:
     """An upright cylinder (its axis the body's z): diameter and height (m)."""
@@ -287,6 +302,18 @@ class Cylinder:
         """A 24-gon on its circle (the same whatever the yaw)."""
         a = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
         return self.diameter_m / 2.0 * np.column_stack([np.cos(a), np.sin(a)])
+
+    def surface_points(self, spacing_m: float = 0.004) -> np.ndarray:
+        """Points (N, 3) on its side and its top and bottom discs, about ``spacing_m`` apart, in its frame."""
+        r, h = self.diameter_m / 2.0, self.height_m
+        a = np.linspace(0.0, 2.0 * np.pi, max(12, int(2.0 * np.pi * r / spacing_m)), endpoint=False)
+        z = np.linspace(-h / 2.0, h / 2.0, max(2, int(h / spacing_m) + 1))
+        side = np.stack([np.repeat(r * np.cos(a)[None], len(z), 0), np.repeat(r * np.sin(a)[None], len(z), 0),
+                         np.repeat(z[:, None], len(a), 1)], axis=-1).reshape(-1, 3)  # fmt: skip
+        rings = [rr * np.column_stack([np.cos(a), np.sin(a)]) for rr in np.arange(spacing_m, r, spacing_m)]
+        disc = np.vstack([np.zeros((1, 2)), *rings]) if rings else np.zeros((1, 2))
+        caps = [np.column_stack([disc, np.full(len(disc), zz)]) for zz in (-h / 2.0, h / 2.0)]
+        return np.vstack([side, *caps])
 
 
 def convex_hull_2d(points: np.ndarray) -> np.ndarray:

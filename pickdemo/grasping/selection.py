@@ -164,13 +164,17 @@ class TopDownFirst:
     let it slip (the request's ``misses``): the top-down grasps first, where they hold (measured:
     docs/decisions.md#grasps-and-holds). Chosen once per plan (the request's ``plan_id``)."""
 
-    top: CloudGrasps
+    top: CloudGrasps | TopDownFaceGrasps
     any_side: AnySideGrasps
+    #: a miss puts the grasps from any side first (an object nobody described); False: only where no
+    #: top-down grasp is clear (a described target: its top-down grasps are across its known faces)
+    misses_first: bool = True
     _chosen: tuple[int, GraspSelector] | None = field(default=None, repr=False)
 
     def _pick(self, request: GraspRequest) -> GraspSelector:
         if self._chosen is None or self._chosen[0] != request.plan_id:
-            order = (self.any_side, self.top) if request.misses else (self.top, self.any_side)
+            first = request.misses and self.misses_first
+            order = (self.any_side, self.top) if first else (self.top, self.any_side)
             if not request.still:
                 order = (self.top, self.top)
             try:
@@ -204,10 +208,13 @@ def selector_for(
     model: TargetModel, params: GraspParams, *, any_side: np.random.Generator | None = None
 ) -> GraspSelector:
     """A target's grasps: from its cloud when nobody described it, else across its known faces.
-    ``any_side``: the draw of grasps from any side, where no top-down grasp of the cloud fits (None:
-    top-down only: an arm that cannot tilt its hand every way, a jaw gripper)."""
+    ``any_side``: the draw of grasps from any side, where no top-down grasp fits (of the cloud, or
+    clear of what stands beside a described target: on its known surface; None: top-down only: an arm
+    that cannot tilt its hand every way, a jaw gripper)."""
     if isinstance(model.geometry, Unknown):
         if any_side is not None:
             return TopDownFirst(CloudGrasps(params), AnySideGrasps(any_side, params))
         return CloudGrasps(params)
+    if any_side is not None:  # (from any side on its known surface, where no top-down grasp is clear)
+        return TopDownFirst(TopDownFaceGrasps(params), AnySideGrasps(any_side, params), misses_first=False)
     return TopDownFaceGrasps(params)

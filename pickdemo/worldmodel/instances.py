@@ -51,6 +51,8 @@ MIN_OBJECT_PX = 4
 #: robot's boxes or the fixtures' is theirs.
 ROBOT_NOISE_SIGMAS = 3.0
 ROBOT_SHARE = 0.5
+#: ... and a blob with a point this much nearer them than that touches the robot (m)
+TOUCH_M = 0.01
 #: Points an instance keeps at most (a regular thinning beyond).
 MAX_INSTANCE_POINTS = 2000
 #: An instance's footprint, top and colour are read off this many of its points at most.
@@ -130,8 +132,8 @@ def split_view(frame: RGBDFrame, params: PerceptionParams | None = None) -> Scen
         # takes some of the object's height)
         above = valid & (height > np.maximum(params.min_height_m, PIXEL_SIGMAS * sigma))
         above &= h_mix > np.maximum(params.min_height_m, ABOVE_SIGMAS * MIXTURE_NOISE_FRACTION * sigma)
-    if above.any():
-        above &= ~robot_pixels(small, above)
+    robot = robot_pixels(small, above) if above.any() else np.zeros_like(above)
+    above &= ~robot
     empty = SceneView((), frame.time_s, frame.camera, depth, small.intrinsics, frame.T_world_cam)
     if not above.any():
         return empty
@@ -143,10 +145,8 @@ def split_view(frame: RGBDFrame, params: PerceptionParams | None = None) -> Scen
     labels = _labels(above, cut, depth, small.rgb)
     # hidden in part: beside something nearer (the hand over it, another object in front), or the
     # robot's own body in front of it (what of it is the robot's was left out above)
-    near_robot = cv2.dilate(
-        (valid & ~above & robot_pixels(small, valid & ~above)).astype(np.uint8), np.ones((3, 3), np.uint8)
-    )
-    hidden = set(np.unique(labels[behind | near_robot.astype(bool)]).tolist()) - {0}
+    near_robot = cv2.dilate(robot.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    hidden = set(np.unique(labels[behind | near_robot]).tolist()) - {0}
     return dataclasses.replace(empty, instances=_instances(labels, pts, small, depth, frame, hidden))
 
 
@@ -240,19 +240,20 @@ def _labels(above: np.ndarray, cut: np.ndarray, depth: np.ndarray, rgb: np.ndarr
     return labels
 
 
-def _robots(points: np.ndarray, depth: np.ndarray, frame: RGBDFrame) -> bool:
+def _robots(points: np.ndarray, depth: np.ndarray, frame: RGBDFrame) -> tuple[bool, bool]:
     """Whether a blob is the robot's own body (or a fixture): most of its points lie as near one of
     the frame's robot boxes as their depth noise reaches (:data:`ROBOT_NOISE_SIGMAS`), a sliver of a
-    link that the boxes, padded for a near camera, leave out seen from afar."""
+    link that the boxes, padded for a near camera, leave out seen from afar; and whether it touches
+    the robot's body (a point that near: the hand about it hides some of it)."""
     boxes = (*frame.robot_boxes, *frame.fixture_boxes)
     if not boxes or len(points) == 0:
-        return False
+        return False, False
     margin = ROBOT_NOISE_SIGMAS * float(np.sqrt(frame.depth_variance(float(np.median(depth)))))
     near = np.zeros(len(points), dtype=bool)
     for box in boxes:
         local = (points - box.pose.position) @ box.pose.rotation
-        near |= np.linalg.norm(local - np.clip(local, box.lo, box.hi), axis=1) <= margin
-    return float(np.mean(near)) > ROBOT_SHARE
+        near |= np.linalg.norm(local - np.clip(local, box.lo, box.hi), axis=1) <= margin + TOUCH_M
+    return float(np.mean(near)) > ROBOT_SHARE, bool(near.any())
 
 
 def _instances(
@@ -279,7 +280,8 @@ def _instances(
         if area < MIN_OBJECT_AREA_M2:
             continue
         p = P[idx]
-        if _robots(p[:: max(1, len(p) // STATS_POINTS)], D[idx], frame):
+        robot, touches = _robots(p[:: max(1, len(p) // STATS_POINTS)], D[idx], frame)
+        if robot:
             continue
         if len(p) > MAX_INSTANCE_POINTS:
             p = p[:: int(np.ceil(len(p) / MAX_INSTANCE_POINTS))]
@@ -309,6 +311,7 @@ def _instances(
                 area,
                 cov,
                 clipped=k + 1 in edge,
+                hidden=touches or k + 1 in hidden,
             )  # fmt: skip
         )
     out.sort(key=lambda i: -i.area_m2)

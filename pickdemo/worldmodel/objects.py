@@ -32,6 +32,8 @@ MOVED_M = 0.008
 MIN_SIDE_M = 0.006
 #: An instance hidden in part whose centre is this near a known object's footprint is a piece of it (m).
 PIECE_MARGIN_M = 0.01
+#: A view shows an object whole when its footprint seen covers this share of the object's.
+WHOLE_SHARE = 0.5
 #: Views in a row that should have shown an object and did not, and it is gone.
 GONE_AFTER = 2
 #: An instance whose top is this far above the held object's, as it stood, is it in the hand (m).
@@ -114,7 +116,7 @@ class WorldModel:
                 if obj.id == self._held:
                     continue
                 d = float(np.hypot(*(inst.centre[:2] - obj.centre[:2])))
-                if d <= max(MATCH_M, 0.5 * max(min(inst.extents), min(obj.extents))):
+                if d <= max(MATCH_M, 0.5 * max(min(inst.extents), min(obj.extents))) or _holds(obj, inst.centre):
                     pairs.append((d, k, obj.id))
         pairs.sort()
         taken: set[int] = set()
@@ -144,7 +146,9 @@ class WorldModel:
         if inst.clipped:  # seen there, in part: what it is stays the whole views'
             return
         # (a view of it in part, something nearer hiding the rest, neither moves it nor shrinks it)
-        moved = not inst.hidden and float(np.hypot(*(inst.centre[:2] - obj.centre[:2]))) > MOVED_M
+        # (and a piece of it is no evidence it moved: as large as it was, seen whole, elsewhere)
+        whole = inst.area_m2 >= WHOLE_SHARE * obj.extents[0] * obj.extents[1]
+        moved = not inst.hidden and whole and float(np.hypot(*(inst.centre[:2] - obj.centre[:2]))) > MOVED_M
         if moved:
             obj.by_camera = {}
         if moved or not inst.hidden or view.camera not in obj.by_camera:
@@ -161,19 +165,12 @@ class WorldModel:
 
     def _piece(self, inst: Instance) -> bool:
         """Whether an instance nothing matched is a piece of something: cut off at the image's edge, a
-        sliver narrower than :data:`MIN_SIDE_M`, or hidden in part with its centre in a known object's
-        footprint (1 cm grown)."""
+        sliver narrower than :data:`MIN_SIDE_M`, or with its centre in a known object's footprint (1 cm
+        grown): two objects do not stand in one place (a view that cut one in two, or saw a part of it
+        beside the hand, saw a piece of it)."""
         if inst.clipped or inst.extents[1] < MIN_SIDE_M:  # (a sliver beside the hand is an edge, not a thing)
             return True
-        if not inst.hidden:
-            return False
-        at = np.array([[inst.centre[0], inst.centre[1], 0.0]])
-        for obj in self.objects.values():
-            box = obj.box
-            grown = OrientedBox(box.pose, box.lo - PIECE_MARGIN_M, box.hi + PIECE_MARGIN_M)
-            if bool(grown.contains(at + np.array([0.0, 0.0, obj.top_m / 2.0]))[0]):
-                return True
-        return False
+        return any(_holds(obj, inst.centre) for obj in self.objects.values())
 
     def _in_hand(self, inst: Instance) -> bool:
         """Whether the instance is the held object seen in the hand (off the table, above where it was)."""
@@ -221,11 +218,15 @@ class WorldModel:
         if self._target_at is None:
             return None
         xy, reach = self._target_at
-        best, best_d = None, np.inf
+        at = np.array([[xy[0], xy[1], 0.0]])
+        best, best_key = None, (True, np.inf)
         for obj in self.objects.values():
             d = float(np.hypot(*(obj.centre[:2] - xy)))
-            if d <= reach + 0.5 * obj.extents[1] and d < best_d:
-                best, best_d = obj, d
+            if d > reach + 0.5 * obj.extents[1]:
+                continue
+            key = (not _holds(obj, at[0]), d)  # (its footprint holding where the target is first, then the nearest)
+            if key < best_key:
+                best, best_key = obj, key
         return best
 
     @property
@@ -270,3 +271,10 @@ class WorldModel:
     def summary(self) -> list[dict]:
         """Every object, for ``result.json``."""
         return [o.summary() for o in sorted(self.objects.values(), key=lambda o: o.id)]
+
+
+def _holds(obj: TrackedObject, at: np.ndarray) -> bool:
+    """Whether the object's footprint, :data:`PIECE_MARGIN_M` grown, holds the point ``at`` (x, y)."""
+    local = (np.array([at[0], at[1], obj.centre[2]]) - obj.box.pose.position) @ obj.box.pose.rotation
+    half = 0.5 * np.array(obj.extents) + PIECE_MARGIN_M
+    return bool(abs(local[0]) <= half[0] and abs(local[1]) <= half[1])

@@ -16,7 +16,7 @@ from pickdemo.grasping.selection import GraspRequest, GraspSelector
 from pickdemo.grasping.top_down import GraspPlan, GraspPlanningError
 from pickdemo.motion.ik_goals import along_line, goal_candidates, line_reach, line_speed_scale
 from pickdemo.motion.online import pose_to_x4
-from pickdemo.perception import TargetModel
+from pickdemo.perception import ObjectCloud, TargetModel
 from pickdemo.perception.neighbours import NEIGHBOURHOOD_M, OWN_MARGIN_M
 from pickdemo.robot.kinematics import IKParams, Kinematics
 from pickdemo.robot.self_geometry import arm_meets
@@ -73,6 +73,8 @@ class GraspChooser:
         """What the selector is asked: the target at ``pose`` (and, seen as a cloud, its newest view)."""
         surface = self.belief.surface_z(*(float(v) for v in pose.position))
         cloud, obstacles = self.belief.cloud, self._obstacles(pose)
+        if cloud is None and not self.belief.unknown:  # a described target: its known surface where it is
+            cloud = ObjectCloud(pose.transform_points(self.model.geometry.surface_points()), np.zeros((0, 3)), 0.0)
         near = self._fixtures_near(pose)
         if near is not None:
             obstacles = near if obstacles is None else np.vstack([obstacles, near])
