@@ -78,7 +78,7 @@ class Instance:
 @dataclass(frozen=True)
 class SceneView:
     """Every object one frame showed, and what is needed to tell what it could not show: the frame's
-    (strided) depth, intrinsics and pose (:meth:`sees`)."""
+    (strided) depth, intrinsics and pose, and the pixels its robot's body took (:meth:`sees`)."""
 
     instances: tuple[Instance, ...]
     time_s: float
@@ -86,6 +86,8 @@ class SceneView:
     depth_m: np.ndarray = dataclasses.field(repr=False)  # (h, w) strided depth, NaN: no reading
     intrinsics: Intrinsics = dataclasses.field(repr=False)  # of the strided depth
     T_world_cam: Pose = dataclasses.field(repr=False)
+    #: (h, w) the pixels the robot's own body (or a fixture) took: what lies there is not seen
+    robot_mask: np.ndarray | None = dataclasses.field(default=None, repr=False)
 
     def sees(self, points: np.ndarray, margin_m: float = 0.02) -> np.ndarray:
         """(N,) bool: which world ``points`` this view would have shown had they been there: in its
@@ -103,6 +105,8 @@ class SceneView:
         inside = front & (u >= 0) & (v >= 0) & (u < w) & (v < h)
         d = self.depth_m[v[inside], u[inside]]
         out[inside] = np.isfinite(d) & (d >= cam[inside, 2] - margin_m)
+        if self.robot_mask is not None:
+            out[inside] &= ~self.robot_mask[v[inside], u[inside]]
         return out
 
 
@@ -134,7 +138,7 @@ def split_view(frame: RGBDFrame, params: PerceptionParams | None = None) -> Scen
         above &= h_mix > np.maximum(params.min_height_m, ABOVE_SIGMAS * MIXTURE_NOISE_FRACTION * sigma)
     robot = robot_pixels(small, above) if above.any() else np.zeros_like(above)
     above &= ~robot
-    empty = SceneView((), frame.time_s, frame.camera, depth, small.intrinsics, frame.T_world_cam)
+    empty = SceneView((), frame.time_s, frame.camera, depth, small.intrinsics, frame.T_world_cam, robot)
     if not above.any():
         return empty
     # (the colour's steps only about what stands above the table: they need a pixel or two beyond it)
@@ -249,11 +253,11 @@ def _robots(points: np.ndarray, depth: np.ndarray, frame: RGBDFrame) -> tuple[bo
     if not boxes or len(points) == 0:
         return False, False
     margin = ROBOT_NOISE_SIGMAS * float(np.sqrt(frame.depth_variance(float(np.median(depth)))))
-    near = np.zeros(len(points), dtype=bool)
+    gap = np.full(len(points), np.inf)
     for box in boxes:
         local = (points - box.pose.position) @ box.pose.rotation
-        near |= np.linalg.norm(local - np.clip(local, box.lo, box.hi), axis=1) <= margin + TOUCH_M
-    return float(np.mean(near)) > ROBOT_SHARE, bool(near.any())
+        gap = np.minimum(gap, np.linalg.norm(local - np.clip(local, box.lo, box.hi), axis=1))
+    return float(np.mean(gap <= margin)) > ROBOT_SHARE, bool(np.any(gap <= margin + TOUCH_M))
 
 
 def _instances(

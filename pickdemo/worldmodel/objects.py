@@ -28,6 +28,10 @@ from pickdemo.worldmodel.occupancy import Occupancy
 MATCH_M = 0.02
 #: An object moved when its footprint's centre moved this far (m): its older views are dropped.
 MOVED_M = 0.008
+#: An object with this share of its points in the cells (this wide, m) of the target's seen points is a
+#: piece of the target (an object nobody described that a view cut where its colour steps)
+PIECE_SHARE = 0.3
+PIECE_CELL_M = 0.005
 #: An instance narrower than this across (m) makes no object of its own: a sliver of an edge.
 MIN_SIDE_M = 0.006
 #: An instance hidden in part whose centre is this near a known object's footprint is a piece of it (m).
@@ -234,19 +238,30 @@ class WorldModel:
         return next((o for o in self.objects.values() if o.is_target), None)
 
     # --------------------------------------------------------------------------------- queries
-    def obstacles(self, at: np.ndarray, within_m: float, own: tuple[float, float] | None = None) -> np.ndarray:
+    def obstacles(
+        self, at: np.ndarray, within_m: float, own: tuple[float, float] | None = None, seen: np.ndarray | None = None
+    ) -> np.ndarray:
         """The points (M, 3) of every object but the target within ``within_m`` (across the table) of
         ``at``, the target's position. ``own``: the target's known size, (the radius of its footprint's
         circle with its margin, its top's height with it): then an object standing within that circle
         no taller than the target is a piece of it (a view cut it in two where its colour steps), and the target's own
         object, when its footprint is wider than the target (something flush against it that no view
         told apart from it), keeps its points outside the circle, whatever the target's yaw; None
-        (nothing known of its size): the target's object is the target."""
+        (nothing known of its size): the target's object is the target, and ``seen`` (its points as
+        perception saw it, an object nobody described) says which other objects are pieces of it (a
+        share :data:`PIECE_SHARE` of their points in its cells)."""
+        cells = (
+            None if seen is None or len(seen) == 0 else set(map(tuple, np.floor(seen / PIECE_CELL_M).astype(np.int64)))
+        )
         out = []
         for obj in self.objects.values():
             p = obj.points
             if len(p) == 0:
                 continue
+            if cells is not None and not obj.is_target:
+                mine = np.floor(p[:: max(1, len(p) // 200)] / PIECE_CELL_M).astype(np.int64)
+                if np.mean([tuple(c) in cells for c in mine]) >= PIECE_SHARE:
+                    continue  # a piece of the target, as perception saw it
             d_obj = float(np.hypot(*(obj.centre[:2] - at[:2])))
             if own is not None and not obj.is_target and d_obj <= own[0] and obj.top_m <= own[1]:
                 continue  # a piece of the target: no taller than it, standing within it

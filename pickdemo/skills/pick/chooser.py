@@ -30,6 +30,8 @@ from pickdemo.worldmodel import WorldModel
 DESCENT_OUT_OF_REACH = "the straight descent onto the grasp is out of reach"
 #: A fixture's boxes this near the target are the grasps' concern (m): the open hand about it, from its pregrasp
 SOLIDS_NEAR_M = 0.5
+#: ... and the world's objects, beside a target nobody described (m)
+CLOUD_NEAR_M = 0.25
 #: ... and the arm's (m): its links from the hand to the elbow
 ARM_NEAR_M = 0.8
 
@@ -73,6 +75,10 @@ class GraspChooser:
         """What the selector is asked: the target at ``pose`` (and, seen as a cloud, its newest view)."""
         surface = self.belief.surface_z(*(float(v) for v in pose.position))
         cloud, obstacles = self.belief.cloud, self._obstacles(pose)
+        if cloud is not None and self.world is not None and self.world.objects:  # (beside one nobody described)
+            cloud = dataclasses.replace(
+                cloud, obstacles=self.world.obstacles(pose.position, CLOUD_NEAR_M, seen=cloud.points)
+            )
         if cloud is None and not self.belief.unknown:  # a described target: its known surface where it is
             cloud = ObjectCloud(pose.transform_points(self.model.geometry.surface_points()), np.zeros((0, 3)), 0.0)
         near = self._fixtures_near(pose)
@@ -99,8 +105,10 @@ class GraspChooser:
         """What stands around a described target, from the world model: every object but the target
         within the hand's reach (None: the world has no object there at all, or the target is one
         nobody described: its cloud says what stands beside it)."""
-        if self.world is None or self.belief.unknown or not self.world.objects:
+        if self.world is None or not self.world.objects:
             return self.belief.neighbours
+        if self.belief.unknown:  # (its cloud's obstacles say it)
+            return None
         shape = self.model.geometry
         own = (shape.footprint_radius_m + OWN_MARGIN_M, float(pose.position[2]) + shape.height_m / 2.0 + OWN_MARGIN_M)
         return self.world.obstacles(pose.position, NEIGHBOURHOOD_M, own)
