@@ -16,8 +16,7 @@ from dataclasses import dataclass
 
 from pickdemo.core.camera import RGBDFrame
 from pickdemo.core.interfaces import Observation
-from pickdemo.core.shapes import Unknown
-from pickdemo.perception import PerceptionError, PerceptionParams, PlaceView, PoseEstimate, TargetModel, with_neighbours
+from pickdemo.perception import PerceptionError, PerceptionParams, PlaceView, PoseEstimate, TargetModel
 from pickdemo.perception.estimators import Estimator
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.robot.self_geometry import robot_body
@@ -55,14 +54,13 @@ class InFlight:
 def estimate(
     estimator: Estimator, frame: RGBDFrame, model: TargetModel, params: PerceptionParams
 ) -> PoseEstimate | PerceptionError:
-    """The estimator's estimate of the target in ``frame`` (or its word that it found none), with what
-    stands around a described target (:func:`~pickdemo.perception.with_neighbours`)."""
+    """The estimator's estimate of the target in ``frame`` (or its word that it found none). What stands
+    around it is the world model's (:func:`~pickdemo.worldmodel.split_view`, every frame), not the
+    estimate's."""
     try:
         result = estimator(frame, model)
         if not isinstance(result, PoseEstimate):
             raise TypeError(f"the perception method returned {type(result).__name__}, not a PoseEstimate")
-        if not isinstance(model.geometry, Unknown):  # (one nobody described: its cloud's obstacles)
-            result = with_neighbours(frame, result, model, params)
         return result
     except PerceptionError as exc:
         return exc

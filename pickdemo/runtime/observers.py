@@ -210,6 +210,7 @@ class _OverlayObserver(Observer):
             tracked_path=path,
             grasp=None if plan is None or m.state.value not in GRASP_STATES else plan.grasp,
             grasp_width_m=0.0 if plan is None else plan.object_width_m,
+            objects=_world_labels(m),
         )
 
 
@@ -263,3 +264,11 @@ class DebugDrawer(_OverlayObserver):
     def tick(self, ep: EpisodeView, now: float) -> None:
         if ep.tick % self.every == 0:
             self.draw.draw(self.overlay(ep, now))
+
+
+def _world_labels(controller: object) -> tuple[tuple[int, np.ndarray, bool], ...]:
+    """The controller's world model's objects, for the video's labels (none: it keeps no world model)."""
+    world = getattr(controller, "world", None)
+    if world is None:
+        return ()
+    return tuple((o.id, np.array([o.centre[0], o.centre[1], o.top_m]), o.is_target) for o in world.objects.values())

@@ -148,6 +148,7 @@ class RerunRecorder(Observer):
         depth = np.where(np.isfinite(frame.depth_m), frame.depth_m, 0.0).astype(np.float32)  # 0: no return
         self.rec.log(f"{cam}/image/depth", rr.DepthImage(depth, meter=1.0))
         self.rec.log("world/target/points", rr.Points3D(_target_points(ep, frame, result), radii=0.001))
+        self._world(ep)
         estimate = result if isinstance(result, PoseEstimate) else getattr(result, "estimate", None)
         if estimate is None:
             self.rec.log("world/target/features", rr.Clear(recursive=False))
@@ -155,6 +156,31 @@ class RerunRecorder(Observer):
         self._features(estimate)
         entity = "world/estimate" if isinstance(result, PoseEstimate) else "world/estimate/rejected"
         self._pose(entity, estimate.pose)
+
+    def _world(self, ep: EpisodeView) -> None:
+        """The controller's world model as it is now: its objects' boxes, labelled with their ids (the
+        target's marked), and their points."""
+        world = getattr(ep.controller, "world", None)
+        if world is None:
+            return
+        rr = self.rr
+        objs = list(world.objects.values())
+        if not objs:
+            self.rec.log("world/objects", rr.Clear(recursive=True))
+            return
+        boxes = [o.box for o in objs]
+        self.rec.log(
+            "world/objects/boxes",
+            rr.Boxes3D(
+                centers=[b.pose.position for b in boxes],
+                half_sizes=[b.hi for b in boxes],
+                quaternions=[_quaternion_xyzw(b.pose.rotation) for b in boxes],
+                labels=[f"{o.id}{' target' if o.is_target else ''}" for o in objs],
+            ),
+        )
+        pts = [o.points for o in objs if len(o.points)]
+        if pts:
+            self.rec.log("world/objects/points", rr.Points3D(np.vstack(pts), radii=0.001))
 
     def _features(self, est: PoseEstimate) -> None:
         rr = self.rr

@@ -36,6 +36,7 @@ ELLIPSE_COLOUR = (255, 200, 0)
 FEATURE_COLOUR = (255, 255, 0)
 PATH_COLOUR = (255, 0, 255)
 GRASP_COLOUR = (255, 140, 0)
+ID_COLOUR = (120, 230, 255)  # the world model's ids (the target's in the tracker's colour)
 CAPTION_BAR_PX = 28
 LEGEND_BAR_PX = 20
 
@@ -79,6 +80,8 @@ class Overlay:
     tracked_path: np.ndarray | None = None  # (N, 3) where it predicts the target over the next second
     grasp: Pose | None = None  # the planned grasp (TCP) pose
     grasp_width_m: float = 0.0
+    #: the world model's objects: (id, where its top's middle is, whether it is the target)
+    objects: tuple[tuple[int, np.ndarray, bool], ...] = ()
 
 
 def _to_pixels(points_world: np.ndarray, K: Intrinsics, T_world_cam: Pose) -> np.ndarray | None:
@@ -133,6 +136,13 @@ def draw_overlay(img: np.ndarray, K: Intrinsics, T_world_cam: Pose, ov: Overlay)
         uv = _to_pixels(ov.tracked, K, T)
         if uv is not None:
             cv2.drawMarker(out, _pt(uv[0]), PATH_COLOUR, cv2.MARKER_CROSS, 10, 1, cv2.LINE_AA)
+    for oid, top, target in ov.objects:  # each object of the world model, its id at its top
+        uv = _to_pixels(top, K, T)
+        if uv is not None:
+            at, colour = _pt(uv[0] + [-4, -8]), PATH_COLOUR if target else ID_COLOUR
+            label = f"#{oid}"
+            cv2.putText(out, label, at, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3, cv2.LINE_AA)  # (an outline)
+            cv2.putText(out, label, at, cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1, cv2.LINE_AA)
     if ov.grasp is not None and ov.grasp_width_m > 0:
         half = ov.grasp_width_m / 2.0
         pads = ov.grasp.transform_points(np.array([[0.0, -half, 0.0], [0.0, half, 0.0]]))

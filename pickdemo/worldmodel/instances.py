@@ -47,11 +47,12 @@ COLOUR_UNIT = 30.0
 MIN_OBJECT_AREA_M2 = 1e-4
 #: ... and it has at least this many (strided) pixels.
 MIN_OBJECT_PX = 4
-#: A blob most of whose points (this share) lie this many sigmas of their depth's noise from the
-#: robot's boxes or the fixtures' is theirs.
+#: A blob most of whose points (this share) lie within this gap (m) of the robot's boxes or the
+#: fixtures', moved along their line of sight by up to this many sigmas of their depth's noise, is theirs
 ROBOT_NOISE_SIGMAS = 3.0
 ROBOT_SHARE = 0.5
-#: ... and a blob with a point this much nearer them than that touches the robot (m)
+ROBOT_GAP_M = 0.003
+#: ... and a blob with a point this near one of them (m) touches the robot
 TOUCH_M = 0.01
 #: Points an instance keeps at most (a regular thinning beyond).
 MAX_INSTANCE_POINTS = 2000
@@ -245,19 +246,26 @@ def _labels(above: np.ndarray, cut: np.ndarray, depth: np.ndarray, rgb: np.ndarr
 
 
 def _robots(points: np.ndarray, depth: np.ndarray, frame: RGBDFrame) -> tuple[bool, bool]:
-    """Whether a blob is the robot's own body (or a fixture): most of its points lie as near one of
-    the frame's robot boxes as their depth noise reaches (:data:`ROBOT_NOISE_SIGMAS`), a sliver of a
-    link that the boxes, padded for a near camera, leave out seen from afar; and whether it touches
-    the robot's body (a point that near: the hand about it hides some of it)."""
+    """Whether a blob is the robot's own body (or a fixture): most of its points lie in one of the
+    frame's robot boxes once moved along their line of sight by up to :data:`ROBOT_NOISE_SIGMAS` of
+    their depth's noise (a sliver of a link the padded boxes leave out, seen from afar: depth noise
+    moves a point along its ray, not across it; an object between the fingers stays beside them);
+    and whether it touches the robot's body (a point within :data:`TOUCH_M` of a box: the hand about it
+    hides some of it)."""
     boxes = (*frame.robot_boxes, *frame.fixture_boxes)
     if not boxes or len(points) == 0:
         return False, False
-    margin = ROBOT_NOISE_SIGMAS * float(np.sqrt(frame.depth_variance(float(np.median(depth)))))
-    gap = np.full(len(points), np.inf)
+    sigma = float(np.sqrt(frame.depth_variance(float(np.median(depth)))))
+    ray = points - frame.T_world_cam.position
+    ray /= np.linalg.norm(ray, axis=1, keepdims=True)
+    steps = np.linspace(-ROBOT_NOISE_SIGMAS, ROBOT_NOISE_SIGMAS, 7) * sigma
+    moved = points[None, :, :] + steps[:, None, None] * ray[None, :, :]  # (7, N, 3)
+    gap = np.full(moved.shape[:2], np.inf)
     for box in boxes:
-        local = (points - box.pose.position) @ box.pose.rotation
-        gap = np.minimum(gap, np.linalg.norm(local - np.clip(local, box.lo, box.hi), axis=1))
-    return float(np.mean(gap <= margin)) > ROBOT_SHARE, bool(np.any(gap <= margin + TOUCH_M))
+        local = (moved - box.pose.position) @ box.pose.rotation
+        gap = np.minimum(gap, np.linalg.norm(local - np.clip(local, box.lo, box.hi), axis=2))
+    on_ray = gap.min(axis=0) <= ROBOT_GAP_M
+    return float(np.mean(on_ray)) > ROBOT_SHARE, bool(np.any(gap[len(steps) // 2] <= TOUCH_M))
 
 
 def _instances(

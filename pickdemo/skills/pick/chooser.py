@@ -103,8 +103,8 @@ class GraspChooser:
 
     def _obstacles(self, pose: Pose) -> np.ndarray | None:
         """What stands around a described target, from the world model: every object but the target
-        within the hand's reach (None: the world has no object there at all, or the target is one
-        nobody described: its cloud says what stands beside it)."""
+        within the hand's reach (an estimator's own neighbours where the world has no object at all;
+        None for a target nobody described: its cloud says what stands beside it)."""
         if self.world is None or not self.world.objects:
             return self.belief.neighbours
         if self.belief.unknown:  # (its cloud's obstacles say it)
