@@ -199,9 +199,10 @@ class WorldModel:
         target = self.target
         self._held = None if target is None else target.id
 
-    def release(self, position: np.ndarray) -> None:
-        """The hand let the target go with its centre at ``position``: its object stands there now."""
-        if self._held is not None and self._held in self.objects:
+    def release(self, position: np.ndarray | None) -> None:
+        """The hand let the target go with its centre at ``position``: its object stands there now
+        (None: where it stood, never lifted)."""
+        if position is not None and self._held is not None and self._held in self.objects:
             obj = self.objects[self._held]
             shift = np.asarray(position, dtype=float)[:2] - obj.centre[:2]
             obj.centre[:2] += shift

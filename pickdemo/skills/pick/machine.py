@@ -327,13 +327,17 @@ class PickMachine(MachineReadout):
 
     # ============================================================================== transitions
     def go(self, state: State, message: str) -> None:
-        held, self.state = self.state in HELD_STATES, state
-        if held != (state in HELD_STATES):  # the world model's target goes with the hand, and stays where let go
-            if held:
+        # the world model's target is the hand's from the close (the fingers about it hide it), goes
+        # with the hand once lifted, and stands where it was let go (or where it stood: not lifted)
+        before, self.state = self.state, state
+        if (before in IN_HAND) != (state in IN_HAND):
+            if state in IN_HAND:
+                self.world.hold()
+            elif before is State.CLOSE:
+                self.world.release(None)
+            else:
                 off = (0.0, 0.0) if self.plan is None else self.plan.place_offset_xy
                 self.world.release(self.kin.forward(self.arm_q).position[:2] - np.asarray(off))
-            else:
-                self.world.hold()
         self.entered = False
         self.arm.legs.clear()  # each state starts its own motion
         self.events.append(Event(state, self.now_s, message))
@@ -445,6 +449,10 @@ class PickMachine(MachineReadout):
         reason = self.intercept.go_to(pose, self.now_s, limits)
         if reason:
             self.fail(Stage.IK, reason)
+
+
+#: The states in which the world model's target is the hand's (:meth:`PickMachine.go`).
+IN_HAND = frozenset({State.CLOSE, *HELD_STATES})
 
 
 def _on_the_table(x: float, y: float, z: float | None = None) -> float:
