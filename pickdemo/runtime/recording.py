@@ -35,6 +35,7 @@ from pickdemo.perception.segmentation import segment_target, world_heights, worl
 from pickdemo.perception.unknown import Survey
 from pickdemo.runtime.observers import Observer
 from pickdemo.runtime.view import EpisodeView
+from pickdemo.worldmodel import UNKNOWN
 
 APP_ID = "pickdemo"
 TIMELINE = "sim"
@@ -181,6 +182,9 @@ class RerunRecorder(Observer):
         pts = [o.points for o in objs if len(o.points)]
         if pts:
             self.rec.log("world/objects/points", rr.Points3D(np.vstack(pts), radii=0.001))
+        # the occupancy map on the table: what no view has seen yet (the rest was seen free, or is an object's)
+        never = TABLE_GRID[world.classify(TABLE_GRID) == UNKNOWN]
+        self.rec.log("world/never_seen", rr.Points3D(never, radii=0.004, colors=[[120, 120, 120]]))
 
     def _features(self, est: PoseEstimate) -> None:
         rr = self.rr
@@ -243,6 +247,10 @@ class RerunRecorder(Observer):
         series("joints/command", _JOINTS, self.commands)
         poses("world/truth", list(zip(self.ticks, self.truth, strict=True)))
         poses("world/tracker", self.tracked)
+
+
+#: The table's cells the recording shows as never seen (x, y every 2 cm within reach, 1 cm up).
+TABLE_GRID = np.array([[x, y, 0.01] for x in np.arange(0.2, 0.81, 0.02) for y in np.arange(-0.45, 0.451, 0.02)])
 
 
 def _target_points(ep: EpisodeView, frame: RGBDFrame, result: object = None) -> np.ndarray:
