@@ -2,11 +2,11 @@
 object, a carton flush against it), which a grasp's fingers and palm must keep out of, and of
 whatever stands where the target is to be put down.
 
-Pure: arrays in, arrays out; no simulator. Any estimator's estimate of a described target gets them
-(:func:`with_neighbours`), from the frame it was made from, when that frame shows the whole
-neighbourhood a hand about the target sweeps; an object nobody described has its own
-(:attr:`~pickdemo.perception.model.ObjectCloud.obstacles`). :func:`look_at_place` says what a frame
-shows standing at a spot (:class:`PlaceView`).
+Pure: arrays in, arrays out; no simulator. :func:`look_at_place` says what a frame shows standing at
+a spot (:class:`PlaceView`): the loop asks it of the first look. What stands around the target, in
+the loop, is the world model's (:mod:`pickdemo.worldmodel`); :func:`with_neighbours` remains for an
+estimator of one's own that wants the points of a frame about its estimate (the skill reads an
+estimate's ``neighbours`` where the world model has no object at all).
 """
 
 from __future__ import annotations

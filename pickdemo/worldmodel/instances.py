@@ -23,13 +23,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from pickdemo.core.camera import Intrinsics, RGBDFrame, backproject_image, holes_as_nan, strided_intrinsics
+from pickdemo.core.camera import Intrinsics, RGBDFrame, holes_as_nan, strided_intrinsics
 from pickdemo.core.geometry import Pose
 from pickdemo.perception.equations import MIXTURE_KERNEL
 from pickdemo.perception.model import PerceptionParams
 from pickdemo.perception.neighbours import TABLE_BAND_M, TABLE_OFF_MAX_M, TABLE_OFF_SIGMAS, TABLE_SLOPE_MAX
 from pickdemo.perception.segmentation import crop_frame, robot_pixels
-from pickdemo.perception.unknown import MIXTURE_NOISE_FRACTION, colour_steps, footprint
+from pickdemo.perception.unknown import FOOTPRINT_QUANTILE, MIXTURE_NOISE_FRACTION, colour_steps
 
 #: Every this many pixels across and down are read.
 STRIDE = 2
@@ -40,8 +40,9 @@ PIXEL_SIGMAS = 2.0
 #: difference of two readings, are on two objects (one in front of the other).
 DEPTH_STEP_M = 0.01
 DEPTH_STEP_SIGMAS = 4.0
-#: A step's pixel joins the blob beside it nearest in colour (this far in RGB weighs as a depth step)
-COLOUR_UNIT = 30.0
+#: A step's pixel joins the blob beside it nearest in colour (this far in RGB, the channels' absolute
+#: differences summed, weighs as a depth step)
+COLOUR_UNIT = 50.0
 #: The least footprint an object covers on the table, as seen (m^2): 1 cm x 1 cm. A blob smaller is
 #: noise (a pixel or two off by a few sigmas) or a sliver of an edge.
 MIN_OBJECT_AREA_M2 = 1e-4
@@ -117,18 +118,19 @@ def split_view(frame: RGBDFrame, params: PerceptionParams | None = None) -> Scen
     s = STRIDE
     small = dataclasses.replace(
         frame,
-        rgb=np.ascontiguousarray(frame.rgb[::s, ::s]),
+        rgb=frame.rgb[::s, ::s],
         depth_m=holes_as_nan(frame.depth_m[::s, ::s]),
         intrinsics=strided_intrinsics(frame.intrinsics, s),
     )
     depth = small.depth_m
-    R, t = frame.T_world_cam.rotation, frame.T_world_cam.position
-    pts = backproject_image(depth, small.intrinsics) @ R.T + t
     valid = np.isfinite(depth)
-    height = _above_table(pts, valid, frame)
+    rays = _Rays(small.intrinsics, frame.T_world_cam, depth.shape)
+    height = _above_table(rays, depth, valid, frame)
     # The 3x3 mixture of the heights over the readings there are (a hole pulls nothing to 0).
-    w = cv2.filter2D(valid.astype(np.float64), cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
-    hm = cv2.filter2D(np.where(valid, height, 0.0), cv2.CV_64F, MIXTURE_KERNEL, borderType=cv2.BORDER_REPLICATE)
+    kernel = MIXTURE_KERNEL.astype(np.float32)
+    w = cv2.filter2D(valid.astype(np.float32), cv2.CV_32F, kernel, borderType=cv2.BORDER_REPLICATE)
+    hm = cv2.filter2D(np.where(valid, height, 0.0).astype(np.float32), cv2.CV_32F, kernel,
+                      borderType=cv2.BORDER_REPLICATE)  # fmt: skip
     with np.errstate(invalid="ignore", divide="ignore"):
         h_mix = np.where(w > 0.3, hm / np.maximum(w, 1e-9), np.nan)
     sigma = np.sqrt(small.depth_variance(np.nan_to_num(depth, nan=0.0)))
@@ -152,34 +154,60 @@ def split_view(frame: RGBDFrame, params: PerceptionParams | None = None) -> Scen
     # robot's own body in front of it (what of it is the robot's was left out above)
     near_robot = cv2.dilate(robot.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
     hidden = set(np.unique(labels[behind | near_robot]).tolist()) - {0}
-    return dataclasses.replace(empty, instances=_instances(labels, pts, small, depth, frame, hidden))
+    # (a blob may be a sliver of the robot only beside its pixels: the others are not tested)
+    by_robot = set(np.unique(labels[cv2.dilate(robot.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0]).tolist())
+    return dataclasses.replace(empty, instances=_instances(labels, rays, small, depth, frame, hidden, by_robot - {0}))
 
 
-def _above_table(pts: np.ndarray, valid: np.ndarray, frame: RGBDFrame) -> np.ndarray:
-    """(h, w) each point's height above the table as this view sees it: a plane fitted to the points
-    near z = 0 (a camera known to its calibration sees the table some millimetres off and tilted),
-    else the world's z."""
-    z = pts[..., 2]
+class _Rays:
+    """Each pixel's line of sight in the world, as (h, w) coefficients: a pixel's world point is its
+    depth times its ray plus the camera's position, and each of the ray's components is a plane in the
+    pixel's (u, v) (no (h, w, 3) array of points is made: only the points asked for)."""
+
+    def __init__(self, K: Intrinsics, T_world_cam: Pose, shape: tuple[int, int]) -> None:
+        h, w = shape
+        self.u = (np.arange(w) - K.cx) / K.fx
+        self.v = (np.arange(h) - K.cy) / K.fy
+        self.R, self.t = T_world_cam.rotation, T_world_cam.position
+
+    def along(self, a: np.ndarray) -> np.ndarray:
+        """(h, w): the rays' component along the world direction ``a`` (3,)."""
+        c = a @ self.R
+        return c[0] * self.u[None, :] + c[1] * self.v[:, None] + c[2]
+
+    def points(self, ys: np.ndarray, xs: np.ndarray, depth: np.ndarray) -> np.ndarray:
+        """(N, 3) world points of pixels (ys, xs) at their ``depth``."""
+        cam = np.column_stack([self.u[xs] * depth, self.v[ys] * depth, depth])
+        return cam @ self.R.T + self.t
+
+
+def _above_table(rays: _Rays, depth: np.ndarray, valid: np.ndarray, frame: RGBDFrame) -> np.ndarray:
+    """(h, w) each pixel's height above the table as this view sees it: above a plane fitted to the
+    points near z = 0 (a camera known to its calibration sees the table some millimetres off and
+    tilted), else the world's z."""
     cal = frame.calibration_cov_at(frame.T_world_cam.position * np.array([1.0, 1.0, 0.0]))
     off = TABLE_OFF_MAX_M if cal is None else max(TABLE_OFF_MAX_M, TABLE_OFF_SIGMAS * float(np.sqrt(cal[2, 2])))
-    sub = pts[::4, ::4][valid[::4, ::4]]
+    ys, xs = np.nonzero(valid[::6, ::6])
+    ys, xs = ys * 6, xs * 6
+    d = depth[ys, xs]
+    sub = rays.points(ys, xs, d)
     sel = np.abs(sub[:, 2]) < off
-    if sel.sum() < 50:
-        return z
-    # the table's points lie within 3 sigmas of one reading's noise of its plane
-    cam_z = (sub - frame.T_world_cam.position) @ frame.T_world_cam.rotation[:, 2]
-    band = max(TABLE_BAND_M, 3.0 * float(np.sqrt(frame.depth_variance(float(np.median(cam_z))))))
     coef = np.zeros(3)
-    for _ in range(3):
-        A = np.column_stack([sub[sel, 0], sub[sel, 1], np.ones(int(sel.sum()))])
-        coef = np.linalg.lstsq(A, sub[sel, 2], rcond=None)[0]
-        inliers = np.abs(sub[:, 2] - (sub[:, :2] @ coef[:2] + coef[2])) < band
-        if inliers.sum() < 30:
-            break
-        sel = inliers
-    if float(np.hypot(coef[0], coef[1])) > TABLE_SLOPE_MAX or abs(coef[2]) > off:
-        return z
-    return z - (pts[..., 0] * coef[0] + pts[..., 1] * coef[1] + coef[2])
+    if sel.sum() >= 50:
+        # the table's points lie within 3 sigmas of one reading's noise of its plane
+        band = max(TABLE_BAND_M, 3.0 * float(np.sqrt(frame.depth_variance(float(np.median(d))))))
+        for _ in range(3):
+            A = np.column_stack([sub[sel, 0], sub[sel, 1], np.ones(int(sel.sum()))])
+            coef = np.linalg.lstsq(A, sub[sel, 2], rcond=None)[0]
+            inliers = np.abs(sub[:, 2] - (sub[:, :2] @ coef[:2] + coef[2])) < band
+            if inliers.sum() < 30:
+                break
+            sel = inliers
+        if float(np.hypot(coef[0], coef[1])) > TABLE_SLOPE_MAX or abs(coef[2]) > off:
+            coef = np.zeros(3)
+    # height = z - (a x + b y + c), each linear in the depth along the pixel's ray
+    normal = np.array([-coef[0], -coef[1], 1.0])
+    return depth * rays.along(normal) + float(normal @ rays.t) - coef[2]
 
 
 def _steps(depth: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -222,7 +250,7 @@ def _labels(above: np.ndarray, cut: np.ndarray, depth: np.ndarray, rgb: np.ndarr
     if not rest.any():
         return labels
     d = np.nan_to_num(depth, nan=0.0)
-    c = rgb[..., :3].astype(np.float32)
+    c = rgb[..., :3].astype(np.int16)
     h, w = labels.shape
     for _ in range(2):
         ys, xs = np.nonzero(rest)
@@ -230,19 +258,31 @@ def _labels(above: np.ndarray, cut: np.ndarray, depth: np.ndarray, rgb: np.ndarr
             break
         best = np.full(len(ys), np.inf)
         take = np.zeros(len(ys), dtype=np.int32)
-        for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)):
+        own_c, own_d = c[ys, xs], d[ys, xs]
+        for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1)):
             yy, xx = np.clip(ys + dy, 0, h - 1), np.clip(xs + dx, 0, w - 1)
             lab = labels[yy, xx]
-            cost = (
-                np.linalg.norm(c[yy, xx] - c[ys, xs], axis=1) / COLOUR_UNIT
-                + np.abs(d[yy, xx] - d[ys, xs]) / DEPTH_STEP_M
-            )
+            # (colour: the channels' absolute differences, summed)
+            cost = np.abs(c[yy, xx] - own_c).sum(axis=1) / COLOUR_UNIT + np.abs(d[yy, xx] - own_d) / DEPTH_STEP_M
             better = (lab > 0) & (cost < best)
             best[better], take[better] = cost[better], lab[better]
         done = take > 0
         labels[ys[done], xs[done]] = take[done]
         rest[ys[done], xs[done]] = False
     return labels
+
+
+def _footprint(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """The middle of the points' footprint along its principal axes (its 1st to 99th percentiles),
+    its extents along them, the longer axis' direction, and the points' covariance (2, 2)."""
+    mean = xy.mean(axis=0)
+    cov = np.cov((xy - mean).T) if len(xy) > 2 else np.eye(2) * 1e-4
+    _, axes = np.linalg.eigh(cov)
+    along = np.sort((xy - mean) @ axes, axis=0)  # (the quantiles by rank: a few hundred points)
+    k = int(FOOTPRINT_QUANTILE * (len(along) - 1) + 0.5)
+    lo, hi = along[k], along[len(along) - 1 - k]
+    yaw = 0.5 * float(np.arctan2(2.0 * cov[0, 1], cov[0, 0] - cov[1, 1]))
+    return mean + axes @ (0.5 * (lo + hi)), hi - lo, yaw, cov
 
 
 def _robots(points: np.ndarray, depth: np.ndarray, frame: RGBDFrame) -> tuple[bool, bool]:
@@ -269,7 +309,13 @@ def _robots(points: np.ndarray, depth: np.ndarray, frame: RGBDFrame) -> tuple[bo
 
 
 def _instances(
-    labels: np.ndarray, pts: np.ndarray, small: RGBDFrame, depth: np.ndarray, frame: RGBDFrame, hidden: set[int]
+    labels: np.ndarray,
+    rays: _Rays,
+    small: RGBDFrame,
+    depth: np.ndarray,
+    frame: RGBDFrame,
+    hidden: set[int],
+    by_robot: set[int],
 ) -> tuple[Instance, ...]:
     n = int(labels.max())
     if n == 0:
@@ -277,8 +323,8 @@ def _instances(
     flat = labels.ravel()
     order = np.argsort(flat, kind="stable")
     bounds = np.searchsorted(flat[order], np.arange(1, n + 2))
-    P = pts.reshape(-1, 3)
     D = depth.ravel()
+    width = depth.shape[1]
     rgb = small.rgb.reshape(-1, small.rgb.shape[-1])[:, :3]
     fx = small.intrinsics.fx
     edge = set(np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])).tolist())
@@ -291,27 +337,31 @@ def _instances(
         area = float(np.sum(np.square(D[idx] / fx)))
         if area < MIN_OBJECT_AREA_M2:
             continue
-        p = P[idx]
-        robot, touches = _robots(p[:: max(1, len(p) // STATS_POINTS)], D[idx], frame)
+        p = rays.points(idx // width, idx % width, D[idx])
+        robot, touches = (
+            _robots(p[:: max(1, len(p) // STATS_POINTS)], D[idx], frame) if k + 1 in by_robot else (False, False)
+        )
         if robot:
             continue
         if len(p) > MAX_INSTANCE_POINTS:
             p = p[:: int(np.ceil(len(p) / MAX_INSTANCE_POINTS))]
-        few = p[:: max(1, len(p) // STATS_POINTS)]  # (its figures from a few hundred of them)
-        centre_xy, extents = footprint(few)
-        cov_xy = np.cov(few[:, :2].T) if len(few) > 2 else np.eye(2) * 1e-4
-        yaw = 0.5 * float(np.arctan2(2.0 * cov_xy[0, 1], cov_xy[0, 0] - cov_xy[1, 1]))
+        step = max(1, len(p) // STATS_POINTS)
+        few = p[::step]  # (its figures from a few hundred of them)
+        centre_xy, extents, yaw, cov_xy = _footprint(few[:, :2])
         # its top: the highest of its points less what the depth noise adds to the highest (2.33 sigma
         # is the 99th percentile's), no lower than their median
-        sigma_z = float(np.sqrt(frame.depth_variance(float(np.median(D[idx])))))
-        top = max(float(np.quantile(few[:, 2], 0.99)) - 2.33 * sigma_z, float(np.median(few[:, 2])))
+        z = np.sort(few[:, 2])
+        mid, high = z[len(z) // 2], z[int(0.99 * (len(z) - 1) + 0.5)]
+        sigma_z = float(np.sqrt(frame.depth_variance(float(D[idx[len(idx) // 2]]))))
+        top = max(float(high) - 2.33 * sigma_z, float(mid))
         cov = np.zeros((3, 3))
         cov[:2, :2] = cov_xy / len(idx)
         cov[2, 2] = float(np.var(few[:, 2])) / len(idx)
         cal = frame.calibration_cov_at(np.array([centre_xy[0], centre_xy[1], 0.5 * top]))
         if cal is not None:
             cov = cov + cal
-        colour = tuple(float(c) for c in np.median(rgb[idx[:: max(1, len(idx) // STATS_POINTS)]], axis=0) / 255.0)
+        rgb_few = np.sort(rgb[idx[::step]], axis=0)
+        colour = tuple(float(c) for c in rgb_few[len(rgb_few) // 2] / 255.0)  # (the median, by rank)
         out.append(
             Instance(
                 p,

@@ -132,16 +132,17 @@ class WorldModel:
             self._seen(self.objects[oid], view.instances[k], view)
         for k, inst in enumerate(view.instances):
             if k not in taken and not self._piece(inst) and not self._in_hand(inst):  # (no object of its own)
-                self._add(inst, view)
+                matched.add(self._add(inst, view))  # (new: this view showed it)
         self._missed(view, matched)
         self._mark()
 
-    def _add(self, inst: Instance, view: SceneView) -> None:
+    def _add(self, inst: Instance, view: SceneView) -> int:
         obj = TrackedObject(self.next_id, inst.centre.copy(), inst.extents, inst.yaw_rad, inst.top_m,
                             inst.colour, inst.cov.copy(), view.time_s, view.time_s,
                             by_camera={view.camera: inst.points})  # fmt: skip
         self.objects[obj.id] = obj
         self.next_id += 1
+        return obj.id
 
     @staticmethod
     def _seen(obj: TrackedObject, inst: Instance, view: SceneView) -> None:
@@ -291,6 +292,9 @@ class WorldModel:
 
 def _holds(obj: TrackedObject, at: np.ndarray) -> bool:
     """Whether the object's footprint, :data:`PIECE_MARGIN_M` grown, holds the point ``at`` (x, y)."""
-    local = (np.array([at[0], at[1], obj.centre[2]]) - obj.box.pose.position) @ obj.box.pose.rotation
-    half = 0.5 * np.array(obj.extents) + PIECE_MARGIN_M
-    return bool(abs(local[0]) <= half[0] and abs(local[1]) <= half[1])
+    dx, dy = float(at[0]) - float(obj.centre[0]), float(at[1]) - float(obj.centre[1])
+    c, s = np.cos(obj.yaw_rad), np.sin(obj.yaw_rad)
+    return (
+        abs(c * dx + s * dy) <= 0.5 * obj.extents[0] + PIECE_MARGIN_M
+        and abs(-s * dx + c * dy) <= 0.5 * obj.extents[1] + PIECE_MARGIN_M
+    )
