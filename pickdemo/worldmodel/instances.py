@@ -156,7 +156,10 @@ def split_view(frame: RGBDFrame, params: PerceptionParams | None = None) -> Scen
     hidden = set(np.unique(labels[behind | near_robot]).tolist()) - {0}
     # (a blob may be a sliver of the robot only beside its pixels: the others are not tested)
     by_robot = set(np.unique(labels[cv2.dilate(robot.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0]).tolist())
-    return dataclasses.replace(empty, instances=_instances(labels, rays, small, depth, frame, hidden, by_robot - {0}))
+    instances, robot_labels = _instances(labels, rays, small, depth, frame, hidden, by_robot - {0})
+    if robot_labels:  # (what was the robot's is not seen there either)
+        robot = robot | np.isin(labels, robot_labels)
+    return dataclasses.replace(empty, instances=instances, robot_mask=robot)
 
 
 class _Rays:
@@ -304,8 +307,11 @@ def _robots(points: np.ndarray, depth: np.ndarray, frame: RGBDFrame) -> tuple[bo
     for box in boxes:
         local = (moved - box.pose.position) @ box.pose.rotation
         gap = np.minimum(gap, np.linalg.norm(local - np.clip(local, box.lo, box.hi), axis=2))
-    on_ray = gap.min(axis=0) <= ROBOT_GAP_M
-    return float(np.mean(on_ray)) > ROBOT_SHARE, bool(np.any(gap[len(steps) // 2] <= TOUCH_M))
+    # (and as far as the camera's calibration may put a point from where it is: told, not guessed)
+    cal = frame.calibration_cov_at(points.mean(axis=0))
+    slack = ROBOT_GAP_M + (0.0 if cal is None else ROBOT_NOISE_SIGMAS * float(np.sqrt(cal[0, 0])))
+    on_ray = gap.min(axis=0) <= slack
+    return float(np.mean(on_ray)) > ROBOT_SHARE, bool(np.any(gap[len(steps) // 2] <= TOUCH_M + slack - ROBOT_GAP_M))
 
 
 def _instances(
@@ -316,7 +322,7 @@ def _instances(
     frame: RGBDFrame,
     hidden: set[int],
     by_robot: set[int],
-) -> tuple[Instance, ...]:
+) -> tuple[tuple[Instance, ...], list[int]]:
     n = int(labels.max())
     if n == 0:
         return ()
@@ -329,6 +335,7 @@ def _instances(
     fx = small.intrinsics.fx
     edge = set(np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])).tolist())
     out = []
+    robot_labels: list[int] = []  # the blobs that are the robot's
     for k in range(n):
         idx = order[bounds[k] : bounds[k + 1]]
         if len(idx) < MIN_OBJECT_PX:
@@ -342,6 +349,7 @@ def _instances(
             _robots(p[:: max(1, len(p) // STATS_POINTS)], D[idx], frame) if k + 1 in by_robot else (False, False)
         )
         if robot:
+            robot_labels.append(k + 1)
             continue
         if len(p) > MAX_INSTANCE_POINTS:
             p = p[:: int(np.ceil(len(p) / MAX_INSTANCE_POINTS))]
@@ -377,4 +385,4 @@ def _instances(
             )  # fmt: skip
         )
     out.sort(key=lambda i: -i.area_m2)
-    return tuple(out)
+    return tuple(out), robot_labels

@@ -26,6 +26,8 @@ from pickdemo.worldmodel.occupancy import Occupancy
 #: An instance matches an object whose footprint's centre is within this (m), or within half the
 #: shorter side of the larger of the two footprints.
 MATCH_M = 0.02
+#: ... or within this many sigmas of the two centres' uncertainty
+MATCH_SIGMAS = 3.0
 #: An object moved when its footprint's centre moved this far (m): its older views are dropped.
 MOVED_M = 0.008
 #: An object with this share of its points in the cells (this wide, m) of the target's seen points is a
@@ -104,6 +106,7 @@ class WorldModel:
         #: where the skill tracks its target (x, y) and how far from that its footprint may reach
         self._target_at: tuple[np.ndarray, float] | None = None
         self._held: int | None = None  # the id of the object in the hand
+        self._anchor: np.ndarray | None = None  # where the track was when the target's object was last put on it
         self.occupancy = Occupancy()  # the space seen free, apart from the never seen
 
     # ---------------------------------------------------------------------------------- update
@@ -120,7 +123,11 @@ class WorldModel:
                 if obj.id == self._held:
                     continue
                 d = float(np.hypot(*(inst.centre[:2] - obj.centre[:2])))
-                if d <= max(MATCH_M, 0.5 * max(min(inst.extents), min(obj.extents))) or _holds(obj, inst.centre):
+                # (within its footprint, or as far as the two centres' uncertainty reaches: a camera
+                # known only to its calibration sees an object some centimetres from where another does)
+                sigma = float(np.sqrt(0.5 * (inst.cov[0, 0] + inst.cov[1, 1] + obj.cov[0, 0] + obj.cov[1, 1])))
+                gate = max(MATCH_M, 0.5 * max(min(inst.extents), min(obj.extents)), MATCH_SIGMAS * sigma)
+                if d <= gate or _holds(obj, inst.centre):
                     pairs.append((d, k, obj.id))
         pairs.sort()
         taken: set[int] = set()
@@ -211,9 +218,23 @@ class WorldModel:
         self._held = None
 
     def mark_target(self, position: np.ndarray, reach_m: float) -> None:
-        """The skill tracks its target at ``position``; its footprint reaches ``reach_m`` from there."""
-        self._target_at = (np.asarray(position, dtype=float)[:2].copy(), float(reach_m))
+        """The skill tracks its target at ``position``; its footprint reaches ``reach_m`` from there.
+        The target's object goes where the track goes (a belt carries it, a push moves it: the track
+        follows what the regions about the target show, the world's object goes with it)."""
+        xy = np.asarray(position, dtype=float)[:2].copy()
+        target = self.target
+        if target is not None and self._held is None and self._anchor is not None:
+            shift = xy - self._anchor
+            if float(np.hypot(*shift)) > MOVED_M:
+                target.centre[:2] += shift
+                target.by_camera = {k: v + np.array([shift[0], shift[1], 0.0]) for k, v in target.by_camera.items()}
+                self._anchor = xy
+        if target is None or self._anchor is None:
+            self._anchor = xy
+        self._target_at = (xy, float(reach_m))
         self._mark()
+        if self.target is not None and (target is None or self.target.id != target.id):
+            self._anchor = xy  # (a new object is the target: aligned with the track as it is)
 
     def _mark(self) -> None:
         target = self._find_target()
