@@ -325,7 +325,7 @@ def _instances(
 ) -> tuple[tuple[Instance, ...], list[int]]:
     n = int(labels.max())
     if n == 0:
-        return ()
+        return (), []
     flat = labels.ravel()
     order = np.argsort(flat, kind="stable")
     bounds = np.searchsorted(flat[order], np.arange(1, n + 2))

@@ -144,3 +144,10 @@ def test_free_space_is_kept_apart_from_the_never_seen_and_goes_to_coal() -> None
     request, result = coal.CollisionRequest(), coal.CollisionResult()
     t = coal.Transform3s(np.eye(3), np.array([x, y, 0.095]))
     assert coal.collide(probe, t, tree, coal.Transform3s(), request, result) > 0
+
+
+def test_a_frame_whose_only_blob_is_all_edges_has_no_instance() -> None:
+    depth = np.full((K.height, K.width), 1.6)
+    depth[200:260, 320:322] -= 0.3  # a wire 3 mm thick, 30 cm up: every pixel of it is a depth step
+    view = split_view(_overhead(depth, "kinect"))
+    assert view.instances == ()
