@@ -308,6 +308,9 @@ class RGBDFrame:
     #: The cell's fixtures (a bin, a shelf), known from the task: a point as near one as the depth noise
     #: can put a point of its surface is the fixture, not an object on it.
     fixture_boxes: tuple[OrientedBox, ...] = ()
+    #: What objects rest on besides the table, known from the task (a belt's top): no object itself
+    #: (the world model's instances leave it out; an estimate of the target is not told it)
+    support_boxes: tuple[OrientedBox, ...] = ()
     camera: str = "camera"  # which camera took it: "camera" (the fixed one) or "wrist_camera"
 
     def calibration_cov_at(self, point_world: np.ndarray) -> np.ndarray | None:

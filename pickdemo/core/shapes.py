@@ -189,7 +189,6 @@ class Box:
         rot = np.array([[np.cos(yaw_rad), -np.sin(yaw_rad)], [np.sin(yaw_rad), np.cos(yaw_rad)]])
         return local @ rot.T
 
-
     def surface_points(self, spacing_m: float = 0.004) -> np.ndarray:
         """Points (N, 3) on its six faces, a grid about ``spacing_m`` apart, in its frame."""
         half = np.asarray(self.size_m, dtype=float) / 2.0

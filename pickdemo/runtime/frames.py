@@ -14,7 +14,10 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
+import numpy as np
+
 from pickdemo.core.camera import RGBDFrame
+from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.core.interfaces import Observation
 from pickdemo.perception import PerceptionError, PerceptionParams, PlaceView, PoseEstimate, TargetModel
 from pickdemo.perception.estimators import Estimator
@@ -82,4 +85,9 @@ def take_frame(
             boxes = (*boxes, world.tray.box())
         # nor are its fixtures, as near them as the depth noise reaches
         frame = dataclasses.replace(frame, robot_boxes=boxes, fixture_boxes=seen_boxes(scenario.fixtures))
+    if scenario.conveyor is not None:  # the belt's top: what the objects on it rest on
+        (x0, x1), (y0, y1) = scenario.conveyor.x_range_m, scenario.conveyor.y_range_m
+        half = np.array([(x1 - x0) / 2.0, (y1 - y0) / 2.0, scenario.conveyor.height_m / 2.0])
+        belt = OrientedBox(Pose(np.array([(x0 + x1) / 2.0, (y0 + y1) / 2.0, half[2]]), np.eye(3)), -half, half)
+        frame = dataclasses.replace(frame, support_boxes=(belt,))
     return frame

@@ -137,6 +137,8 @@ class TraceRecorder(Observer):
     def tick(self, ep: EpisodeView, now: float) -> None:
         m = ep.controller
         s = m.last_sample
+        if s is None:  # (no motion yet: a clear round between its picks)
+            return
         v, a, j = m.cartesian_limits()
         tracked = None
         if m.tracker.initialised:

@@ -156,6 +156,8 @@ def split_view(frame: RGBDFrame, params: PerceptionParams | None = None) -> Scen
     hidden = set(np.unique(labels[behind | near_robot]).tolist()) - {0}
     # (a blob may be a sliver of the robot only beside its pixels: the others are not tested)
     by_robot = set(np.unique(labels[cv2.dilate(robot.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0]).tolist())
+    if frame.support_boxes:  # (what rests on a belt is tested against its top too)
+        by_robot |= set(range(1, int(labels.max()) + 1))
     instances, robot_labels = _instances(labels, rays, small, depth, frame, hidden, by_robot - {0})
     if robot_labels:  # (what was the robot's is not seen there either)
         robot = robot | np.isin(labels, robot_labels)
@@ -295,7 +297,7 @@ def _robots(points: np.ndarray, depth: np.ndarray, frame: RGBDFrame) -> tuple[bo
     moves a point along its ray, not across it; an object between the fingers stays beside them);
     and whether it touches the robot's body (a point within :data:`TOUCH_M` of a box: the hand about it
     hides some of it)."""
-    boxes = (*frame.robot_boxes, *frame.fixture_boxes)
+    boxes = (*frame.robot_boxes, *frame.fixture_boxes, *frame.support_boxes)
     if not boxes or len(points) == 0:
         return False, False
     sigma = float(np.sqrt(frame.depth_variance(float(np.median(depth)))))

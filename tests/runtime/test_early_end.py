@@ -67,3 +67,16 @@ def test_an_episode_that_ends_while_it_is_built_gives_a_result(tmp_path: Path, a
     result = json.loads((out / "result.json").read_text())
     assert result["failure"]["stage"] == stage and "traceback" not in result["failure"], result["failure"]
     assert result["sim_time_s"] == 0.0 and (out / "report.html").exists()
+
+
+def test_the_trace_skips_a_tick_with_no_motion_yet() -> None:
+    """A clear round between its picks has no motion sample: the trace (``run --out``) skips the tick
+    (it raised in ``error`` before)."""
+    from types import SimpleNamespace
+
+    from pickdemo.runtime.observers import TraceRecorder
+
+    trace = TraceRecorder()
+    controller = SimpleNamespace(last_sample=None)
+    trace.tick(SimpleNamespace(controller=controller), 1.0)
+    assert trace.ticks == []

@@ -75,7 +75,10 @@ class GraspChooser:
         """What the selector is asked: the target at ``pose`` (and, seen as a cloud, its newest view)."""
         surface = self.belief.surface_z(*(float(v) for v in pose.position))
         cloud, obstacles = self.belief.cloud, self._obstacles(pose)
-        if cloud is not None and self.world is not None and self.world.objects:  # (beside one nobody described)
+        # beside one nobody described, the world's other objects; in a heap (objects touching), what its
+        # own view split off around it (measured: clearing piles lost 5 of 50 objects with the world's)
+        heap = bool(getattr(self.model.geometry, "heap", False))
+        if cloud is not None and self.world is not None and self.world.objects and not heap:
             cloud = dataclasses.replace(
                 cloud, obstacles=self.world.obstacles(pose.position, CLOUD_NEAR_M, seen=cloud.points)
             )
