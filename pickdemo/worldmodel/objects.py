@@ -106,7 +106,6 @@ class WorldModel:
         #: where the skill tracks its target (x, y) and how far from that its footprint may reach
         self._target_at: tuple[np.ndarray, float] | None = None
         self._held: int | None = None  # the id of the object in the hand
-        self._anchor: np.ndarray | None = None  # where the track was when the target's object was last put on it
         self.occupancy = Occupancy()  # the space seen free, apart from the never seen
 
     # ---------------------------------------------------------------------------------- update
@@ -217,27 +216,35 @@ class WorldModel:
             obj.by_camera = {k: v + np.array([shift[0], shift[1], 0.0]) for k, v in obj.by_camera.items()}
         self._held = None
 
-    def mark_target(self, position: np.ndarray, reach_m: float) -> None:
+    def mark_target(self, position: np.ndarray, reach_m: float, *, follow: bool = False) -> None:
         """The skill tracks its target at ``position``; its footprint reaches ``reach_m`` from there.
-        The target's object goes where the track goes (a belt carries it, a push moves it: the track
-        follows what the regions about the target show, the world's object goes with it)."""
+        ``follow`` (the track has just taken an estimate in: it is as fresh as any view): the target's
+        object, when its footprint does not hold where the track is, goes there (a belt carries it, a
+        push moves it out of the regions looked at; no view showed it there yet)."""
         xy = np.asarray(position, dtype=float)[:2].copy()
-        target = self.target
-        if target is not None and self._held is None and self._anchor is not None:
-            shift = xy - self._anchor
-            if float(np.hypot(*shift)) > MOVED_M:
-                target.centre[:2] += shift
-                target.by_camera = {k: v + np.array([shift[0], shift[1], 0.0]) for k, v in target.by_camera.items()}
-                self._anchor = xy
-        if target is None or self._anchor is None:
-            self._anchor = xy
+        target = self.target  # (the one it was: it goes where the track went, then is looked for there)
+        if follow and target is not None and self._held is None and not _holds(target, xy):
+            shift = xy - target.centre[:2]
+            target.centre[:2] += shift
+            target.by_camera = {k: v + np.array([shift[0], shift[1], 0.0]) for k, v in target.by_camera.items()}
         self._target_at = (xy, float(reach_m))
         self._mark()
-        if self.target is not None and (target is None or self.target.id != target.id):
-            self._anchor = xy  # (a new object is the target: aligned with the track as it is)
 
     def _mark(self) -> None:
-        target = self._find_target()
+        was, target = self.target, self._find_target()
+        if was is not None and target is not None and target.id != was.id and was.last_seen_s <= target.first_seen_s:
+            # the target's object, no view of it since another appeared where the track now is: it
+            # moved there (a belt, a push), and is that one (its id kept, what it was left behind)
+            was.centre, was.extents, was.yaw_rad, was.top_m = (
+                target.centre,
+                target.extents,
+                target.yaw_rad,
+                target.top_m,
+            )
+            was.colour, was.cov, was.by_camera = target.colour, target.cov, target.by_camera
+            was.last_seen_s, was.views = target.last_seen_s, was.views + target.views
+            del self.objects[target.id]
+            target = was
         for obj in self.objects.values():
             obj.is_target = target is not None and obj.id == target.id
 

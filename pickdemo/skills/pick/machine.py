@@ -244,7 +244,7 @@ class PickMachine(MachineReadout):
             self.note(f"the target moved{moved} (seen in the frame of t = {frame_time_s:.2f} s): tracking it again")
         if offered.verdict is Verdict.ACCEPTED:
             self.fresh_estimate = True
-            self._mark_target(frame_time_s)
+            self._mark_target(frame_time_s, follow=True)
         seen = result.pose.position if isinstance(result, PoseEstimate) else None
         whole = offered.verdict is Verdict.ACCEPTED or (offered.off_m is not None and not offered.partial)
         if self.state is State.CLOSE and camera in self.hand_cameras and seen is not None and whole:
@@ -252,10 +252,12 @@ class PickMachine(MachineReadout):
         self.watch.offered(offered, camera, frame_time_s, seen, hand_over_target=over)
         return offered.verdict
 
-    def _mark_target(self, time_s: float) -> None:
-        """Tell the world model where the target is tracked (which of its objects is the target)."""
+    def _mark_target(self, time_s: float, *, follow: bool = False) -> None:
+        """Tell the world model where the target is tracked (which of its objects is the target; ``follow``:
+        a fresh estimate, which the target's object follows)."""
         if self.belief.initialised:
-            self.world.mark_target(self.belief.predict(time_s).position, self.model.geometry.footprint_radius_m)
+            where = self.belief.predict(time_s).position
+            self.world.mark_target(where, self.model.geometry.footprint_radius_m, follow=follow)
 
     def update(self, obs: Observation) -> Command:
         """One control tick: the state's entry action (once), its exit test, then the motion's tick."""
