@@ -32,6 +32,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="0-4")
     args = ap.parse_args()
     lo, hi = (int(v) for v in args.seeds.split("-"))
+    every: list[float] = []
     for name in args.scenarios:
         sc = load_scenario(name)
         world_ms, estimate_ms, objects = [], [], []
@@ -58,8 +59,10 @@ def main() -> None:
                 objects.append(len(wm.objects))
             finally:
                 world.close()
+        every += world_ms
         print(f"{name}: world model {statistics.median(world_ms):.2f} ms a frame (median of {len(world_ms)}), "
               f"the paper's estimate {statistics.median(estimate_ms):.2f} ms; objects {objects}")  # fmt: skip
+    print(f"all: world model {statistics.median(every):.2f} ms a frame (median of {len(every)})")
 
 
 if __name__ == "__main__":
