@@ -68,3 +68,30 @@ def test_a_box_blocked_on_its_narrow_sides_is_taken_by_its_wide_ones() -> None:
     plan = next(selector.candidates(_request(box, _wall(0.015, 0.045))))
     assert abs(_closing_axis(plan.hand_yaw_rad) @ [0.0, 1.0]) > 1 - 1e-6  # closed along y instead
     assert plan.object_width_m == pytest.approx(0.06)
+
+
+def test_a_grasp_rises_past_a_taller_neighbour_with_half_the_pads_on_the_target() -> None:
+    """A 5 cm cube with a box 2.3 cm taller flush against its +x face (its top seen at 72.5 mm): the
+    palm must pass over the box, which a grasp with the whole pads on the cube cannot (issue 58)."""
+    import dataclasses as _dc
+
+    import numpy as _np
+
+    from pickdemo.core.geometry import Pose as _Pose
+    from pickdemo.core.shapes import Box as _Box
+    from pickdemo.grasping.selection import GraspRequest, TopDownFaceGrasps
+    from pickdemo.grasping.top_down import GraspParams, GraspPlanningError
+    from pickdemo.perception import TargetModel as _Model
+    from pickdemo.robot import robot_named as _robot
+
+    cube = _Model(_Box((0.05, 0.05, 0.05)), (0.85, 0.1, 0.1))
+    xs, ys = _np.meshgrid(_np.linspace(0.5255, 0.585, 20), _np.linspace(-0.05, 0.05, 30))
+    box_top = _np.column_stack([xs.ravel(), ys.ravel(), _np.full(xs.size, 0.0725)])
+    request = GraspRequest(_Pose.from_xyz_rpy([0.5, 0.0, 0.025]), cube, (0.45, 0.3), obstacles=box_top,
+                           gripper=_robot("panda").gripper)  # fmt: skip
+    (plan,) = list(TopDownFaceGrasps().candidates(request))
+    palm = plan.grasp.position[2] + _robot("panda").gripper.palm_above_tcp_m
+    assert palm > 0.0725 and plan.grasp.position[2] <= 0.05 + 1e-9  # over the box, pads still on the cube
+    whole = TopDownFaceGrasps(_dc.replace(GraspParams(), min_pad_on_target=1.0))
+    with pytest.raises(GraspPlanningError):
+        list(whole.candidates(request))
