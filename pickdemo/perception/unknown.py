@@ -529,7 +529,7 @@ def survey_objects(frame: RGBDFrame, params: PerceptionParams | None = None, *, 
             continue
         if len(p) > MAX_CLOUD_POINTS:
             p = p[:: int(np.ceil(len(p) / MAX_CLOUD_POINTS))]
-        centre_xy, extents = footprint(p)
+        centre_xy, extents = _footprint(p)
         top = float(np.quantile(p[:, 2], 1.0 - FOOTPRINT_QUANTILE))
         # obstacles: the other clusters' points within reach of a hand about this one
         o = pts[labelled & ~mask]
@@ -544,7 +544,7 @@ def survey_objects(frame: RGBDFrame, params: PerceptionParams | None = None, *, 
     return Survey(tuple(out), frame.time_s)
 
 
-def footprint(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _footprint(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The middle of the points' footprint along its principal axes seen from above, and its extents."""
     xy = points[:, :2]
     mean = xy.mean(axis=0)
