@@ -42,7 +42,6 @@ from pickdemo.perception import (
     TargetModel,
     look_at_place,
 )
-from pickdemo.perception.unknown import survey_objects
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
 from pickdemo.runtime.frames import InFlight, Timer, estimate, take_frame
@@ -446,17 +445,14 @@ class Episode:
         rig = world.cameras[request.camera]
         with self.timer("render wrist" if rig.on_hand else "render"):
             frame = take_frame(world, self.scenario, request, self.observation, self.machine.kin)
-        if request.survey:  # a clear round's look at the whole table
-            with self.timer("perceive"):
-                survey = survey_objects(frame, self.options.perception)
-            self.counts.frames += 1
-            self._pending.append(InFlight(now + self.scenario.control.perception_latency_s, now, survey, None))
-            self._notify("frame", now, frame, survey)
-            return
         latency = self.scenario.control.perception_latency_s
         with self.timer("world"):  # every frame's instances, from every camera (the robot's world model)
             view = split_view(frame, self.options.perception)
         self._pending.append(InFlight(now + latency, now, view, None, frame.camera))
+        if request.survey:  # a clear round's look at the whole table: its world model's objects, no pose
+            self.counts.frames += 1
+            self._notify("frame", now, frame, view)
+            return
         with self.timer("perceive wrist" if rig.on_hand else "perceive"):
             result = estimate(self.estimator, frame, self.machine.model, self.options.perception)
         self.counts.frames += 1

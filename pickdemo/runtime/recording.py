@@ -32,10 +32,9 @@ from pickdemo.core.result import PhaseRecord
 from pickdemo.core.shapes import Box, Cylinder
 from pickdemo.perception import PerceptionError, PoseEstimate
 from pickdemo.perception.segmentation import segment_target, world_heights, world_points
-from pickdemo.perception.unknown import Survey
 from pickdemo.runtime.observers import Observer
 from pickdemo.runtime.view import EpisodeView
-from pickdemo.worldmodel import UNKNOWN
+from pickdemo.worldmodel import UNKNOWN, SceneView
 
 APP_ID = "pickdemo"
 TIMELINE = "sim"
@@ -255,11 +254,11 @@ TABLE_GRID = np.array([[x, y, 0.01] for x in np.arange(0.2, 0.81, 0.02) for y in
 
 def _target_points(ep: EpisodeView, frame: RGBDFrame, result: object = None) -> np.ndarray:
     """The target's pixels in 3-D, as perception's segmentation finds them (none: an empty set); of an
-    object nobody described, its cloud; of a clear round's survey, every object's."""
+    object nobody described, its cloud; of a clear round's survey, every object's it showed."""
 
     none = np.zeros((0, 3))
-    if isinstance(result, Survey):
-        return np.vstack([o.cloud.points for o in result.objects]) if result.objects else none
+    if isinstance(result, SceneView):  # a clear round's survey: every object it showed
+        return np.vstack([i.points for i in result.instances]) if result.instances else none
     estimate = result if isinstance(result, PoseEstimate) else getattr(result, "estimate", None)
     if estimate is not None and estimate.cloud is not None:
         return estimate.cloud.points

@@ -1,7 +1,7 @@
 """Clearing a table: a sequencer above the pick skill, for ``task = "clear"``.
 
-Pure: no simulator. :class:`ClearSequencer` looks at the whole table (a survey: every object found by
-its geometry, :func:`~pickdemo.perception.unknown.survey_objects`), chooses the next object
+Pure: no simulator. :class:`ClearSequencer` looks at the whole table (a survey: every object of the
+round's world model the look showed, :meth:`~pickdemo.worldmodel.WorldModel.survey`), chooses the next object
 (:class:`~pickdemo.skills.clear_choice.ObjectChooser`: the best reachable grasp over all of them), and
 hands it to a :class:`~pickdemo.skills.pick.PickMachine` told only where the object was seen and its
 rough size; the pick's closed loop tracks it from there (a neighbour's pick may have
@@ -157,6 +157,7 @@ class ClearSequencer:
         self._done = False
         self._surveying = True
         self._survey_asked = False
+        self._survey_asked_s = 0.0
         self._seen_events = 0
         self._choice: Choice | None = None
         self._counted: list[Counters] = []  # the finished picks' counters
@@ -248,20 +249,19 @@ class ClearSequencer:
             if self._survey_asked or not (self.current.entered and self.current.arm.finished):
                 return []
             self._survey_asked = True  # (asked only when a frame is due: the episode takes it now)
+            self._survey_asked_s = now_s
             return [FrameRequest(None, survey=True, camera=self.camera.name)]
         return self.current.views(now_s)
 
     def on_estimate(
-        self, result: PoseEstimate | PerceptionError | Survey, frame_time_s: float, camera: str = "camera"
+        self, result: PoseEstimate | PerceptionError | SceneView, frame_time_s: float, camera: str = "camera"
     ) -> Verdict:
         if self._done:
             return Verdict.UNUSED
         if isinstance(result, SceneView):  # (the round's world model, whatever it is doing)
             self.world.update(result)
-            return Verdict.UNUSED
-        if isinstance(result, Survey):
-            if self._surveying and self._survey_asked:
-                self._surveyed(result)
+            if self._surveying and self._survey_asked and frame_time_s >= self._survey_asked_s - 1e-9:
+                self._surveyed(self.world.survey(result))  # (the survey's own frame: what stands there now)
                 return Verdict.ACCEPTED
             return Verdict.UNUSED
         if self._surveying:

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.perception.model import ObjectCloud
+from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.worldmodel.instances import Instance, SceneView
 from pickdemo.worldmodel.occupancy import Occupancy
 
@@ -46,6 +48,8 @@ GONE_AFTER = 2
 HELD_ABOVE_M = 0.01
 #: Points an object keeps at most.
 MAX_OBJECT_POINTS = 3000
+#: A survey's object has as obstacles to its grasps the other objects' points this near (m, across the table).
+SURVEY_NEAR_M = 0.25
 
 
 @dataclass
@@ -304,6 +308,24 @@ class WorldModel:
             if keep.any():
                 out.append(p[keep])
         return np.vstack(out) if out else np.zeros((0, 3))
+
+    def survey(self, view: SceneView) -> Survey:
+        """What stands on the table as ``view`` showed it (a clear round's look, its next object chosen
+        among them): each of the view's instances (slivers left out), largest first, with its points
+        and, as obstacles to its grasps, every other instance's points within :data:`SURVEY_NEAR_M`,
+        and those of the objects the world keeps that this view did not show (hidden behind another)."""
+        kept = [o.points for o in self.objects.values() if o.id != self._held and o.last_seen_s < view.time_s]
+        unseen = np.vstack([p for p in kept if len(p)]) if any(len(p) for p in kept) else np.zeros((0, 3))
+        insts = [i for i in view.instances if i.extents[1] >= MIN_SIDE_M]
+        out = []
+        for k, inst in enumerate(insts):
+            near = np.vstack([unseen, *(o.points for j, o in enumerate(insts) if j != k)])
+            near = near[np.hypot(near[:, 0] - inst.centre[0], near[:, 1] - inst.centre[1]) < SURVEY_NEAR_M]
+            cloud = ObjectCloud(points=inst.points, obstacles=near, time_s=view.time_s, depth_m=view.depth_m,
+                                intrinsics=view.intrinsics, T_world_cam=view.T_world_cam)  # fmt: skip
+            centre = np.array([inst.centre[0], inst.centre[1], 0.5 * inst.top_m])
+            out.append(SeenObject(centre, (inst.top_m, *inst.extents), len(inst.points), cloud))
+        return Survey(tuple(out), view.time_s)
 
     def classify(self, points: np.ndarray) -> np.ndarray:
         """(N,) int8 per point: occupied, free or never seen (:mod:`~pickdemo.worldmodel.occupancy`)."""

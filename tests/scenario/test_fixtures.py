@@ -11,11 +11,11 @@ import pytest
 
 from pickdemo.core.geometry import box_surface_points
 from pickdemo.perception import PerceptionParams
-from pickdemo.perception.unknown import survey_objects
 from pickdemo.runtime.world import World
 from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.fixtures import fixture_boxes
 from pickdemo.scenario.load import load_scenario
+from pickdemo.worldmodel import WorldModel, split_view
 
 
 def test_a_bin_is_a_floor_and_four_walls_where_its_spec_puts_it() -> None:
@@ -61,7 +61,9 @@ def test_the_simulated_bin_stands_where_the_robot_is_told_and_the_camera_does_no
             world.camera.take(scene, None, None),
             robot_boxes=fixture_boxes(sc.fixtures, PerceptionParams().min_height_m),
         )
-        found = survey_objects(frame)
+        world, view = WorldModel(), split_view(frame)
+        world.update(view)
+        found = world.survey(view)
         centres = [o.centre for o in found.objects]
         # (the robot and the tray are left out by the loop as well; here they are found, far from the bin)
         ox, oy = b.half_outer

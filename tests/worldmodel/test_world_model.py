@@ -151,3 +151,19 @@ def test_a_frame_whose_only_blob_is_all_edges_has_no_instance() -> None:
     depth[200:260, 320:322] -= 0.3  # a wire 3 mm thick, 30 cm up: every pixel of it is a depth step
     view = split_view(_overhead(depth, "kinect"))
     assert view.instances == ()
+
+
+def test_pieces_of_one_colour_that_meet_are_one_object_and_neighbours_stay_apart() -> None:
+    """An object whose parts stand at two heights (a depth step between them in the image) is one: one
+    colour, their footprints meet; two boxes of one colour 3 cm apart, or of two colours touching, stay
+    two (a measured limit: two of one colour touching are taken for one)."""
+    from raycast import Block, render
+
+    stepped = [Block((0.5, -0.02), (0.05, 0.04, 0.06)), Block((0.5, 0.02), (0.05, 0.04, 0.03))]
+    (one,) = split_view(render(stepped)).instances
+    assert one.extents[0] == pytest.approx(0.08, abs=0.01)
+    assert one.top_m == pytest.approx(0.06, abs=0.005)
+    apart = [Block((0.5, -0.04), (0.05, 0.05, 0.04)), Block((0.5, 0.04), (0.05, 0.05, 0.04))]
+    assert len(split_view(render(apart)).instances) == 2
+    touching = [Block((0.5, -0.025), (0.05, 0.05, 0.04)), Block((0.5, 0.025), (0.05, 0.05, 0.04), rgb=(40, 90, 200))]
+    assert len(split_view(render(touching)).instances) == 2
