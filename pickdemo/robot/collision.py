@@ -1,0 +1,145 @@
+"""The robot's collision model from its robot file, and the boxes it must keep out of (issue 59).
+
+Pure: Pinocchio's geometry model and coal (no simulator). The links' collision geometry is the
+URDF's own (``pin.buildGeomFromUrdf``: meshes as coal's BVH models, boxes and cylinders as
+themselves), posed by the arm's joint angles and the fingers' openings, which the robot measures.
+What it must keep out of is a set of boxes fixed in the world (the table, the fixtures' known
+geometry, the world model's objects grown by their uncertainty, :class:`Obstacle`); a held object
+goes with the hand (a box in the TCP's frame). MoveIt's planning scene is the same design.
+
+Which contacts are allowed is written here once: the links that no joint moves (the base) stand on
+the table, so they are not checked against it; a held object touches the fingers, so it is checked
+against the obstacles only. Everything else the caller decides by what it passes as obstacles (the
+target is none while the hand goes to it; the place's surface is none at the release).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from pickdemo.core.geometry import OrientedBox
+from pickdemo.robot.description import RobotDescription
+from pickdemo.robot.kinematics import link_frame_id
+from pickdemo.robot.urdf_files import model_urdf
+
+#: The obstacle the base stands on (its links are not checked against it).
+TABLE = "table"
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A box the robot must keep out of, by name (what a failure to plan names)."""
+
+    name: str
+    box: OrientedBox
+
+
+class RobotGeometry:
+    """A robot's full model (fingers included) and its links' collision geometry, read once."""
+
+    def __init__(self, robot: RobotDescription) -> None:
+        files = robot.files()
+        urdf, renamed = model_urdf(files)
+        self.model = pin.buildModelFromUrdf(str(urdf))
+        dirs = [str(files.package_root), str(files.package_root.parent), str(files.urdf.parent)]
+        self.geometry = pin.buildGeomFromUrdf(self.model, str(urdf), pin.COLLISION, package_dirs=dirs)
+        self.robot = robot
+
+        def q_index(joint: str) -> int:
+            return self.model.joints[self.model.getJointId(renamed.get(joint, joint))].idx_q
+
+        self._arm = [q_index(n) for n in robot.arm_joints]
+        self._fingers = [q_index(n) for n in robot.gripper.finger_joints]
+        self.tcp_frame = link_frame_id(self.model, robot.tcp_frame)
+        #: the links no joint moves (the base): they stand on the table
+        self.fixed = {i for i, g in enumerate(self.geometry.geometryObjects) if g.parentJoint == 0}
+
+    def q(self, arm_q: np.ndarray, fingers_m: np.ndarray | float) -> np.ndarray:
+        """The full model's configuration at these joint states."""
+        q = pin.neutral(self.model)
+        q[self._arm] = np.asarray(arm_q, dtype=float)
+        opening = np.broadcast_to(np.asarray(fingers_m, dtype=float), (2,))
+        q[self._fingers] = self.robot.gripper.joint_positions(opening)
+        return q
+
+    def link_name(self, index: int) -> str:
+        return self.model.frames[self.geometry.geometryObjects[index].parentFrame].name
+
+
+@functools.cache
+def robot_geometry(robot: RobotDescription) -> RobotGeometry:
+    """One geometry per robot and process."""
+    return RobotGeometry(robot)
+
+
+def _placement(box: OrientedBox) -> tuple[pin.SE3, coal.Box]:
+    """A box's pose (its middle) and its coal shape."""
+    lo, hi = np.asarray(box.lo, dtype=float), np.asarray(box.hi, dtype=float)
+    centre = box.pose.rotation @ (0.5 * (lo + hi)) + box.pose.position
+    return pin.SE3(box.pose.rotation.copy(), centre), coal.Box(*(hi - lo))
+
+
+class CollisionScene:
+    """The robot among fixed boxes, and a held object's box in the hand (see the module docstring)."""
+
+    def __init__(self, geometry: RobotGeometry, obstacles: Sequence[Obstacle], held: OrientedBox | None = None) -> None:
+        """``held``: the held object's box in the TCP's frame (None: nothing held)."""
+        self.g = geometry
+        gm = pin.GeometryModel()
+        for obj in geometry.geometry.geometryObjects:
+            gm.addGeometryObject(obj)
+        n_robot = len(geometry.geometry.geometryObjects)
+        self.names: list[str] = [geometry.link_name(i) for i in range(n_robot)]
+        moving = [i for i in range(n_robot) if i not in geometry.fixed]
+        held_id = None
+        if held is not None:
+            frame = geometry.model.frames[geometry.tcp_frame]
+            M, shape = _placement(held)
+            held_id = gm.addGeometryObject(
+                pin.GeometryObject("held", frame.parentJoint, geometry.tcp_frame, frame.placement * M, shape)
+            )
+            self.names.append("the held object")
+        for ob in obstacles:
+            M, shape = _placement(ob.box)
+            j = gm.addGeometryObject(pin.GeometryObject(ob.name, 0, 0, M, shape))
+            self.names.append(ob.name)
+            links = moving if ob.name == TABLE else range(n_robot)
+            for i in links:
+                gm.addCollisionPair(pin.CollisionPair(i, j))
+            if held_id is not None:
+                gm.addCollisionPair(pin.CollisionPair(held_id, j))
+        self.model = gm
+        self.data = pin.GeometryData(gm)
+        self._pin = geometry.model.createData()
+        self.checks = 0  # configurations checked (a planner's effort)
+
+    def free(self, arm_q: np.ndarray, fingers_m: np.ndarray | float) -> bool:
+        """Whether nothing of the robot (and what it holds) meets an obstacle at these joint states."""
+        self.checks += 1
+        if not self.model.collisionPairs:
+            return True
+        q = self.g.q(arm_q, fingers_m)
+        return not pin.computeCollisions(self.g.model, self._pin, self.model, self.data, q, True)
+
+    def contact(self, arm_q: np.ndarray, fingers_m: np.ndarray | float) -> tuple[str, str] | None:
+        """The first link (or the held object) found meeting an obstacle, and the obstacle's name."""
+        if self.free(arm_q, fingers_m):
+            return None
+        for k, pair in enumerate(self.model.collisionPairs):
+            if self.data.collisionResults[k].isCollision():
+                return self.names[pair.first], self.names[pair.second]
+        return None
+
+    def segment_free(
+        self, qa: np.ndarray, qb: np.ndarray, fingers_m: np.ndarray | float, step_rad: float = 0.02
+    ) -> bool:
+        """Whether the straight joint path from ``qa`` to ``qb`` is free, checked every ``step_rad``
+        of its largest joint's travel (ends included)."""
+        n = max(1, int(np.ceil(float(np.max(np.abs(qb - qa))) / step_rad)))
+        return all(self.free(qa + (qb - qa) * t, fingers_m) for t in np.linspace(0.0, 1.0, n + 1))
