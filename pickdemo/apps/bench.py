@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, TypeAlias
 
+from pickdemo.apps.compare import write_run_file
 from pickdemo.apps.files import write_atomic
 from pickdemo.core.result import EpisodeRecord, EpisodeResult, Stage, result_key, summary_name
 from pickdemo.core.stats import describe
@@ -469,6 +470,7 @@ def prepare_out_dir(out_dir: Path, jobs: list[Job], *, resume: bool) -> list[Epi
         write_atomic(jsonl, "")
     for name in DERIVED_FILES:
         (out_dir / name).unlink(missing_ok=True)
+    write_run_file(out_dir)  # (where it ran: `compare` pairs runs of one machine and lock only)
     return done
 
 
@@ -485,11 +487,13 @@ def run_bench(
     progress: bool = True,
     on_result: Callable[[EpisodeRecord], None] | None = None,
     done: list[EpisodeRecord] | None = None,
+    skip: Callable[[Job], bool] | None = None,
 ) -> BenchOutcome:
     """Run the jobs not done yet, streaming each result to ``out_dir/episodes.jsonl`` as it finishes.
 
     ``done``: what :func:`prepare_out_dir` returned, when the caller checked the directory already
-    (before it started an executor); else it is checked here.
+    (before it started an executor); else it is checked here. ``skip``: the executor's (jobs no longer
+    needed, asked after each result: ``--fail-fast``).
     """
     from tqdm import tqdm
 
@@ -506,7 +510,7 @@ def run_bench(
     bar = tqdm(total=len(jobs), initial=len(done), disable=not progress, unit="ep", dynamic_ncols=True,
                mininterval=0.5 if os.isatty(2) else 10.0)  # fmt: skip
     try:
-        for r in executor.run(todo):
+        for r in executor.run(todo, skip) if skip is not None else executor.run(todo):
             if jsonl is not None:
                 append_episode(jsonl, r)
             results.append(r)

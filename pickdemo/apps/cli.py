@@ -29,7 +29,9 @@ import time
 from pathlib import Path
 
 from pickdemo.apps import bench, executors, perceive, report
+from pickdemo.apps import compare as cmp
 from pickdemo.apps.files import write_atomic
+from pickdemo.apps.gate import FailFast, interleaved
 from pickdemo.apps.parser import UsageError, build_parser
 from pickdemo.apps.profile import profile
 from pickdemo.apps.summary import summary_line, yaw_modulus_deg
@@ -228,6 +230,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         seen[scenario.name] = path.resolve()
         jobs += [bench.Job(str(path.resolve()), scenario.name, seed, args.open_loop, args.perception) for seed in seeds]
     jobs = list({j.key: j for j in jobs}.values())
+    if args.fail_fast:
+        if args.min_success <= 0.0:
+            raise UsageError("--fail-fast needs a gate: --min-success above 0")
+        jobs = interleaved(jobs)  # (seed by seed across the scenarios: every answer advances together)
     done = None
     if args.out is not None:  # before an executor starts: a directory this run cannot describe is refused here
         try:
@@ -248,7 +254,16 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     else:
         executor = executors.LocalExecutor(min(args.workers, len(jobs)), args.episode_timeout)
 
+    gate = FailFast(jobs, args.min_success, done or []) if args.fail_fast else None
+
     def on_result(r: dict) -> None:
+        if gate is not None:
+            before = len(gate.log)
+            gate.record(r)
+            if len(gate.log) > before:
+                from tqdm import tqdm
+
+                tqdm.write(gate.log[-1])
         if not r["success"]:
             from tqdm import tqdm
 
@@ -269,6 +284,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             on_result=on_result,
             done=done,
+            skip=None if gate is None else gate.skip,
         )
     except bench.BenchError as exc:
         raise UsageError(str(exc)) from None
@@ -278,6 +294,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         f"ran {outcome.ran} episode(s) in {elapsed:.1f} s"
         + (f", {outcome.skipped} already done" if outcome.skipped else "")
     )
+    if gate is not None:
+        saved = len(jobs) - len(outcome.results)
+        print(f"fail-fast: {len(outcome.results)} of {len(jobs)} episodes run, {saved} saved "
+              f"({'every' if gate.settled else 'not every'} scenario's answer fixed)")  # fmt: skip
     if args.out is not None:
         write_atomic(args.out / "summary.json", json.dumps(outcome.summary, indent=2) + "\n")
         print(f"wrote {args.out / 'episodes.jsonl'} and {args.out / 'summary.json'}")
@@ -455,6 +475,24 @@ def _cmd_demos(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_compare(args: argparse.Namespace) -> int:
+    try:
+        rows = cmp.compare(args.base, args.new, args.alpha)
+    except cmp.CompareError as exc:
+        raise UsageError(str(exc)) from None
+    print(cmp.format_text(rows, args.alpha))
+    for path, text in (
+        (args.markdown, lambda: cmp.format_markdown(rows, args.base, args.new, args.alpha)),
+        (args.json, lambda: json.dumps(cmp.to_json(rows, args.base, args.new, args.alpha), indent=1) + "\n"),
+    ):
+        if path is not None:
+            try:
+                path.write_text(text(), encoding="utf-8")
+            except OSError as exc:
+                raise UsageError(f"{path}: not writable ({exc.strerror or exc})") from None
+    return EXIT_FAILED if any(r.verdict == "worse" for r in rows) else EXIT_OK
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
@@ -473,6 +511,8 @@ def main(argv: list[str] | None = None) -> int:
             return _cmd_list(args)
         if args.command in ("demos", "replay"):
             return _cmd_demos(args)
+        if args.command == "compare":
+            return _cmd_compare(args)
         parser.print_help()
         return EXIT_BAD_INPUT
     except (ScenarioError, UsageError) as exc:

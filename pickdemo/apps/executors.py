@@ -2,7 +2,9 @@
 
 An executor takes the jobs and yields one result per job as each finishes (in any order); a job that
 raises, kills its worker, loses its node for good or overruns the wall-clock guard yields a failed
-result with stage ``error`` or ``timeout``, and the batch goes on.
+result with stage ``error`` or ``timeout``, and the batch goes on. ``skip(job)``, asked after each
+result, drops the jobs no longer needed (``bench --fail-fast``): not started, they never run; under
+way, they are stopped; neither yields a result.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ import multiprocessing
 import os
 import time
 import traceback
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures import as_completed
 from typing import Any
@@ -34,7 +36,9 @@ class LocalExecutor:
             raise BenchError("--workers must be at least 1")
         self.workers, self.guard_s, self.fn = workers, guard_s, fn
 
-    def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
+    def run(self, jobs: list[Job], skip: Callable[[Job], bool] | None = None) -> Iterator[EpisodeRecord]:
+        from concurrent.futures import CancelledError
+
         from pebble import ProcessExpired, ProcessPool
 
         # The workers say which job each starts, and when: a pipe, drained as each job comes back (so
@@ -54,8 +58,12 @@ class LocalExecutor:
                     while not channel.empty():
                         key, t0 = channel.get()
                         starts[key] = t0
+                    if fut.cancelled():
+                        continue
                     try:
                         yield fut.result()
+                    except CancelledError:
+                        continue
                     except FutureTimeout:
                         yield timed_out(job, self.guard_s, max(self.guard_s, own_wall_s(job)))
                     except ProcessExpired as exc:
@@ -64,6 +72,10 @@ class LocalExecutor:
                     except Exception as exc:  # noqa: BLE001 - one bad episode must not take the batch down
                         yield raised(job, exc, own_wall_s(job))
                     starts.pop(job.key, None)
+                    if skip is not None:
+                        for other, j in futures.items():
+                            if not other.done() and skip(j):
+                                other.cancel()  # (pebble stops a job under way)
             finally:
                 pool.stop()
 
@@ -158,11 +170,19 @@ class RayExecutor:
         self.guard_s = guard_s
         self.remote_fn = ray.remote(num_cpus=1, max_retries=RAY_TASK_RETRIES)(fn)
 
-    def run(self, jobs: list[Job]) -> Iterator[EpisodeRecord]:
+    def run(self, jobs: list[Job], skip: Callable[[Job], bool] | None = None) -> Iterator[EpisodeRecord]:
         ray = self.ray
         queue = list(jobs)
         in_flight: dict[Any, tuple[Job, float]] = {}
         while queue or in_flight:
+            if skip is not None:
+                queue = [j for j in queue if not skip(j)]
+                for ref, (job, _) in list(in_flight.items()):
+                    if skip(job):
+                        ray.cancel(ref, force=True)
+                        del in_flight[ref]
+                if not queue and not in_flight:
+                    break
             slots = max(1, int(ray.cluster_resources().get("CPU", 1)))  # the live nodes'
             while queue and len(in_flight) < slots:
                 job = queue.pop(0)

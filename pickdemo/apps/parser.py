@@ -96,6 +96,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--episode-timeout", type=float, default=300.0, help="wall-clock guard per episode, s (default 300)"
     )
     bench.add_argument("--no-progress", action="store_true", help="no progress bar")
+    bench.add_argument(
+        "--fail-fast",
+        action="store_true",
+        help="stop a scenario once its failures exceed what --min-success allows over the seeds asked, and the "
+        "whole run once every scenario's answer is fixed (the same decision as the full run)",
+    )
     bench.add_argument("--open-loop", action="store_true", help="look once and play the plan (for comparison)")
     bench.add_argument("--perception", default="paper", metavar="METHOD", help=PERCEPTION_HELP)
     perceive = sub.add_parser(
@@ -170,6 +176,20 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument(
         "--episode", default="0", help="the episode's number in the dataset (default 0), several (0-9,20) or all"
     )
+    comp = sub.add_parser(
+        "compare",
+        help="two bench runs paired by seed: which scenarios a change made worse",
+        description="Pairs two `bench --out` folders by scenario and seed (the same seeds, one machine and lock): "
+        "per scenario the seeds that flipped, McNemar's exact test on them (one-sided for worse and for better, "
+        "Holm-adjusted over the scenarios), and the pose error, place error, attempts and wall time as paired "
+        "differences with a bootstrap 95 % interval. Exit 0: nothing significantly worse; 1: something is; "
+        "2: the folders do not pair.",
+    )
+    comp.add_argument("base", type=Path, metavar="BASE", help="the bench folder of the base (before the change)")
+    comp.add_argument("new", type=Path, metavar="NEW", help="the bench folder of the change")
+    comp.add_argument("--alpha", type=float, default=0.05, help="the family-wise error rate (default 0.05)")
+    comp.add_argument("--markdown", type=Path, metavar="FILE", help="write the report as Markdown (a CI summary)")
+    comp.add_argument("--json", type=Path, metavar="FILE", help="write the report as JSON")
     listing = sub.add_parser("list", help="list the shipped scenarios with their descriptions")
     listing.add_argument("--names", action="store_true", help="only the names, one a line (for scripts)")
     return parser
