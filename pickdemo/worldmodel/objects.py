@@ -85,6 +85,8 @@ class TrackedObject:
     by_camera: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     #: the surface seen that each of its points stands for (m^2: the newest view's, its area over its points)
     point_area_m2: float = 0.0
+    #: where it stands was inferred, not seen (let go there, carried with the track): the next view of it moves it
+    inferred: bool = False
 
     @property
     def points(self) -> np.ndarray:
@@ -179,7 +181,10 @@ class WorldModel:
         # (a view of it in part, something nearer hiding the rest, neither moves it nor shrinks it)
         # (and a piece of it is no evidence it moved: as large as it was, seen whole, elsewhere)
         whole = inst.area_m2 >= WHOLE_SHARE * obj.extents[0] * obj.extents[1]
-        moved = not inst.hidden and whole and float(np.hypot(*(inst.centre[:2] - obj.centre[:2]))) > MOVED_M
+        away = float(np.hypot(*(inst.centre[:2] - obj.centre[:2]))) > MOVED_M
+        # (where it stands only inferred, a view of it in part is better evidence than none)
+        moved = away and (obj.inferred or (not inst.hidden and whole))
+        obj.inferred = False
         if moved:
             obj.by_camera = {}
         if moved or not inst.hidden or view.camera not in obj.by_camera:
@@ -235,6 +240,7 @@ class WorldModel:
             shift = np.asarray(position, dtype=float)[:2] - obj.centre[:2]
             obj.centre[:2] += shift
             obj.by_camera = {k: v + np.array([shift[0], shift[1], 0.0]) for k, v in obj.by_camera.items()}
+            obj.inferred = True
         self._held = None
 
     def mark_target(self, position: np.ndarray, reach_m: float, *, follow: bool = False) -> None:
@@ -248,6 +254,7 @@ class WorldModel:
             shift = xy - target.centre[:2]
             target.centre[:2] += shift
             target.by_camera = {k: v + np.array([shift[0], shift[1], 0.0]) for k, v in target.by_camera.items()}
+            target.inferred = True
         self._target_at = (xy, float(reach_m))
         self._mark()
 
