@@ -16,7 +16,7 @@ import numpy as np
 
 from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
-from pickdemo.perception import PerceptionError, PlaceView, PoseEstimate, TargetModel
+from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.pick import HELD_STATES, CameraModel, FrameRequest, MachineParams, State
 from pickdemo.skills.pick.views import ViewPlanner
@@ -35,7 +35,7 @@ class Eye(Protocol):
     def views(self, now_s: float) -> list[FrameRequest]: ...
 
     def on_estimate(
-        self, result: PoseEstimate | PerceptionError | PlaceView, frame_time_s: float, camera: str = "camera"
+        self, result: PoseEstimate | PerceptionError | SceneView, frame_time_s: float, camera: str = "camera"
     ) -> Verdict: ...
 
     @property
@@ -109,9 +109,9 @@ class Watcher:
         )
 
     def on_estimate(
-        self, result: PoseEstimate | PerceptionError | PlaceView, frame_time_s: float, camera: str = "camera"
+        self, result: PoseEstimate | PerceptionError | SceneView, frame_time_s: float, camera: str = "camera"
     ) -> Verdict:
-        if isinstance(result, (PlaceView, SceneView)):  # (the agent keeps no world model)
+        if isinstance(result, SceneView):  # (the agent keeps no world model)
             return Verdict.UNUSED
         return self.belief.offer(result, frame_time_s, hand_over_target=False, camera=camera).verdict
 
@@ -152,7 +152,7 @@ class Pilot:
         return self.eye.views(now_s)
 
     def on_estimate(
-        self, result: PoseEstimate | PerceptionError | PlaceView, frame_time_s: float, camera: str = "camera"
+        self, result: PoseEstimate | PerceptionError | SceneView, frame_time_s: float, camera: str = "camera"
     ) -> Verdict:
         return self.eye.on_estimate(result, frame_time_s, camera)
 

@@ -69,7 +69,7 @@ from pickdemo.perception.model import (
     PoseEstimate,
     TargetModel,
 )
-from pickdemo.perception.neighbours import PlaceView, look_at_place, neighbour_points, with_neighbours
+from pickdemo.perception.neighbours import neighbour_points, with_neighbours
 from pickdemo.perception.pipeline import estimate_pose
 from pickdemo.perception.segmentation import (
     color_match,
@@ -85,9 +85,9 @@ from pickdemo.perception.segmentation import (
 
 __all__ = [
     "MIXTURE_KERNEL", "MODEL_FLOOR_M", "SIGMA_COLOR", "SIGMA_UV_PX", "FeaturePoint", "FitQuality", "ObjectCloud",
-    "PerceptionError", "PerceptionParams", "PlaceView", "PoseEstimate", "TargetModel", "circle_residuals",
+    "PerceptionError", "PerceptionParams", "PoseEstimate", "TargetModel", "circle_residuals",
     "closest_on_model", "color_match", "condition_on_plane", "crop_frame", "estimate_pose", "fit_face_plane",
-    "fit_outline", "fit_plane_weighted", "intersect_rays_plane", "look_at_place", "measure_features", "mixture_at",
+    "fit_outline", "fit_plane_weighted", "intersect_rays_plane", "measure_features", "mixture_at",
     "mixture_moments", "neighbour_points", "outline_pixels", "plane_basis", "point_covariance",
     "rectangle_residuals", "refine_circle", "refine_pose_6dof", "refine_rectangle", "segment_target",
     "shi_tomasi_features", "target_roi", "top_face_mask", "unoccluded", "with_neighbours", "world_heights",

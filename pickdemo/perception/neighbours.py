@@ -1,9 +1,7 @@
-"""What stands around the target, and at the place: the points of everything else near it (another
-object, a carton flush against it), which a grasp's fingers and palm must keep out of, and of
-whatever stands where the target is to be put down.
+"""What stands around the target: the points of everything else near it (another object, a carton
+flush against it), which a grasp's fingers and palm must keep out of.
 
-Pure: arrays in, arrays out; no simulator. :func:`look_at_place` says what a frame shows standing at
-a spot (:class:`PlaceView`): the loop asks it of the first look. What stands around the target, in
+Pure: arrays in, arrays out; no simulator. What stands around the target, and at the place, in
 the loop, is the world model's (:mod:`pickdemo.worldmodel`); :func:`with_neighbours` remains for an
 estimator of one's own that wants the points of a frame about its estimate (the skill reads an
 estimate's ``neighbours`` where the world model has no object at all).
@@ -12,7 +10,6 @@ estimate's ``neighbours`` where the world model has no object at all).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -41,17 +38,6 @@ TABLE_SLOPE_MAX = 0.1
 TABLE_OFF_SIGMAS = 3.0
 #: Neighbours' points kept at most (a regular thinning beyond).
 MAX_POINTS = 3000
-
-
-@dataclass(frozen=True)
-class PlaceView:
-    """What a frame showed standing at a spot (where something is to be put down): the points
-    (M, 3) above the table within ``radius_m`` of ``xy`` (the robot's own body left out), and when."""
-
-    xy: tuple[float, float]
-    radius_m: float
-    points: np.ndarray
-    time_s: float
 
 
 def neighbourhood_px(
@@ -94,18 +80,6 @@ def neighbour_points(
     if len(others) > MAX_POINTS:
         others = others[:: int(np.ceil(len(others) / MAX_POINTS))]
     return others
-
-
-def look_at_place(
-    frame: RGBDFrame, xy: tuple[float, float], radius_m: float, params: PerceptionParams | None = None
-) -> PlaceView | None:
-    """What ``frame`` shows standing within ``radius_m`` of ``xy`` (None: it does not show all of it)."""
-    centre = np.array([xy[0], xy[1], 0.0])
-    p = _standing(frame, centre, NEIGHBOURHOOD_ABOVE_M, radius_m, params or PerceptionParams())
-    if p is None:
-        return None
-    p = p[np.hypot(p[:, 0] - xy[0], p[:, 1] - xy[1]) <= radius_m]
-    return PlaceView((float(xy[0]), float(xy[1])), radius_m, p, frame.time_s)
 
 
 def _standing(

@@ -37,10 +37,8 @@ from pickdemo.core.result import (
 )
 from pickdemo.perception import (
     PerceptionParams,
-    PlaceView,
     PoseEstimate,
     TargetModel,
-    look_at_place,
 )
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.robot.rate_limit import ReflexError
@@ -425,8 +423,6 @@ class Episode:
                 continue
             check_honest(f.result)  # an estimator's (a user's too) carries nothing of the simulator
             status = self.machine.on_estimate(f.result, f.taken_s, f.camera)
-            if isinstance(f.result, PlaceView):  # (no estimate of the target: nothing to score or show)
-                continue
             self.referee.delivered(f.result, f.error_mm, status)
             self._notify("estimate", now, f.taken_s, f.result, status)
 
@@ -465,11 +461,6 @@ class Episode:
         # Truth: for scoring only (an estimate that perception's own checks rejected included).
         error_mm = self.referee.error_mm(result)
         self._pending.append(InFlight(now + latency, now, result, error_mm, frame.camera))
-        if request.place is not None:  # what stands at the place, from the same frame
-            with self.timer("perceive"):
-                place = look_at_place(frame, request.place[0], request.place[1], self.options.perception)
-            if place is not None:
-                self._pending.append(InFlight(now + latency, now, place, None, frame.camera))
         self._notify("frame", now, frame, result)
 
     def _log_events(self, now: float) -> None:

@@ -19,7 +19,7 @@ import numpy as np
 from pickdemo.core.camera import RGBDFrame
 from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.core.interfaces import Observation
-from pickdemo.perception import PerceptionError, PerceptionParams, PlaceView, PoseEstimate, TargetModel
+from pickdemo.perception import PerceptionError, PerceptionParams, PoseEstimate, TargetModel
 from pickdemo.perception.estimators import Estimator
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.robot.self_geometry import robot_body
@@ -49,7 +49,7 @@ class InFlight:
 
     arrival_s: float
     taken_s: float
-    result: PoseEstimate | PerceptionError | PlaceView | SceneView
+    result: PoseEstimate | PerceptionError | SceneView
     error_mm: float | None  # against the truth when the frame was taken: for the referee only
     camera: str = "camera"  # which camera took the frame
 

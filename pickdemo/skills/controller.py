@@ -10,11 +10,12 @@ from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.motion.online import MotionSample
-from pickdemo.perception import PerceptionError, PlaceView, PoseEstimate, TargetModel
+from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.pick.params import Event, FrameRequest, State
 from pickdemo.tracking.belief import Counters, Verdict
 from pickdemo.tracking.tracker import TargetTracker
+from pickdemo.worldmodel import SceneView
 
 
 @runtime_checkable
@@ -35,7 +36,7 @@ class Controller(Protocol):
         ...
 
     def on_estimate(
-        self, result: PoseEstimate | PerceptionError | PlaceView, frame_time_s: float, camera: str = "camera"
+        self, result: PoseEstimate | PerceptionError | SceneView, frame_time_s: float, camera: str = "camera"
     ) -> Verdict:
         """A frame's estimate, or what it showed at the place (asked with ``FrameRequest.place``), as it
         arrives (after perception's latency)."""

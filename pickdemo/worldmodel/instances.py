@@ -99,6 +99,19 @@ class SceneView:
     #: (h, w) the pixels the robot's own body (or a fixture) took: what lies there is not seen
     robot_mask: np.ndarray | None = dataclasses.field(default=None, repr=False)
 
+    def shows(self, xy: tuple[float, float], radius_m: float, top_m: float) -> bool:
+        """Whether the view's image holds all of the square ``radius_m`` about ``xy`` on the table, up to
+        ``top_m`` above it (a spot looked at: what stands there is in view, or nothing does)."""
+        corners = np.array([[xy[0] + dx, xy[1] + dy, z] for dx in (-radius_m, radius_m)
+                            for dy in (-radius_m, radius_m) for z in (0.0, top_m)])  # fmt: skip
+        cam = (corners - self.T_world_cam.position) @ self.T_world_cam.rotation
+        if np.any(cam[:, 2] <= 1e-3):
+            return False
+        K = self.intrinsics
+        u, v = K.fx * cam[:, 0] / cam[:, 2] + K.cx, K.fy * cam[:, 1] / cam[:, 2] + K.cy
+        h, w = self.depth_m.shape
+        return bool(np.all((u >= 0) & (v >= 0) & (u <= w - 1) & (v <= h - 1)))
+
     def sees(self, points: np.ndarray, margin_m: float = 0.02) -> np.ndarray:
         """(N,) bool: which world ``points`` this view would have shown had they been there: in its
         image, and nothing read nearer than them (by ``margin_m``) where they project (a hole is no

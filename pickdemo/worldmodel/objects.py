@@ -52,6 +52,19 @@ MAX_OBJECT_POINTS = 3000
 SURVEY_NEAR_M = 0.25
 
 
+@dataclass(frozen=True)
+class PlaceView:
+    """What the world knows standing at a spot (where something is to be put down), once a view showed
+    all of it: the points (M, 3) of its objects within ``radius_m`` of ``xy``, the surface each stands
+    for (M,) m^2, and the time of that view."""
+
+    xy: tuple[float, float]
+    radius_m: float
+    points: np.ndarray
+    time_s: float
+    areas_m2: np.ndarray
+
+
 @dataclass
 class TrackedObject:
     """One object of the world, as seen so far."""
@@ -70,6 +83,10 @@ class TrackedObject:
     is_target: bool = False
     #: each camera's newest view of its points (world, m)
     by_camera: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    #: the surface seen that each of its points stands for (m^2: the newest view's, its area over its points)
+    point_area_m2: float = 0.0
+    #: where it stands was inferred, not seen (let go there, carried with the track): the next view of it moves it
+    inferred: bool = False
 
     @property
     def points(self) -> np.ndarray:
@@ -149,7 +166,8 @@ class WorldModel:
     def _add(self, inst: Instance, view: SceneView) -> int:
         obj = TrackedObject(self.next_id, inst.centre.copy(), inst.extents, inst.yaw_rad, inst.top_m,
                             inst.colour, inst.cov.copy(), view.time_s, view.time_s,
-                            by_camera={view.camera: inst.points})  # fmt: skip
+                            by_camera={view.camera: inst.points},
+                            point_area_m2=inst.area_m2 / max(len(inst.points), 1))  # fmt: skip
         self.objects[obj.id] = obj
         self.next_id += 1
         return obj.id
@@ -163,11 +181,15 @@ class WorldModel:
         # (a view of it in part, something nearer hiding the rest, neither moves it nor shrinks it)
         # (and a piece of it is no evidence it moved: as large as it was, seen whole, elsewhere)
         whole = inst.area_m2 >= WHOLE_SHARE * obj.extents[0] * obj.extents[1]
-        moved = not inst.hidden and whole and float(np.hypot(*(inst.centre[:2] - obj.centre[:2]))) > MOVED_M
+        away = float(np.hypot(*(inst.centre[:2] - obj.centre[:2]))) > MOVED_M
+        # (where it stands only inferred, a view of it in part is better evidence than none)
+        moved = away and (obj.inferred or (not inst.hidden and whole))
+        obj.inferred = False
         if moved:
             obj.by_camera = {}
         if moved or not inst.hidden or view.camera not in obj.by_camera:
             obj.by_camera[view.camera] = inst.points
+            obj.point_area_m2 = inst.area_m2 / max(len(inst.points), 1)
         if len(obj.points) > MAX_OBJECT_POINTS:
             obj.by_camera = {view.camera: inst.points}
         # its footprint: the view's that shows more of it (a partial view of it keeps the whole one's)
@@ -218,6 +240,7 @@ class WorldModel:
             shift = np.asarray(position, dtype=float)[:2] - obj.centre[:2]
             obj.centre[:2] += shift
             obj.by_camera = {k: v + np.array([shift[0], shift[1], 0.0]) for k, v in obj.by_camera.items()}
+            obj.inferred = True
         self._held = None
 
     def mark_target(self, position: np.ndarray, reach_m: float, *, follow: bool = False) -> None:
@@ -231,6 +254,7 @@ class WorldModel:
             shift = xy - target.centre[:2]
             target.centre[:2] += shift
             target.by_camera = {k: v + np.array([shift[0], shift[1], 0.0]) for k, v in target.by_camera.items()}
+            target.inferred = True
         self._target_at = (xy, float(reach_m))
         self._mark()
 
@@ -246,6 +270,7 @@ class WorldModel:
                 target.top_m,
             )
             was.colour, was.cov, was.by_camera = target.colour, target.cov, target.by_camera
+            was.point_area_m2 = target.point_area_m2
             was.last_seen_s, was.views = target.last_seen_s, was.views + target.views
             del self.objects[target.id]
             target = was
@@ -326,6 +351,17 @@ class WorldModel:
             centre = np.array([inst.centre[0], inst.centre[1], 0.5 * inst.top_m])
             out.append(SeenObject(centre, (inst.top_m, *inst.extents), len(inst.points), cloud))
         return Survey(tuple(out), view.time_s)
+
+    def standing_near(self, xy: tuple[float, float], radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """The points (M, 3) of every object on the table (the held one left out) within ``radius_m``
+        of ``xy``, across the table, and the surface each stands for (M,): what stands at a spot."""
+        kept = [o for o in self.objects.values() if o.id != self._held and len(o.by_camera)]
+        if not kept:
+            return np.zeros((0, 3)), np.zeros(0)
+        p = np.vstack([o.points for o in kept])
+        a = np.concatenate([np.full(len(o.points), o.point_area_m2) for o in kept])
+        near = np.hypot(p[:, 0] - xy[0], p[:, 1] - xy[1]) <= radius_m
+        return p[near], a[near]
 
     def classify(self, points: np.ndarray) -> np.ndarray:
         """(N,) int8 per point: occupied, free or never seen (:mod:`~pickdemo.worldmodel.occupancy`)."""

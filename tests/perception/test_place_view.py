@@ -7,14 +7,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pickdemo.skills.pick.params import MachineParams
+from pickdemo.worldmodel import WorldModel, split_view
+
 pytestmark = pytest.mark.sim
 
 PLACE = (0.5, -0.3)
 
 
-def _view(with_box: bool, seed: int):  # noqa: ANN202 - (PlaceView, tallest point's height)
+def _view(with_box: bool, seed: int) -> float:
+    """The surface (m^2) the world model sees standing within 10 cm of the place."""
     from pickdemo.core.camera import calibration_error
-    from pickdemo.perception.neighbours import look_at_place
     from pickdemo.scenario.layout import sample_layout
     from pickdemo.scenario.load import parse_scenario
     from pickdemo.sim.render import Camera
@@ -33,18 +36,19 @@ def _view(with_box: bool, seed: int):  # noqa: ANN202 - (PlaceView, tallest poin
     try:
         error = calibration_error(10.0, 2.0, np.random.default_rng(seed))
         camera = Camera(scenario.camera, np.random.default_rng(seed), calibration_error=error)
-        return look_at_place(camera.capture(scene), PLACE, 0.1)
+        world = WorldModel()
+        world.update(split_view(camera.capture(scene)))
+        return float(world.standing_near(PLACE, 0.1)[1].sum())
     finally:
         scene.close()
 
 
 def test_a_free_place_is_free_under_a_bad_calibration() -> None:
     # (16 draws of the error's direction; 3 cm alone saw one of them, seed 10, as 4,894 points standing)
-    counts = [len(_view(False, seed).points) for seed in range(16)]
-    assert max(counts) < 20, counts
+    areas = [_view(False, seed) for seed in range(16)]
+    assert max(areas) < MachineParams().place_taken_area_m2, areas
 
 
 @pytest.mark.parametrize("seed", [0, 10])
 def test_a_taken_place_is_taken_under_a_bad_calibration(seed: int) -> None:
-    taken = _view(True, seed)
-    assert taken is not None and len(taken.points) > 500
+    assert _view(True, seed) > 20 * MachineParams().place_taken_area_m2

@@ -11,10 +11,11 @@ import pytest
 from pickdemo.core.geometry import Pose
 from pickdemo.core.shapes import Box
 from pickdemo.grasping.top_down import plan_grasp
-from pickdemo.perception import PlaceView, TargetModel
+from pickdemo.perception import TargetModel
 from pickdemo.robot import robot_named
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.skills.pick.place import PlaceFinder
+from pickdemo.worldmodel import PlaceView
 from tests.episodes import at_least, describe, episodes
 
 ROBOT = robot_named()
@@ -39,10 +40,14 @@ def _carton(x0: float, x1: float, y0: float, y1: float, top: float = 0.05) -> np
 
 def test_a_free_place_is_the_place_and_a_taken_one_is_moved_within_the_tolerance_or_refused() -> None:
     finder, plan = _finder()
-    view = lambda pts: PlaceView(PLACE, 0.1, pts, 0.0)  # noqa: E731
+    # (each point of a carton's grid stands for its share of its top)
+    share = lambda pts: float(np.ptp(pts[:, 0]) * np.ptp(pts[:, 1])) / len(pts) if len(pts) else 0.0  # noqa: E731
+    view = lambda pts: PlaceView(PLACE, 0.1, pts, 0.0, np.full(len(pts), share(pts)))  # noqa: E731
     assert finder.spot(view(np.zeros((0, 3))), 0.0, plan) == (PLACE, None)
-    # a carton whose edge is 20 mm from the place along x (the cube's half side is 25): moved away from it
-    (x, y), _ = finder.spot(view(_carton(0.47, 0.53, 0.25, 0.35)), 0.0, plan)
+    # a carton whose edge is 22 mm from the place along x (the cube's half side is 25): moved away from it
+    # (by 10 mm at most, and then the 5 mm clearance holds; its points stand for its top: an edge's row
+    # of them within the clearance is some square centimetres of it)
+    (x, y), _ = finder.spot(view(_carton(0.472, 0.53, 0.25, 0.35)), 0.0, plan)
     assert 0.0 < np.hypot(x - PLACE[0], y - PLACE[1]) <= 0.01 + 1e-9 and x < PLACE[0]
     # on the place itself: no spot within half the tolerance
     reason = finder.spot(view(_carton(0.43, 0.49, 0.27, 0.33)), 0.0, plan)

@@ -28,7 +28,7 @@ from pickdemo.core.interfaces import Command, Observation
 from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.grasping.selection import GraspSelector, selector_for
 from pickdemo.grasping.top_down import GraspPlan
-from pickdemo.perception import PerceptionError, PlaceView, PoseEstimate, TargetModel
+from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.actions import Grip, Scale
 from pickdemo.skills.pick.arm import ArmDriver
@@ -58,7 +58,7 @@ from pickdemo.skills.pick.states import STATES
 from pickdemo.skills.pick.views import ViewPlanner
 from pickdemo.skills.pick.watch import MoveWatch
 from pickdemo.tracking.belief import Counters, TargetBelief, Verdict
-from pickdemo.worldmodel import SceneView, WorldModel
+from pickdemo.worldmodel import PlaceView, SceneView, WorldModel
 
 
 class PickMachine(MachineReadout):
@@ -141,7 +141,6 @@ class PickMachine(MachineReadout):
         )
         self.view_planner = ViewPlanner(
             kin, p, model, self.belief, self.watch, cameras, place_xy, look_at=self.look_at, open_loop=open_loop,
-            place_look=self.place_finder.look,
         )  # fmt: skip
         self.sight = Sightline(kin, self.view_planner.fixed)
         self.searcher = Searcher(kin, cameras, p)
@@ -212,17 +211,15 @@ class PickMachine(MachineReadout):
         )  # fmt: skip
 
     def on_estimate(
-        self, result: PoseEstimate | PerceptionError | PlaceView | SceneView, frame_time_s: float,
+        self, result: PoseEstimate | PerceptionError | SceneView, frame_time_s: float,
         camera: str = "camera",
     ) -> Verdict:  # fmt: skip
         """An estimate (or perception's word that it found none) from a frame taken at ``frame_time_s``
         by ``camera``, or what it saw at the place, or the frame's instances (into the world model); what
         became of it (:class:`~pickdemo.tracking.belief.Verdict`)."""
-        if isinstance(result, PlaceView):
-            self.place_view = result
-            return Verdict.UNUSED
         if isinstance(result, SceneView):
             self.world.update(result)
+            self.place_view = self.place_finder.seen(self.world, result) or self.place_view
             self._mark_target(frame_time_s)
             return Verdict.UNUSED
         if self.state is State.VERIFY:

@@ -141,8 +141,9 @@ class MachineParams:
     #: before the first approach (and each attempt's), the fixed camera's whole view of the place:
     #: something standing there fails the episode in ``place`` before the target is picked up
     check_place: bool = True
-    #: ... something: at least this many points of it (a 1 cm square seen from a metre is about 40)
-    place_taken_points: int = 20
+    #: ... something: at least this much of its surface seen (m^2: half a square centimetre, about 20
+    #: pixels of a camera a metre away; the world model's points each stand for their share of it)
+    place_taken_area_m2: float = 5e-5
     #: ... within this of the target's footprint about the place (m)
     place_clearance_m: float = 0.005
     #: ... then the nearest spot where it is free, up to this share of the task's place tolerance away
@@ -236,5 +237,3 @@ class FrameRequest:
     roi: tuple[int, int, int, int] | None
     survey: bool = False  # every object on the table (a clear round's look), not the target's pose
     camera: str = "camera"
-    #: also what stands within this circle ((x, y), radius, m): the place, before the target is picked
-    place: tuple[tuple[float, float], float] | None = None

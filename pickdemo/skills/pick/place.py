@@ -1,7 +1,7 @@
 """Where to put the target down: the task's place, or the nearest spot to it that the task's place
 tolerance allows, where the target's footprint and the hand letting go of it clear everything the
-camera saw standing there. A part of the pick skill: it returns a spot or the reason there is none,
-never writes the machine's state.
+world model knows standing there (once a view showed all of the place). A part of the pick skill: it
+returns a spot or the reason there is none, never writes the machine's state.
 
 The footprint is the target's as it will stand there: a top-down carry keeps its yaw (the hand turns
 half a turn at most, and the footprint is the same then), so a box's rectangle, a cylinder's circle,
@@ -18,11 +18,12 @@ import numpy as np
 from pickdemo.core.shapes import Box, Cylinder
 from pickdemo.grasping.cloud import hand_hits
 from pickdemo.grasping.top_down import GraspPlan
-from pickdemo.perception import PlaceView, TargetModel
-from pickdemo.perception.neighbours import OWN_MARGIN_M
+from pickdemo.perception import TargetModel
+from pickdemo.perception.neighbours import NEIGHBOURHOOD_ABOVE_M, OWN_MARGIN_M
 from pickdemo.robot.description import Gripper
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.tracking.belief import TargetBelief
+from pickdemo.worldmodel import PlaceView, SceneView, WorldModel
 
 #: An object nobody described: the place is looked at this far about (m; its size is known only once seen)
 UNKNOWN_PLACE_RADIUS_M = 0.1
@@ -78,9 +79,18 @@ class PlaceFinder:
         extents = self.belief.top_extents_m  # (seen: its principal axes')
         return np.asarray(extents) / 2.0 if extents is not None else g.footprint_radius_m
 
+    def seen(self, world: WorldModel, view: SceneView) -> PlaceView | None:
+        """What stands at the place as the world model knows it, once ``view`` has shown all of the place
+        (None: no look at it asked, or this view does not show it whole: the last one stands)."""
+        if self.look is None or not view.shows(self.look[0], self.look[1], NEIGHBOURHOOD_ABOVE_M):
+            return None
+        xy, r = self.look
+        points, areas = world.standing_near(xy, r)
+        return PlaceView(xy, r, points, view.time_s, areas)
+
     def spot(self, view: PlaceView | None, now_s: float, plan: GraspPlan) -> Spot | str:
-        """The nearest spot to the task's place (it first) where fewer than ``place_taken_points`` of
-        what stands there come within ``place_clearance_m`` of the target's footprint, and none where
+        """The nearest spot to the task's place (it first) where less than ``place_taken_area_m2`` of
+        what stands there comes within ``place_clearance_m`` of the target's footprint, and none where
         ``plan``'s hand lets go of it there: opening wide, or else only ``release_margin_m`` past the
         target (then the spot says how far: each finger from the middle); the reason when none within
         the shift the task allows will do. No view of it (none asked, or it did not come): the place."""
@@ -101,8 +111,9 @@ class PlaceFinder:
         tcp = plan.place.position - np.array([*self.place_xy, 0.0])  # the TCP from the place, as planned
         g = self.gripper
         narrow = min(plan.object_width_m / 2.0 + self.p.release_margin_m, g.finger_max_m)
-        free = [o for o in offsets if int((outside(pts, place + o, tp.yaw_rad, half) < self.p.place_clearance_m).sum())
-                < self.p.place_taken_points]  # fmt: skip
+        areas = view.areas_m2[~own]
+        free = [o for o in offsets if float(areas[outside(pts, place + o, tp.yaw_rad, half) < self.p.place_clearance_m]
+                                            .sum()) < self.p.place_taken_area_m2]  # fmt: skip
         for fingers in (g.finger_max_m, narrow):  # let go wide where it can; else only just
             for off in free:
                 at = np.array([place[0] + off[0], place[1] + off[1], 0.0]) + tcp

@@ -68,7 +68,6 @@ class ViewPlanner:
         *,
         look_at: np.ndarray | None,
         open_loop: bool,
-        place_look: tuple[tuple[float, float], float] | None = None,
     ) -> None:
         self.kin, self.p, self.model, self.belief, self.watch = kin, params, model, belief, watch
         fixed = [c for c in cameras if not c.on_hand]
@@ -77,8 +76,6 @@ class ViewPlanner:
         self.fixed = fixed[0]
         self.on_hand = [c for c in cameras if c.on_hand]
         self.place_xy, self.look_at, self.open_loop = place_xy, look_at, open_loop
-        #: the whole view in LOOK also shows what stands at the place, this far about it (None: not asked)
-        self.place_look = place_look
 
     def requests(
         self,
@@ -118,7 +115,7 @@ class ViewPlanner:
                 return FrameRequest(self._roi_at(self.look_at, self.p.roi_margin_m), camera=name)
             if near is not None:  # looking again: about where it was (a look-alike elsewhere is not it)
                 return FrameRequest(self._roi_at(near, self.p.roi_margin_m + self.p.relook_margin_m), camera=name)
-            return FrameRequest(None, camera=name, place=self.place_look)
+            return FrameRequest(None, camera=name)
         if state is State.VERIFY:  # around where it was put down
             wait_over = now_s - since_s >= self.p.verify_wait_s
             if not wait_over or verify_asked:
