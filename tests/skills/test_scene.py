@@ -7,7 +7,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from raycast import Block, render
 
+from pickdemo.core.camera import look_at_pose
 from pickdemo.core.geometry import Pose
 from pickdemo.core.shapes import Box
 from pickdemo.grasping.top_down import plan_grasp
@@ -15,7 +17,7 @@ from pickdemo.perception import TargetModel
 from pickdemo.robot import robot_named
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.skills.pick.place import PlaceFinder
-from pickdemo.worldmodel import PlaceView
+from pickdemo.worldmodel import PlaceView, WorldModel, split_view
 from tests.episodes import at_least, describe, episodes
 
 ROBOT = robot_named()
@@ -158,3 +160,18 @@ def test_the_end_judges_a_height_by_what_the_estimate_knows_of_it() -> None:
     assert not failed and done[0].value == "done"
     _, failed = _verified(0.05, 0.011)  # a carton's height is more than it can be off
     assert failed and "put down on something" in failed[0]
+
+
+def test_what_stands_at_the_place_is_the_world_models_once_a_view_shows_all_of_it() -> None:
+    finder, _ = _finder()
+    world = WorldModel()
+    box = [Block(PLACE, (0.05, 0.05, 0.05))]
+    aside = split_view(render(box, T=look_at_pose(np.array([1.0, -0.4, 0.7]), np.array([0.5, -0.4, 0.0]))))
+    world.update(aside)
+    assert finder.seen(world, aside) is None  # (its image does not hold the whole place: nothing said)
+    view = split_view(render(box))
+    world.update(view)
+    seen = finder.seen(world, view)
+    assert seen is not None and len(seen.points) > 0
+    # what it sees of the box (its top, 25 cm^2, and a side) in surface, not in points
+    assert 0.0025 <= float(seen.areas_m2.sum()) <= 0.006
