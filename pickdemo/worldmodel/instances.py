@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from pickdemo.core.camera import Intrinsics, RGBDFrame, holes_as_nan, strided_intrinsics
+from pickdemo.core.camera import Intrinsics, RGBDFrame, holes_as_nan, project, strided_intrinsics
 from pickdemo.core.geometry import Pose
 from pickdemo.perception.equations import MIXTURE_KERNEL
 from pickdemo.perception.model import PerceptionParams
@@ -107,8 +107,7 @@ class SceneView:
         cam = (corners - self.T_world_cam.position) @ self.T_world_cam.rotation
         if np.any(cam[:, 2] <= 1e-3):
             return False
-        K = self.intrinsics
-        u, v = K.fx * cam[:, 0] / cam[:, 2] + K.cx, K.fy * cam[:, 1] / cam[:, 2] + K.cy
+        u, v = project(cam, self.intrinsics).T
         h, w = self.depth_m.shape
         return bool(np.all((u >= 0) & (v >= 0) & (u <= w - 1) & (v <= h - 1)))
 
@@ -118,12 +117,10 @@ class SceneView:
         reading: not seen)."""
         p = np.atleast_2d(points)
         cam = (p - self.T_world_cam.position) @ self.T_world_cam.rotation
-        K = self.intrinsics
         out = np.zeros(len(p), dtype=bool)
         front = cam[:, 2] > 1e-3
         z = np.where(front, cam[:, 2], 1.0)
-        u = np.round(K.fx * cam[:, 0] / z + K.cx).astype(int)
-        v = np.round(K.fy * cam[:, 1] / z + K.cy).astype(int)
+        u, v = np.round(project(np.column_stack([cam[:, :2], z]), self.intrinsics)).astype(int).T
         h, w = self.depth_m.shape
         inside = front & (u >= 0) & (v >= 0) & (u < w) & (v < h)
         d = self.depth_m[v[inside], u[inside]]
