@@ -353,9 +353,10 @@ class WorldModel:
         return Survey(tuple(out), view.time_s)
 
     def standing_near(self, xy: tuple[float, float], radius_m: float) -> tuple[np.ndarray, np.ndarray]:
-        """The points (M, 3) of every object on the table (the held one left out) within ``radius_m``
-        of ``xy``, across the table, and the surface each stands for (M,): what stands at a spot."""
-        kept = [o for o in self.objects.values() if o.id != self._held and len(o.by_camera)]
+        """The points (M, 3) of every object on the table within ``radius_m`` of ``xy``, across the table,
+        and the surface each stands for (M,): what stands at a spot. The target's object (held, or
+        standing near the spot after a place that missed) is the target, not something in its way."""
+        kept = [o for o in self.objects.values() if o.id != self._held and not o.is_target and len(o.by_camera)]
         if not kept:
             return np.zeros((0, 3)), np.zeros(0)
         p = np.vstack([o.points for o in kept])

@@ -191,3 +191,15 @@ def test_where_the_hand_let_go_yields_to_the_next_view_even_in_part() -> None:
     again.rgb[230:250, 330:350] = (200, 40, 40)
     world.update(split_view(again))
     assert np.linalg.norm(obj.centre[:2] - obj_inst.centre[:2]) < 0.005
+
+
+def test_what_stands_at_a_spot_is_never_the_target_itself() -> None:
+    depth = _noisy_table(0)
+    depth[230:250, 310:330] -= 0.05  # the target, let go beside the place
+    depth[230:250, 360:380] -= 0.05  # something else there
+    world = WorldModel()
+    world.update(split_view(_overhead(depth)))
+    target, other = sorted(world.objects.values(), key=lambda o: o.centre[1])
+    world.mark_target(target.centre, 0.03)
+    points, _ = world.standing_near((float(target.centre[0]), float(target.centre[1])), 0.2)
+    assert len(points) > 0 and np.all(np.hypot(*(points[:, :2] - target.centre[:2]).T) > 0.02)
