@@ -210,6 +210,9 @@ class EpisodeResult:
     #: the other objects the episode moved 10 mm or more from where they stood, {name: mm} (truth); None
     #: for a clear round (it moves them all) or a belt (it carries them)
     others_moved_mm: dict[str, float] | None = None
+    #: the robot's and the held object's contacts with anything they may not touch (truth:
+    #: :mod:`pickdemo.runtime.collisions`), ``{"count": n, "first": [...]}``; None: never started
+    collisions: dict[str, Any] | None = None
     #: a clear round's figures: each object's fate, its picks, cleared, percent_cleared, grasp_success_rate,
     #: picks_per_hour (simulated time); None for a pick
     clear: dict[str, Any] | None = None
@@ -291,6 +294,7 @@ class EpisodeResult:
                 if self.peak_joint_limit_ratio is None
                 else dict(self.peak_joint_limit_ratio),
                 "others_moved_mm": None if self.others_moved_mm is None else dict(self.others_moved_mm),
+                "collisions": self.collisions,
                 **({} if self.clear is None else {"clear": self.clear}),
                 **({} if self.world is None else {"world": self.world}),
             }

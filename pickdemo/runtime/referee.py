@@ -17,6 +17,7 @@ from pickdemo.core.result import EpisodeFailure, Failure, PerceptionScore, Stage
 from pickdemo.core.shapes import Mesh
 from pickdemo.grasping.top_down import GraspParams
 from pickdemo.perception import PerceptionError, PoseEstimate
+from pickdemo.runtime.collisions import CollisionTally
 from pickdemo.runtime.grasp_truth import grasp_exists, true_box
 from pickdemo.runtime.metrics import score_perception, score_place, seen_truth
 from pickdemo.runtime.world import World
@@ -48,6 +49,8 @@ def diagnose(failure: Failure | None, tracking_error_mm: float | None, fits_hand
 #: Another object that ended this far (mm) from where it started was moved by the robot (a nudge of a
 #: few millimetres while the hand goes down beside it is not counted).
 OTHER_MOVED_MM = 10.0
+#: The target is held off the table (its contacts then the robot's doing) once this far above its start (m).
+HELD_ABOVE_M = 0.01
 
 
 class _WorldScoring:
@@ -60,6 +63,24 @@ class _WorldScoring:
         world_model = getattr(controller, "world", None)
         if isinstance(world_model, WorldModel):
             self.world_score.view(world_model, view, self.world)
+
+    def log_collisions(self, target: str | None, place_xy: tuple[float, float] | None, objects=frozenset()) -> None:  # noqa: ANN001
+        """From now on, the robot's contacts (and the target's) are judged as collisions or not
+        (:mod:`pickdemo.runtime.collisions`)."""
+        self._contacts = self.world.scene.log_contacts()
+        self._contacts.watch(target)
+        self.collisions = CollisionTally(target, place_xy, frozenset(objects))
+
+    def judge_contacts(self, held: bool) -> None:
+        """A tick: the contacts that began during it, judged (``held``: the target off the table in the hand)."""
+        tally = getattr(self, "collisions", None)
+        if tally is not None:
+            tally.judge(self._contacts.take(), held)
+
+    def collision_summary(self) -> dict | None:
+        """``result.json``'s ``collisions`` (None: the episode never started)."""
+        tally = getattr(self, "collisions", None)
+        return None if tally is None else tally.summary()
 
     def world_summary(self, controller: object) -> dict | None:
         """``result.json``'s ``world`` (None: the controller keeps no world model)."""
@@ -106,6 +127,7 @@ class Referee(_WorldScoring):
         """The objects are at rest and the robot is about to move: where the target starts."""
         self.start_pose = self._truth()
         self.max_z_m = float(self.start_pose.position[2])
+        self.log_collisions(self.target, self.world.place_xy)
         self._others_at_start = {
             p.name: self.world.true_pose(p.name).position.copy() for p in self.world.layout if p.name != self.target
         }
@@ -147,8 +169,12 @@ class Referee(_WorldScoring):
 
     def tick(self, carrying: bool) -> None:
         """After a control tick's physics: how high the target got while it should be in the hand."""
+        held = False
         if carrying:
             self.carried()
+            assert self.start_pose is not None
+            held = float(self._truth().position[2]) > float(self.start_pose.position[2]) + HELD_ABOVE_M
+        self.judge_contacts(held)
 
     def round_score(self, controller: object) -> None:
         """A clear round's figures (a pick has none)."""
@@ -277,6 +303,7 @@ class ClearReferee(_WorldScoring):
         self.tried = {}
         self.entered = {}
         self.start_s = self.world.sim_time_s
+        self.log_collisions(None, None, names)
 
     def watch(self) -> None:
         """A tick: an object that has come to rest in the tray since the last (one still held over it,
@@ -341,6 +368,7 @@ class ClearReferee(_WorldScoring):
     def tick(self, carrying: bool) -> None:
         """After a control tick's physics: what came to rest in the tray, when."""
         self.watch()
+        self.judge_contacts(False)
 
     def round_score(self, controller) -> dict | None:  # noqa: ANN001 - a pickdemo.skills.clear.ClearSequencer
         """``result.json``'s ``clear`` (read before the scene closes), or None if the round never started."""

@@ -101,6 +101,7 @@ def episode_result(
         peak_joint_limit_ratio=_peak_ratios(counts.commanded, rates),
         place_position_m=None if world is None else world.place_xy,
         others_moved_mm=getattr(ref, "others_moved_mm", None),
+        collisions=ref.collision_summary() if ref is not None else None,
         clear=round_score,
         world=ref.world_summary(m) if ref is not None else None,
         trace=trace.freeze() if trace is not None else None,

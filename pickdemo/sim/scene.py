@@ -26,6 +26,7 @@ from pickdemo.scenario.objects import TABLE_THICKNESS_M
 from pickdemo.scenario.tray import Tray
 from pickdemo.sim import quiet_c_stdout
 from pickdemo.sim.conveyor import Belt
+from pickdemo.sim.contacts import ContactLog
 
 #: The scene's bodies that are not objects on the table.
 FIXTURES = ("robot", "table", "conveyor", "tray")
@@ -147,6 +148,7 @@ class Scene:
         self.fixture_bodies: dict[str, list[int]] = {}  # a bin's parts (not objects on the table)
         self.still_boxes: list[StillBox] = []  # in the order they were built
         self.belt = None
+        self.contact_log: ContactLog | None = None  # (the truth, for scoring: :meth:`log_contacts`)
         if scenario.conveyor is not None:  # before the table: TinyRenderer then shades only the belt where both are
             self.belt = Belt(self.client, scenario.conveyor)
             self.bodies["conveyor"] = self.belt.body
@@ -336,8 +338,17 @@ class Scene:
                 self.belt.before_step(self.sim_time_s)
             self._step_simulation()
             self.steps += 1
+            if self.contact_log is not None:
+                self.contact_log.read(self.sim_time_s)
             if self.gui:  # pace the window for a human; never affects the simulation's outcome
                 time.sleep(self.time_step_s)
+
+    def log_contacts(self) -> ContactLog:
+        """From now on, the contacts that begin between the robot and anything else, each step (the
+        truth, for scoring only)."""
+        links = {j: n for n, j in self.link_index.items()}
+        self.contact_log = ContactLog(self.client, self.bodies, self.fixture_bodies, links)
+        return self.contact_log
 
     # ------------------------------------------------------------------------------ its state
     def state(self) -> np.ndarray:

@@ -1,0 +1,76 @@
+"""The contacts that begin, each physics step, between the robot's links (or one watched body, the
+object the hand may hold) and anything else in the scene: the truth, for scoring only (the
+``collisions`` of ``result.json``, :mod:`pickdemo.runtime.collisions`); the controller never reads it.
+
+A contact begins when its pair (who, which link, what) was not touching in the last
+:data:`GAP_STEPS` steps: a pair that chatters on and off as it slides is one contact, not hundreds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: A pair apart for fewer steps than this (0.1 s at 240 Hz) touching again is the same contact.
+GAP_STEPS = 24
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A contact that began: ``who`` (``robot`` or the watched body's name), its link's name
+    (``""`` for a body's base), what it touched, where (m, on ``who``) and when (s)."""
+
+    who: str
+    link: str
+    other: str
+    position: tuple[float, float, float]
+    time_s: float
+    base: bool = False  # the robot's base link (it never moves)
+
+
+class ContactLog:
+    """Reads the robot's contacts (and the watched body's) after each step; :meth:`take` hands over
+    those that began since it was last asked."""
+
+    def __init__(self, client, bodies: dict[str, int], parts: dict[str, list[int]], links: dict[int, str]) -> None:  # noqa: ANN001 - a BulletClient
+        self._contacts = client.getContactPoints
+        self.robot = bodies["robot"]
+        self.names = {b: n for n, b in bodies.items()}
+        self.names.update({b: n for n, ids in parts.items() for b in ids})
+        self.links = links
+        self.watched: tuple[str, int] | None = None
+        self._last: dict[tuple[int, int, int, int], int] = {}
+        self._began: list[Contact] = []
+        self.step = 0
+
+    def watch(self, name: str | None) -> None:
+        """Read this body's contacts too (None: no more), beside the robot's."""
+        self.watched = None if name is None else (name, next(b for b, n in self.names.items() if n == name))
+
+    def read(self, time_s: float) -> None:
+        """After a physics step: the contacts that began."""
+        self.step += 1
+        self._pairs(self.robot, "robot", time_s)
+        if self.watched is not None:
+            self._pairs(self.watched[1], self.watched[0], time_s)
+
+    def _pairs(self, body: int, who: str, time_s: float) -> None:
+        for pt in self._contacts(bodyA=body):
+            other = pt[2]
+            if other == self.robot or other == body:
+                continue
+            key = (body, pt[3], other, pt[4])
+            last = self._last.get(key)
+            self._last[key] = self.step
+            if last is not None and self.step - last <= GAP_STEPS:
+                continue
+            link = self.links.get(pt[3], "") if body == self.robot else ""
+            where = tuple(float(v) for v in np.asarray(pt[5], dtype=float))
+            name = self.names.get(other, f"body {other}")
+            self._began.append(Contact(who, link, name, where, time_s, base=body == self.robot and pt[3] == -1))
+
+    def take(self) -> list[Contact]:
+        """The contacts that began since the last call."""
+        out, self._began = self._began, []
+        return out
