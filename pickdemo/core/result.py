@@ -17,6 +17,7 @@ class Stage(str, enum.Enum):
     PERCEPTION = "perception"
     GRASP_PLANNING = "grasp_planning"
     IK = "ik"
+    MOTION_PLANNING = "motion_planning"  # no path around what is in the way
     TRAJECTORY = "trajectory"
     REFLEX = "reflex"  # a command beyond the Franka's limits: the robot stopped
     GRASP = "grasp"

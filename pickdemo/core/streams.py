@@ -23,6 +23,7 @@ RNG_STREAMS = (
     "wrist_camera",
     "hand_eye",
     "grasps",
+    "planning",
 )
 
 

@@ -57,7 +57,7 @@ from pickdemo.runtime.observers import (
 from pickdemo.runtime.recording import RerunRecorder
 from pickdemo.runtime.referee import PERCEPTION_OFF_MM, Referee, diagnose
 from pickdemo.runtime.results import LoopCounts, episode_result
-from pickdemo.runtime.tasks import episode_task, machine_params
+from pickdemo.runtime.tasks import cell_obstacles, episode_task, machine_params
 from pickdemo.runtime.view import EpisodeView
 from pickdemo.runtime.world import World
 from pickdemo.scenario.layout import LayoutError
@@ -327,6 +327,8 @@ class Episode:
             dt_s=self.dt_ctl,
             rng=world.rngs["ik"],
             grasp_rng=world.rngs["grasps"],
+            plan_rng=world.rngs["planning"],
+            cell=cell_obstacles(sc),
             params=machine_params(sc, opts.machine),
         )
         controller = task.controller(sc, world, told, self.referee, opts.open_loop, common)

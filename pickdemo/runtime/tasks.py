@@ -15,14 +15,19 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+import numpy as np
+
+from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.core.result import EpisodeFailure, Stage
 from pickdemo.core.shapes import Unknown
 from pickdemo.perception import PerceptionParams, PoseEstimate, TargetModel, estimate_pose
 from pickdemo.perception.estimators import EstimatorError, resolve_estimator
+from pickdemo.robot.collision import TABLE, Obstacle
 from pickdemo.runtime.referee import ClearReferee, Referee
 from pickdemo.runtime.world import World
 from pickdemo.scenario.fixtures import fixture_boxes
 from pickdemo.scenario.load import Scenario
+from pickdemo.scenario.objects import TABLE_THICKNESS_M
 from pickdemo.scenario.task import target_model
 from pickdemo.skills.clear import ClearSequencer
 from pickdemo.skills.controller import Controller
@@ -92,6 +97,16 @@ def machine_params(sc: Scenario, params: MachineParams) -> MachineParams:
     if scales != (1.0, 1.0, 1.0):
         params = dataclasses.replace(params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales))
     return dataclasses.replace(params, joint_transfers=m.transfers == "joint")
+
+
+def cell_obstacles(scenario: Scenario) -> tuple[Obstacle, ...]:
+    """The table and every fixture's solid parts, by name, as the task tells the robot: what its motions
+    are planned around (:mod:`pickdemo.skills.pick.routes`)."""
+    t = scenario.table
+    half = np.array([t.size[0] / 2.0, t.size[1] / 2.0, TABLE_THICKNESS_M / 2.0])
+    table = OrientedBox(Pose(np.array([t.center[0], t.center[1], -half[2]]), np.eye(3)), -half, half)
+    named = [Obstacle(f"fixtures.{f.name}", b) for f in scenario.fixtures for b in f.boxes()]
+    return (Obstacle(TABLE, table), *named)
 
 
 class PickTask:

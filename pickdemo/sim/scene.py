@@ -25,8 +25,8 @@ from pickdemo.scenario.load import ObjectSpec, Scenario
 from pickdemo.scenario.objects import TABLE_THICKNESS_M
 from pickdemo.scenario.tray import Tray
 from pickdemo.sim import quiet_c_stdout
-from pickdemo.sim.conveyor import Belt
 from pickdemo.sim.contacts import ContactLog
+from pickdemo.sim.conveyor import Belt
 
 #: The scene's bodies that are not objects on the table.
 FIXTURES = ("robot", "table", "conveyor", "tray")

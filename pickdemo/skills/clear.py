@@ -36,6 +36,7 @@ from pickdemo.grasping.top_down import GraspParams, GraspPlan
 from pickdemo.motion.online import MotionSample
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.perception.unknown import SeenObject, Survey
+from pickdemo.robot.collision import Obstacle
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.scenario.tray import Tray
@@ -106,15 +107,19 @@ class ClearSequencer:
         fixtures: tuple[OrientedBox, ...] = (),
         solids: tuple[OrientedBox, ...] = (),
         grasp_rng: np.random.Generator | None = None,
+        cell: tuple[Obstacle, ...] = (),
+        plan_rng: np.random.Generator | None = None,
     ) -> None:
         """``surface_z(x, y, z)``: the height of what an object at (x, y), its centre at ``z``, rests on (a
         bin's floor, the table);
         ``fixtures``: the cell's fixtures (a bin's walls), known from the task: the grasps keep clear of them;
         ``solids``: every fixture's boxes, which each pick's open hand and arm keep out of;
-        ``grasp_rng``: the draw of grasps from any side (:class:`~pickdemo.skills.pick.PickMachine`'s)."""
+        ``grasp_rng``: the draw of grasps from any side; ``cell``, ``plan_rng``: what motions are planned
+        around, and the planner's seeds (:class:`~pickdemo.skills.pick.PickMachine`'s)."""
         self.kin = kin
         self.surface_z, self.fixtures, self.solids, self.grasp_rng = surface_z, fixtures, solids, grasp_rng
         self.tray = tray
+        self.cell, self.plan_rng = cell, plan_rng
         self.world = WorldModel()  # every object seen, kept across the round's picks
         # A clear round looks through its fixed camera alone (not yet through one on the hand).
         self.cameras = [c for c in cameras if not c.on_hand][:1]
@@ -306,6 +311,8 @@ class ClearSequencer:
             solids=self.solids,
             grasp_rng=self.grasp_rng,
             world=self.world,
+            cell=self.cell,
+            plan_rng=self.plan_rng,
             **kw,
         )
 

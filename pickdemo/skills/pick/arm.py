@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.core.geometry import Pose
 from pickdemo.core.interfaces import Command
 from pickdemo.core.result import Failure, Stage
 from pickdemo.grasping.top_down import GraspPlan
@@ -24,7 +24,6 @@ from pickdemo.motion.ik_goals import (
     line_trackable,
     path_dip,
     path_low_z,
-    path_meets,
     straight_carry_ok,
 )
 from pickdemo.motion.online import CartesianLimits, JointMotion, MotionError, MotionSample, OnlineMotion, pose_to_x4
@@ -33,9 +32,6 @@ from pickdemo.robot.rate_limit import RateLimiter
 from pickdemo.skills.actions import Grip, Move
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.skills.pick.plans import half_turn
-
-#: How far back along the approach a transfer that would meet a fixture stops before going in (m).
-STAND_OFF_M = (0.15, 0.25, 0.35)
 
 
 class ArmDriver:
@@ -55,8 +51,6 @@ class ArmDriver:
         self.home_q = kin.robot.home_q
         self.home_x4 = pose_to_x4(kin.forward(self.home_q))
         self.joint = False  # the joint-space transfer drives the arm (else the Cartesian motion)
-        #: the cell's fixtures (a shelf's boxes), known from the task: transfers go around them
-        self.solids: tuple[OrientedBox, ...] = ()
         self.legs: deque[Callable[[], None]] = deque()  # the state's motion still to come, leg by leg
         self.sample: MotionSample | None = None
         self.braked = False  # (end_at_rest) the motion under way at a failure has come to rest
@@ -206,26 +200,16 @@ class ArmDriver:
         goal = choose_goal(ok, g)
         return None if goal is None else goal.q
 
-    def around_fixtures(self, q_goal: np.ndarray, scale: float, pose: Pose, into: Callable[[], None]) -> str | None:
-        """A transfer to ``q_goal`` (the IK goal of ``pose``, a pregrasp) whose straight joint path would
-        take the arm into a fixture (a shelf's board) goes first to a pose drawn back along the approach
-        (``STAND_OFF_M`` from it, the hand's angle kept), whose path is clear, and then straight in
-        (``into``: that last leg, the caller's). Its note if so planned; None if the direct path is
-        clear, or no stand-off was found (the direct transfer is then the caller's)."""
-        if not self.solids or not path_meets(self.kin, self.q, q_goal, self.solids, self.p.goals):
-            return None
-        approach = pose.rotation[:, 2]
-        for d in STAND_OFF_M:
-            stand = Pose(pose.position - approach * d, pose.rotation)
-            found = goal_candidates(self.kin, [stand], self.q, self.rng, self.p.goals, lines_to=[pose])
-            for c in sorted((c for c in found if c.line_ok), key=lambda c: -self.kin.limit_margin(c.q)):
-                if path_meets(self.kin, self.q, c.q, self.solids, self.p.goals):
-                    continue
-                self.legs.clear()
-                self.legs.append(into)
-                self.transfer_to(c.q, scale)
-                return f"around the fixtures: the joint path would meet one, so by {d * 1e2:.0f} cm back and in"
-        return None
+    def follow(self, waypoints: np.ndarray, scale: float, then: Callable[[], None] | None = None) -> None:
+        """A planned joint path (:mod:`~pickdemo.skills.pick.routes`): a transfer to each waypoint in turn,
+        each from rest to rest (a transfer from rest to rest keeps to the straight line in joint space the
+        plan checked), then ``then`` (the caller's last leg), if any."""
+        self.legs.clear()
+        for q in waypoints[1:]:
+            self.legs.append(lambda q=q: self.transfer_to(q, scale))
+        if then is not None:
+            self.legs.append(then)
+        self.transfer_to(waypoints[0], scale)
 
     def over_the_top(
         self,

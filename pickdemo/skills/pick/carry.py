@@ -15,6 +15,7 @@ from pickdemo.core.result import Failure, Stage
 from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
+from pickdemo.skills.pick.routes import held_box
 from pickdemo.skills.pick.take import wrist_load
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
@@ -51,6 +52,7 @@ def _dropped(m: PickMachine, obs: Observation, stage: Stage, outcome: str) -> Tr
 def enter_lift(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
     m.grip.watch_hold()
+    m.held = held_box(m.world, m.kin.forward(obs.arm_q))  # (its box where it stood, as the hand holds it now)
     lower = m.arm.lift_in_reach(m.plan)
     if lower is not m.plan:
         high = (lower.lift.position[2] - m.plan.grasp.position[2]) * 1e3
@@ -96,12 +98,17 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
     p = m.p
     straight = not (p.joint_transfers and p.carry_in_joint_space)
+    fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
+    scene = m.router.scene(m.world, held=m.held) if p.plan_around else None
     if straight and (not p.joint_transfers or m.arm.straight_carry_ok(m.plan, m.lift_scale)):
-        m.arm.move.to(m.plan.place_above, limits=p.free.scaled(m.lift_scale * m.scale.carry_share()))
-        return
-    # in joint space, to a goal from which the lowering can be tracked
-    if straight:
+        hit = None if scene is None else m.router.line_blocked(scene, m.arm.motion.q, m.plan.place_above, fingers)
+        if hit is None or not p.joint_transfers:
+            m.arm.move.to(m.plan.place_above, limits=p.free.scaled(m.lift_scale * m.scale.carry_share()))
+            return
+        m.note(f"carried in joint space: on the straight line, {hit[0]} would meet {hit[1]}")
+    elif straight:
         m.note("carried in joint space: the straight line would pass too near a singular posture")
+    # in joint space, to a goal from which the lowering can be tracked
     other = turned_plan(m.plan, pick=False, place=True)
     q, turned = m.arm.goal(m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place))
     if q is None:
@@ -111,6 +118,15 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
         m.plan = other
     scale = p.carry_scale * m.lift_scale * m.scale.carry_share()
     limits = p.free.scaled(m.lift_scale * m.scale.carry_share())
+    if scene is not None:
+        route = m.router.joint(scene, m.arm.q, q, fingers)
+        m.note(route.note)
+        if route.failure is not None:
+            m.fail(Stage.MOTION_PLANNING, f"to above the place: {route.failure}")
+            return
+        if route.waypoints is not None:
+            m.arm.follow(route.waypoints, scale)
+            return
     note = m.arm.over_the_top(q, scale, limits, rise=True, above=m.plan.place_above)
     m.note(note)
     if note is None:

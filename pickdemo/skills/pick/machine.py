@@ -29,6 +29,7 @@ from pickdemo.core.result import AttemptRecord, Failure, Stage
 from pickdemo.grasping.selection import GraspSelector, selector_for
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
+from pickdemo.robot.collision import Obstacle
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.actions import Grip, Scale
 from pickdemo.skills.pick.arm import ArmDriver
@@ -52,6 +53,7 @@ from pickdemo.skills.pick.params import (
 from pickdemo.skills.pick.place import PlaceFinder
 from pickdemo.skills.pick.plans import PlacedHigher
 from pickdemo.skills.pick.readout import MachineReadout
+from pickdemo.skills.pick.routes import Router
 from pickdemo.skills.pick.search import Searcher
 from pickdemo.skills.pick.sightline import Sightline
 from pickdemo.skills.pick.states import STATES
@@ -88,6 +90,8 @@ class PickMachine(MachineReadout):
         solids: tuple[OrientedBox, ...] = (),
         grasp_rng: np.random.Generator | None = None,
         world: WorldModel | None = None,
+        cell: tuple[Obstacle, ...] = (),
+        plan_rng: np.random.Generator | None = None,
     ) -> None:
         """``cameras``: the robot's cameras (a fixed one at least; one on the hand looks too whenever
         the target is wholly in its view). ``surface_z(x, y, z)``: the height of what a target at (x, y),
@@ -103,7 +107,9 @@ class PickMachine(MachineReadout):
         their faces (a bin's walls), known from the task: the grasps keep the hand out of them;
         ``solids``: every fixture's boxes (a shelf's too): the open hand and the arm keep out of them.
         ``grasp_rng``: the draw of grasps from any side, for an object nobody described that no top-down
-        grasp fits, where the robot's hand can take them (None: top-down only)."""
+        grasp fits, where the robot's hand can take them (None: top-down only). ``cell``: the table and
+        the fixtures, named, as the task knows them: the arm's motions are planned around them and
+        around the world model's objects; ``plan_rng``: the planner's seeds."""
         self.p = p = params or MachineParams()
         self.kin, self.model, self.symmetry, self.place_xy, self.rng = kin, model, symmetry_rad, place_xy, rng
         self.max_attempts, self.place_tolerance_m, self.open_loop = max_attempts, place_tolerance_m, open_loop
@@ -118,7 +124,8 @@ class PickMachine(MachineReadout):
         self.selector = selector
         # The parts.
         self.arm = ArmDriver(kin, q0, dt_s, p, rng)
-        self.arm.solids = solids
+        self.router = Router(kin, cell, plan_rng or np.random.default_rng(0), max_checks=p.plan_max_checks)
+        self.held: OrientedBox | None = None  # the held object's box in the TCP's frame (from the close)
         self.grip = Grip(p.grip, dt_s, kin.robot.gripper)
         self.scale = Scale(p.payload)
         # The wrist's sensor reads in its joint's frame; where that is turned from the TCP's (the SO-101's

@@ -130,6 +130,9 @@ class MachineParams:
     goals: GoalParams = GoalParams()  # how a transfer's IK goal is chosen
     transfer_scale: float = 0.5  # transfers in joint space, the hand empty: this share of the datasheet's limits
     carry_scale: float = 0.25  # ... carrying the target (a retry after a drop slows it further)
+    #: a motion whose straight way meets something is planned around it (issue 59); off: straight, as before
+    plan_around: bool = True
+    plan_max_checks: int = 20000  # states a plan checks before it gives up (:mod:`pickdemo.motion.planner`)
     #: after the place, home, look at the place (a target seen put down off it is picked up again);
     #: off: done once home (a clear round looks at the whole table next)
     verify_place: bool = True

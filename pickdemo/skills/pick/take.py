@@ -169,9 +169,16 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
     if turned:
         m.plan = turned_plan(m.plan, pick=True, place=True)
     down = lambda: (m.arm.cartesian(), m.go_to(m.plan.pregrasp, limits=m.p.free))  # noqa: E731
-    note = m.arm.around_fixtures(q, m.p.transfer_scale, m.plan.pregrasp, down)
-    if note is None:
-        note = m.arm.over_the_top(q, m.p.transfer_scale, m.p.free, rise=False, above=m.plan.pregrasp, down=down)
+    if m.p.plan_around:
+        route = m.router.joint(m.router.scene(m.world), m.arm.q, q, m.plan.open_m or m.grip.finger_max_m)
+        m.note(route.note)
+        if route.failure is not None:
+            m.fail(Stage.MOTION_PLANNING, f"to above the target: {route.failure}")
+            return
+        if route.waypoints is not None:
+            m.arm.follow(route.waypoints, m.p.transfer_scale, down)
+            return
+    note = m.arm.over_the_top(q, m.p.transfer_scale, m.p.free, rise=False, above=m.plan.pregrasp, down=down)
     m.note(note)
     if note is None:
         m.arm.transfer_to(q, m.p.transfer_scale)

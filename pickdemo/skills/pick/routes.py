@@ -1,0 +1,154 @@
+"""How the arm gets around what is in the way (issue 59): the collision scene it plans in, built from
+what the robot knows (the table and the fixtures from its task, the world model's objects as its
+cameras saw them, grown by their uncertainty, and the held object's box in the hand), the check of a
+straight motion (a joint transfer's line in joint space, the hand's Cartesian carry as the per-tick IK
+follows it), and a joint path planned around the obstacles (:func:`~pickdemo.motion.planner.plan_joint_path`)
+where that is not free.
+
+A part of the pick skill: it answers with a :class:`Route`, never writes the machine's state. A
+straight motion that is free stays straight; one whose ends are not free in this model (the model's
+margins are wider than the hand's clearance the grasp chooser kept) is left to the straight motion,
+and said (a planner asked for a path out of a wall would wait for ever).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.motion.ik_goals import along_line
+from pickdemo.motion.planner import plan_joint_path
+from pickdemo.robot.collision import CollisionScene, Obstacle, robot_geometry
+from pickdemo.robot.kinematics import Kinematics
+from pickdemo.worldmodel import WorldModel
+
+#: An object's box is grown by this every way, beyond two of its standard deviations (m): the arm's
+#: and the held object's clearance from what the cameras saw.
+MARGIN_M = 0.01
+#: The held object's box is grown by this every way (m): it may turn a little in the fingers.
+HELD_MARGIN_M = 0.01
+#: A straight Cartesian motion is checked every this far along it (m).
+LINE_STEP_M = 0.02
+#: A straight joint transfer is checked every this much of its largest joint's travel (rad).
+JOINT_STEP_RAD = 0.02
+
+
+@dataclass(frozen=True)
+class Route:
+    """How to get there: ``waypoints`` (K, dof) after the start, the last the goal (None: straight, the
+    motion as asked); ``note`` says what was planned (or why not); ``failure`` what blocked a plan that
+    failed; ``blocked`` what the straight motion would have met; the planner's effort."""
+
+    waypoints: np.ndarray | None = None
+    note: str | None = None
+    failure: str | None = None
+    checks: int = 0
+    seconds: float = 0.0
+
+
+STRAIGHT = Route()
+
+
+def grown(box: OrientedBox, by_m: float | np.ndarray) -> OrientedBox:
+    g = np.broadcast_to(np.asarray(by_m, dtype=float), (3,))
+    return OrientedBox(box.pose, np.asarray(box.lo) - g, np.asarray(box.hi) + g)
+
+
+def held_box(world: WorldModel, tcp: Pose) -> OrientedBox | None:
+    """The held object's box in the TCP's frame (its world-model box where it stood, as the hand holds it
+    now at ``tcp``), grown by :data:`HELD_MARGIN_M`; None: the world holds nothing for it."""
+    target = world.target
+    if target is None:
+        return None
+    box = grown(target.box, HELD_MARGIN_M)
+    return OrientedBox(tcp.inverse() @ box.pose, box.lo, box.hi)
+
+
+class Router:
+    """The collision scenes and routes of one pick (see the module docstring)."""
+
+    def __init__(
+        self, kin: Kinematics, fixtures: Sequence[Obstacle], rng: np.random.Generator, *, max_checks: int
+    ) -> None:
+        self.kin = kin
+        self.fixtures = tuple(fixtures)
+        self.rng = rng  # the planner's seeds, one per plan
+        self.max_checks = max_checks
+        self.plans = 0
+        self.seconds: list[float] = []  # each plan's wall time (the profile's and the bench's)
+
+    def scene(self, world: WorldModel, *, held: OrientedBox | None = None) -> CollisionScene:
+        """The robot among the fixtures and the world's objects but the target (the hand goes to it,
+        or holds it: then ``held``, its box in the TCP's frame)."""
+        obstacles = list(self.fixtures)
+        for obj in world.objects.values():
+            if obj.is_target or len(obj.by_camera) == 0:
+                continue
+            sigma = np.sqrt(np.clip(np.diag(obj.cov), 0.0, None))
+            obstacles.append(Obstacle(f"object {obj.id}", grown(obj.box, MARGIN_M + 2.0 * sigma)))
+        return CollisionScene(robot_geometry(self.kin.robot), obstacles, held)
+
+    def joint(self, scene: CollisionScene, q_from: np.ndarray, q_goal: np.ndarray, fingers_m: float) -> Route:
+        """A transfer in joint space: straight if its line is free, else a planned path."""
+        if not scene.model.collisionPairs or scene.segment_free(q_from, q_goal, fingers_m, JOINT_STEP_RAD):
+            return STRAIGHT
+        return self._plan(scene, q_from, q_goal, fingers_m, self._blocked(scene, q_from, q_goal, fingers_m))
+
+    def line_blocked(
+        self, scene: CollisionScene, q_from: np.ndarray, end: Pose, fingers_m: float
+    ) -> tuple[str, str] | None:
+        """What the hand's straight Cartesian motion to ``end`` from the arm at ``q_from`` would meet
+        first, as the per-tick IK follows it (the link, what it meets), or None."""
+        if not scene.model.collisionPairs:
+            return None
+        start = self.kin.forward(q_from)
+        n = max(2, int(np.ceil(float(np.linalg.norm(end.position - start.position)) / LINE_STEP_M)))
+        for q_k in along_line(self.kin, q_from, start, end, n):
+            if q_k is None:
+                return None  # (not followed to its end: the caller's checks say so)
+            hit = scene.contact(q_k, fingers_m)
+            if hit is not None:
+                return hit
+        return None
+
+    @staticmethod
+    def _blocked(scene: CollisionScene, qa: np.ndarray, qb: np.ndarray, fingers_m: float) -> tuple[str, str] | None:
+        n = max(1, int(np.ceil(float(np.max(np.abs(qb - qa))) / JOINT_STEP_RAD)))
+        for t in np.linspace(0.0, 1.0, n + 1):
+            hit = scene.contact(qa + (qb - qa) * t, fingers_m)
+            if hit is not None:
+                return hit
+        return None
+
+    def _plan(
+        self,
+        scene: CollisionScene,
+        q_from: np.ndarray,
+        q_goal: np.ndarray,
+        fingers_m: float,
+        hit: tuple[str, str] | None,
+    ) -> Route:
+        said = "" if hit is None else f"{hit[0]} would meet {hit[1]}"
+        for end, q in (("start", q_from), ("goal", q_goal)):
+            at = scene.contact(q, fingers_m)
+            if at is not None:  # (the model's margins are wider than the grasp's clearance: straight, as before)
+                return Route(note=f"{said} on the straight way, but the {end} is not free in the model "
+                                  f"({at[0]} within the margin of {at[1]}): going straight")  # fmt: skip
+        t0 = time.perf_counter()
+        seed = int(self.rng.integers(2**31 - 1))
+        path = plan_joint_path(
+            q_from, q_goal, self.kin.lower, self.kin.upper, lambda q: scene.free(q, fingers_m), seed,
+            max_checks=self.max_checks,
+        )  # fmt: skip
+        seconds = time.perf_counter() - t0
+        self.plans += 1
+        self.seconds.append(seconds)
+        if path is None:
+            return Route(failure=f"no path found in {self.max_checks} states checked: {said}", seconds=seconds)
+        waypoints = path.waypoints[1:]
+        note = f"planned around: {said} on the straight way, so by {len(waypoints) - 1} waypoint(s)"
+        return Route(waypoints=waypoints, note=note, checks=path.checks, seconds=seconds)
