@@ -26,19 +26,22 @@ class Contact:
     other: str
     position: tuple[float, float, float]
     time_s: float
-    base: bool = False  # the robot's base link (it never moves)
+    base: bool = False  # a link of the robot's that no joint moves (its base: it stands where it stands)
 
 
 class ContactLog:
     """Reads the robot's contacts (and the watched body's) after each step; :meth:`take` hands over
     those that began since it was last asked."""
 
-    def __init__(self, client, bodies: dict[str, int], parts: dict[str, list[int]], links: dict[int, str]) -> None:  # noqa: ANN001 - a BulletClient
+    def __init__(
+        self, client, bodies: dict[str, int], parts: dict[str, list[int]], links: dict[int, str], fixed: set[int]
+    ) -> None:  # noqa: ANN001 - a BulletClient
+        """``links``: the robot's links' names by index; ``fixed``: the indices of those no joint moves."""
         self._contacts = client.getContactPoints
         self.robot = bodies["robot"]
         self.names = {b: n for n, b in bodies.items()}
         self.names.update({b: n for n, ids in parts.items() for b in ids})
-        self.links = links
+        self.links, self.fixed = links, fixed
         self.watched: tuple[str, int] | None = None
         self._last: dict[tuple[int, int, int, int], int] = {}
         self._began: list[Contact] = []
@@ -68,7 +71,7 @@ class ContactLog:
             link = self.links.get(pt[3], "") if body == self.robot else ""
             where = tuple(float(v) for v in np.asarray(pt[5], dtype=float))
             name = self.names.get(other, f"body {other}")
-            self._began.append(Contact(who, link, name, where, time_s, base=body == self.robot and pt[3] == -1))
+            self._began.append(Contact(who, link, name, where, time_s, base=body == self.robot and pt[3] in self.fixed))
 
     def take(self) -> list[Contact]:
         """The contacts that began since the last call."""

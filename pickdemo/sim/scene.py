@@ -346,8 +346,14 @@ class Scene:
     def log_contacts(self) -> ContactLog:
         """From now on, the contacts that begin between the robot and anything else, each step (the
         truth, for scoring only)."""
+        c, robot = self.client, self.bodies["robot"]
         links = {j: n for n, j in self.link_index.items()}
-        self.contact_log = ContactLog(self.client, self.bodies, self.fixture_bodies, links)
+        fixed = {-1}  # the links no joint moves (the base, and what is fixed to it)
+        for j in range(c.getNumJoints(robot)):  # (a parent's index is below its child's)
+            info = c.getJointInfo(robot, j)
+            if info[2] == p.JOINT_FIXED and info[16] in fixed:
+                fixed.add(j)
+        self.contact_log = ContactLog(c, self.bodies, self.fixture_bodies, links, fixed)
         return self.contact_log
 
     # ------------------------------------------------------------------------------ its state

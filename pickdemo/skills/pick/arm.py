@@ -33,6 +33,9 @@ from pickdemo.skills.actions import Grip, Move
 from pickdemo.skills.pick.params import MachineParams
 from pickdemo.skills.pick.plans import half_turn
 
+#: The goal's starts are this many times more when none of the first keeps its line clear.
+MORE_STARTS = 4
+
 
 class ArmDriver:
     """The arm's motion, one leg at a time: the Cartesian motion (:class:`~pickdemo.skills.actions.Move`)
@@ -271,11 +274,14 @@ class ArmDriver:
         *,
         seeded: np.ndarray | None = None,
         half_turned: tuple[Pose, Pose] | None = None,
+        accept: Callable[[np.ndarray, int], bool] | None = None,
     ) -> tuple[np.ndarray | None, int]:
         """The IK goal for a top-down TCP pose, or the same pose turned half a turn (a parallel gripper
         closes the same way) when the pose's own angle will not do: the best of several solutions
         (:mod:`pickdemo.motion.ik_goals`); and 1 if turned. ``seeded``: a re-plan keeps to the solution
-        near the goal it had, if there is one."""
+        near the goal it had, if there is one. ``accept(q, index)``: whether the straight line that follows
+        a goal (of the pose, or the turned one) keeps clear of what is in the way: those that do first; if
+        none does, the best of all (the caller's route says what is in the way)."""
         if seeded is not None:
             res = self.kin.solve(pose, seeded, self.rng, self.p.goals.ik)
             if res.success and self.joint and not self.joints.finished:
@@ -295,7 +301,8 @@ class ArmDriver:
         # turn only when that angle has no goal whose line can be followed and whose path does not dip.
         g = self.p.goals
         found = goal_candidates(self.kin, [pose], self.q, self.rng, g, lines_to=[line_to])
-        goal = choose_goal(found, g)
+        clear = found if accept is None else [c for c in found if accept(c.q, 0)]
+        goal = choose_goal(clear, g)
         # (a jaw's hand turned half a turn about its TCP, the fixed jaw's face, would close away from
         # the object: its other angles are the grasp chooser's, each planned anew)
         equivalent = self.kin.robot.gripper.coupled or half_turned is not None
@@ -303,8 +310,19 @@ class ArmDriver:
             half = half_turned if half_turned is not None else (half_turn(pose), half_turn(line_to))
             poses, ends = [pose, half[0]], [line_to, half[1]]
             turned = goal_candidates(self.kin, poses[1:], self.q, self.rng, g, lines_to=ends[1:])
-            found += [dataclasses.replace(t, index=1) for t in turned]
-            goal = choose_goal(found, g)
+            turned = [dataclasses.replace(t, index=1) for t in turned]
+            found += turned
+            clear += turned if accept is None else [c for c in turned if accept(c.q, 1)]
+            goal = choose_goal(clear, g)
+        if goal is None and accept is not None and found:
+            # none clear: the arm's other postures, from more starts (each turned pose's too)
+            more = dataclasses.replace(g, starts=g.starts * MORE_STARTS)
+            poses = [pose] if not equivalent else [pose, *(half_turned or (half_turn(pose), half_turn(line_to)))[:1]]
+            ends = [line_to] if not equivalent else [line_to, (half_turned or (None, half_turn(line_to)))[1]]
+            for i, (p, e) in enumerate(zip(poses, ends, strict=True)):
+                extra = goal_candidates(self.kin, [p], self.q, self.rng, more, lines_to=[e])
+                clear += [dataclasses.replace(c, index=i) for c in extra if accept(c.q, i)]
+            goal = choose_goal(clear, g) or choose_goal(found, g)
         if goal is None:
             return None, 0
         if goal.line_ok:

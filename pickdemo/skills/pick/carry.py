@@ -15,8 +15,8 @@ from pickdemo.core.result import Failure, Stage
 from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
-from pickdemo.skills.pick.routes import held_box
-from pickdemo.skills.pick.take import wrist_load
+from pickdemo.skills.pick.routes import LINE_END_M, held_box, short_of
+from pickdemo.skills.pick.take import go_home, wrist_load
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
     from pickdemo.skills.pick.machine import PickMachine
@@ -101,7 +101,9 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
     scene = m.router.scene(m.world, held=m.held) if p.plan_around else None
     if straight and (not p.joint_transfers or m.arm.straight_carry_ok(m.plan, m.lift_scale)):
-        hit = None if scene is None else m.router.line_blocked(scene, m.arm.motion.q, m.plan.place_above, fingers)
+        lowered = short_of(m.plan.place_above, m.plan.place, LINE_END_M)  # (then down onto the place)
+        ends = [m.plan.place_above, lowered]
+        hit = None if scene is None else m.router.line_blocked(scene, m.arm.motion.q, ends, fingers)
         if hit is None or not p.joint_transfers:
             m.arm.move.to(m.plan.place_above, limits=p.free.scaled(m.lift_scale * m.scale.carry_share()))
             return
@@ -110,7 +112,10 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
         m.note("carried in joint space: the straight line would pass too near a singular posture")
     # in joint space, to a goal from which the lowering can be tracked
     other = turned_plan(m.plan, pick=False, place=True)
-    q, turned = m.arm.goal(m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place))
+    accept = None if scene is None else m.router.accepting(scene, [m.plan.place, other.place], fingers)
+    q, turned = m.arm.goal(
+        m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place), accept=accept
+    )
     if q is None:
         m.fail(Stage.IK, "place pose out of reach: no IK solution for either hand angle")
         return
@@ -221,7 +226,7 @@ def tick_retreat(m: PickMachine, obs: Observation) -> Transition:
 
 
 def enter_home(m: PickMachine, obs: Observation) -> None:
-    m.note(m.arm.home())
+    go_home(m)
 
 
 def tick_home(m: PickMachine, obs: Observation) -> Transition:

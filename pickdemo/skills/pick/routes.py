@@ -14,7 +14,7 @@ and said (a planner asked for a path out of a wall would wait for ever).
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +33,9 @@ MARGIN_M = 0.01
 HELD_MARGIN_M = 0.01
 #: A straight Cartesian motion is checked every this far along it (m).
 LINE_STEP_M = 0.02
+#: A line that ends in a contact allowed there (the fingers about the target, the held object on its
+#: place) is checked to this far short of its end (m): the held object's margin, and half a centimetre.
+LINE_END_M = 0.015
 #: A straight joint transfer is checked every this much of its largest joint's travel (rad).
 JOINT_STEP_RAD = 0.02
 
@@ -56,6 +59,15 @@ STRAIGHT = Route()
 def grown(box: OrientedBox, by_m: float | np.ndarray) -> OrientedBox:
     g = np.broadcast_to(np.asarray(by_m, dtype=float), (3,))
     return OrientedBox(box.pose, np.asarray(box.lo) - g, np.asarray(box.hi) + g)
+
+
+def short_of(start: Pose, end: Pose, by_m: float) -> Pose:
+    """``end`` drawn back ``by_m`` toward ``start`` (at ``start`` if nearer)."""
+    d = end.position - start.position
+    length = float(np.linalg.norm(d))
+    if length <= by_m:
+        return start
+    return Pose(end.position - d / length * by_m, end.rotation)
 
 
 def held_box(world: WorldModel, tcp: Pose) -> OrientedBox | None:
@@ -99,21 +111,37 @@ class Router:
         return self._plan(scene, q_from, q_goal, fingers_m, self._blocked(scene, q_from, q_goal, fingers_m))
 
     def line_blocked(
-        self, scene: CollisionScene, q_from: np.ndarray, end: Pose, fingers_m: float
+        self, scene: CollisionScene, q_from: np.ndarray, ends: Sequence[Pose], fingers_m: float
     ) -> tuple[str, str] | None:
-        """What the hand's straight Cartesian motion to ``end`` from the arm at ``q_from`` would meet
-        first, as the per-tick IK follows it (the link, what it meets), or None."""
+        """What the hand's straight Cartesian motion through ``ends`` (one line after another) from the
+        arm at ``q_from`` would meet first, as the per-tick IK follows it (the link, what it meets), or None."""
         if not scene.model.collisionPairs:
             return None
-        start = self.kin.forward(q_from)
-        n = max(2, int(np.ceil(float(np.linalg.norm(end.position - start.position)) / LINE_STEP_M)))
-        for q_k in along_line(self.kin, q_from, start, end, n):
-            if q_k is None:
-                return None  # (not followed to its end: the caller's checks say so)
-            hit = scene.contact(q_k, fingers_m)
-            if hit is not None:
-                return hit
+        q, start = q_from, self.kin.forward(q_from)
+        for end in ends:
+            n = max(2, int(np.ceil(float(np.linalg.norm(end.position - start.position)) / LINE_STEP_M)))
+            for q_k in along_line(self.kin, q, start, end, n):
+                if q_k is None:
+                    return None  # (not followed to its end: the caller's checks say so)
+                hit = scene.contact(q_k, fingers_m)
+                if hit is not None:
+                    return hit
+                q = q_k
+            start = end
         return None
+
+    def accepting(
+        self, scene: CollisionScene, ends: Sequence[Pose], fingers_m: float, stop_m: float = LINE_END_M
+    ) -> Callable[[np.ndarray, int], bool]:
+        """``accept(q, i)`` for :meth:`~pickdemo.skills.pick.arm.ArmDriver.goal`: whether the straight line
+        from the hand's pose at ``q`` to ``ends[i]`` (a descent to the grasp, a lowering to the place),
+        stopped ``stop_m`` short of it, keeps clear (what the hand touches at its end is allowed: the
+        target at the grasp, the place under what it holds)."""
+
+        def accept(q: np.ndarray, i: int) -> bool:
+            return self.line_blocked(scene, q, [short_of(self.kin.forward(q), ends[i], stop_m)], fingers_m) is None
+
+        return accept
 
     @staticmethod
     def _blocked(scene: CollisionScene, qa: np.ndarray, qb: np.ndarray, fingers_m: float) -> tuple[str, str] | None:

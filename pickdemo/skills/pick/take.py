@@ -13,7 +13,7 @@ from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Stage
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.skills.pick.params import Event, State, Transition
-from pickdemo.skills.pick.plans import moved_place, turned_plan
+from pickdemo.skills.pick.plans import half_turn, moved_place, turned_plan
 from pickdemo.skills.pick.views import unsure
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
@@ -57,6 +57,21 @@ def enter_look(m: PickMachine, obs: Observation) -> None:
     if m.look_here:  # the first look, from where the arm is (at rest)
         m.look_here = False
         return
+    go_home(m)
+
+
+def go_home(m: PickMachine) -> None:
+    """Home, in joint space around what is in the way where the straight way meets it (else as
+    :meth:`~pickdemo.skills.pick.arm.ArmDriver.home` goes)."""
+    if m.p.plan_around and m.p.joint_transfers:
+        route = m.router.joint(m.router.scene(m.world), m.arm.q, m.arm.home_q, m.grip.finger_max_m)
+        m.note(route.note)
+        if route.failure is not None:
+            m.fail(Stage.MOTION_PLANNING, f"home: {route.failure}")
+            return
+        if route.waypoints is not None:
+            m.arm.follow(route.waypoints, m.p.transfer_scale)
+            return
     m.note(m.arm.home())
 
 
@@ -162,15 +177,18 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
         m.arm.cartesian()
         m.go_to(m.plan.pregrasp, limits=m.p.free)
         return
-    q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp)
+    fingers = m.plan.open_m or m.grip.finger_max_m
+    scene = m.router.scene(m.world) if m.p.plan_around else None
+    accept = None if scene is None else m.router.accepting(scene, [m.plan.grasp, half_turn(m.plan.grasp)], fingers)
+    q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept)
     if q is None:
         m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
         return
     if turned:
         m.plan = turned_plan(m.plan, pick=True, place=True)
     down = lambda: (m.arm.cartesian(), m.go_to(m.plan.pregrasp, limits=m.p.free))  # noqa: E731
-    if m.p.plan_around:
-        route = m.router.joint(m.router.scene(m.world), m.arm.q, q, m.plan.open_m or m.grip.finger_max_m)
+    if scene is not None:
+        route = m.router.joint(scene, m.arm.q, q, fingers)
         m.note(route.note)
         if route.failure is not None:
             m.fail(Stage.MOTION_PLANNING, f"to above the target: {route.failure}")
