@@ -48,6 +48,7 @@ STAGES: dict[str, str] = {
     "tracker": "estimates gated and fused, the track predicted",
     "skill": "the pick's state machine, its plans and frame requests (the rest of the control decision)",
     "motion": "Ruckig: the hand's online trajectory and joint-space transfers",
+    "planning": "coal and OMPL: straight motions checked against what is in the way, paths planned around it",
     "kinematics": "Pinocchio: IK along the hand's path, IK goals, forward kinematics",
     "observers": "trace, video, recordings",
     "loop": "the episode's own bookkeeping (what no stage above covers)",
@@ -143,6 +144,9 @@ def _wrap_episode(prof: Profiler, ep: Any) -> None:
         prof.wrap(arm and arm.joints, name, "motion")
     for name in ("track", "solve", "forward", "manipulability", "limit_margin"):
         prof.wrap(m.kin, name, "kinematics")
+    router = getattr(m, "router", None)
+    for name in ("scene", "joint", "line_blocked", "accepting"):
+        prof.wrap(router, name, "planning")
 
 
 @dataclass(frozen=True)

@@ -214,6 +214,9 @@ class EpisodeResult:
     #: the robot's and the held object's contacts with anything they may not touch (truth:
     #: :mod:`pickdemo.runtime.collisions`), ``{"count": n, "first": [...]}``; None: never started
     collisions: dict[str, Any] | None = None
+    #: the motions planned around what was in the way: how many, and the states each checked
+    #: (its wall time is ``control_tick_wall_ms.plans``); None: a controller that plans none
+    motion_plans: dict[str, Any] | None = None
     #: a clear round's figures: each object's fate, its picks, cleared, percent_cleared, grasp_success_rate,
     #: picks_per_hour (simulated time); None for a pick
     clear: dict[str, Any] | None = None
@@ -296,6 +299,7 @@ class EpisodeResult:
                 else dict(self.peak_joint_limit_ratio),
                 "others_moved_mm": None if self.others_moved_mm is None else dict(self.others_moved_mm),
                 "collisions": self.collisions,
+                "motion_plans": self.motion_plans,
                 **({} if self.clear is None else {"clear": self.clear}),
                 **({} if self.world is None else {"world": self.world}),
             }

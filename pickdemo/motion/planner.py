@@ -2,7 +2,7 @@
 
 Pure: OMPL and a validity check (no simulator). A path is asked from one joint configuration to
 another, each state checked by the caller's ``free`` (a :class:`~pickdemo.robot.collision.CollisionScene`
-at the fingers' opening), the motion between two states at ``resolution`` of the space's extent
+at the fingers' opening), the motion between two states every ``resolution_rad``
 (OMPL's discrete motion validator). The answer is the same for the same question and seed on one
 machine: OMPL's generator is seeded before each plan from the caller's ``seed``, the search stops after
 ``max_checks`` states checked or as many steps (not after a time, which a busy machine would change), and the path
@@ -19,8 +19,10 @@ import numpy as np
 
 #: States checked before a search gives up (the Panda's transfers around a shelf need a few thousand).
 MAX_CHECKS = 20000
-#: The motion between two states is checked every this share of the space's extent.
-RESOLUTION = 0.005
+#: The motion between two states is checked every this far in joint space (rad; OMPL's resolution is
+#: a share of the space's extent, which differs by robot: a UR5's 12 rad joints make a share of it
+#: ten times coarser than a Panda's).
+RESOLUTION_RAD = 0.02
 
 
 @dataclass(frozen=True)
@@ -41,7 +43,7 @@ def plan_joint_path(
     seed: int,
     *,
     max_checks: int = MAX_CHECKS,
-    resolution: float = RESOLUTION,
+    resolution_rad: float = RESOLUTION_RAD,
 ) -> JointPath | None:
     """A collision-free joint path from ``q_start`` to ``q_goal`` within the joint limits, or None
     when none was found within ``max_checks`` checked states (see the module docstring)."""
@@ -69,7 +71,7 @@ def plan_joint_path(
 
     setup.setStateValidityChecker(valid)
     info = setup.getSpaceInformation()
-    info.setStateValidityCheckingResolution(resolution)
+    info.setStateValidityCheckingResolution(min(1.0, resolution_rad / space.getMaximumExtent()))
     start, goal = space.allocState(), space.allocState()
     for i in range(n):
         start[i], goal[i] = float(q_start[i]), float(q_goal[i])

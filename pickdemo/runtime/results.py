@@ -55,6 +55,7 @@ def episode_result(
 ) -> EpisodeResult:
     """The scored episode: the referee's figures (truth), the controller's records, the loop's counts."""
     ref, m = referee, controller
+    router = getattr(m, "router", None)  # (a pick's motions planned around what is in the way)
     ticks = np.array(counts.tick_ms) if counts.tick_ms else np.zeros(1)
     lifted = ref.lifted_mm() if ref is not None and m is not None and m.attempts else None
     tracking_error_mm = ref.tracking_error_mm if ref is not None else None
@@ -96,7 +97,9 @@ def episode_result(
             "median": float(np.median(ticks)),
             "p95": float(np.percentile(ticks, 95)),
             "ticks": len(counts.tick_ms),
+            "plans": [round(s * 1e3, 3) for s in router.seconds] if router is not None else [],
         },
+        motion_plans=None if router is None else {"count": router.plans, "checks": list(router.checks)},
         limit_exceedances=tuple(e.to_dict() for e in _exceedances(counts.commanded, rates)),
         peak_joint_limit_ratio=_peak_ratios(counts.commanded, rates),
         place_position_m=None if world is None else world.place_xy,

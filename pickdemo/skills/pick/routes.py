@@ -22,12 +22,12 @@ import numpy as np
 from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.motion.ik_goals import along_line
 from pickdemo.motion.planner import plan_joint_path
-from pickdemo.robot.collision import CollisionScene, Obstacle, robot_geometry
+from pickdemo.robot.collision import TABLE, CollisionScene, Obstacle, robot_geometry
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.worldmodel import WorldModel
 
 #: An object's box is grown by this every way, beyond two of its standard deviations (m): the arm's
-#: and the held object's clearance from what the cameras saw.
+#: and the held object's clearance from what the cameras saw; a fixture's by this alone.
 MARGIN_M = 0.01
 #: The held object's box is grown by this every way (m): it may turn a little in the fingers.
 HELD_MARGIN_M = 0.01
@@ -70,6 +70,18 @@ def short_of(start: Pose, end: Pose, by_m: float) -> Pose:
     return Pose(end.position - d / length * by_m, end.rotation)
 
 
+def nearest_turn(q: np.ndarray, q_from: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """``q`` with each joint a whole turn nearer ``q_from`` where its limits allow: the same posture,
+    the shorter way (an IK solution of a UR5's joints, free through two turns, can be a turn off)."""
+    out = np.array(q, dtype=float)
+    for i in range(len(out)):
+        k = np.round((q_from[i] - out[i]) / (2.0 * np.pi))
+        moved = out[i] + 2.0 * np.pi * k
+        if k != 0 and lower[i] <= moved <= upper[i]:
+            out[i] = moved
+    return out
+
+
 def held_box(world: WorldModel, tcp: Pose) -> OrientedBox | None:
     """The held object's box in the TCP's frame (its world-model box where it stood, as the hand holds it
     now at ``tcp``), grown by :data:`HELD_MARGIN_M`; None: the world holds nothing for it."""
@@ -87,11 +99,13 @@ class Router:
         self, kin: Kinematics, fixtures: Sequence[Obstacle], rng: np.random.Generator, *, max_checks: int
     ) -> None:
         self.kin = kin
-        self.fixtures = tuple(fixtures)
+        # (the fixtures grown by the margin: the arm follows its commands to within millimetres)
+        self.fixtures = tuple(o if o.name == TABLE else Obstacle(o.name, grown(o.box, MARGIN_M)) for o in fixtures)
         self.rng = rng  # the planner's seeds, one per plan
         self.max_checks = max_checks
         self.plans = 0
         self.seconds: list[float] = []  # each plan's wall time (the profile's and the bench's)
+        self.checks: list[int] = []  # the states each plan checked (none found: its budget)
 
     def scene(self, world: WorldModel, *, held: OrientedBox | None = None) -> CollisionScene:
         """The robot among the fixtures and the world's objects but the target (the hand goes to it,
@@ -108,7 +122,12 @@ class Router:
         """A transfer in joint space: straight if its line is free, else a planned path."""
         if not scene.model.collisionPairs or scene.segment_free(q_from, q_goal, fingers_m, JOINT_STEP_RAD):
             return STRAIGHT
-        return self._plan(scene, q_from, q_goal, fingers_m, self._blocked(scene, q_from, q_goal, fingers_m))
+        hit = self._blocked(scene, q_from, q_goal, fingers_m)
+        near = nearest_turn(q_goal, q_from, self.kin.lower, self.kin.upper)
+        if not np.array_equal(near, q_goal) and scene.segment_free(q_from, near, fingers_m, JOINT_STEP_RAD):
+            return Route(waypoints=near[None, :], note=f"{hit[0]} would meet {hit[1]} on the straight way: "
+                         "to the same posture a turn nearer, straight")  # fmt: skip
+        return self._plan(scene, q_from, near, fingers_m, hit)
 
     def line_blocked(
         self, scene: CollisionScene, q_from: np.ndarray, ends: Sequence[Pose], fingers_m: float
@@ -175,6 +194,7 @@ class Router:
         seconds = time.perf_counter() - t0
         self.plans += 1
         self.seconds.append(seconds)
+        self.checks.append(self.max_checks if path is None else path.checks)
         if path is None:
             return Route(failure=f"no path found in {self.max_checks} states checked: {said}", seconds=seconds)
         waypoints = path.waypoints[1:]
