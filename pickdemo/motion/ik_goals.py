@@ -17,10 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pickdemo.core.geometry import OrientedBox, Pose, wrap_angle
+from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.motion.online import hand_se3
 from pickdemo.robot.kinematics import IKParams, Kinematics
-from pickdemo.robot.self_geometry import arm_meets
 
 
 @dataclass(frozen=True)
@@ -190,22 +189,6 @@ def path_low_z(kin: Kinematics, q_from: np.ndarray, q_to: np.ndarray, params: Go
     q_from, q_to = np.asarray(q_from, dtype=float), np.asarray(q_to, dtype=float)
     n = params.path_steps
     return float(min(kin.forward(q_from + (q_to - q_from) * (k / n)).position[2] for k in range(1, n)))
-
-
-def path_meets(
-    kin: Kinematics,
-    q_from: np.ndarray,
-    q_to: np.ndarray,
-    boxes: tuple[OrientedBox, ...],
-    params: GoalParams = GoalParams(),
-) -> bool:
-    """Whether the arm, on the straight joint-space path from ``q_from`` to ``q_to`` (at
-    ``params.path_steps`` points, its end included), meets any of ``boxes`` (the cell's fixtures)."""
-    if not boxes:
-        return False
-    q_from, q_to = np.asarray(q_from, dtype=float), np.asarray(q_to, dtype=float)
-    n = params.path_steps
-    return any(arm_meets(kin.robot, q_from + (q_to - q_from) * (k / n), boxes) for k in range(1, n + 1))
 
 
 def goal_candidates(

@@ -17,7 +17,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pinocchio as pin
 
-from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
+from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.robot.description import RobotDescription
 from pickdemo.robot.kinematics import link_frame_id
 from pickdemo.robot.stl import mesh_vertices
@@ -139,12 +139,3 @@ def hidden_by_the_base(robot: RobotDescription, eye: np.ndarray, points: np.ndar
 def robot_body(robot: RobotDescription) -> RobotBody:
     """One shared model per robot and process."""
     return RobotBody(robot)
-
-
-def arm_meets(robot: RobotDescription, q: np.ndarray, boxes: tuple[OrientedBox, ...]) -> bool:
-    """Whether the robot's links at the arm's joint angles ``q`` (the hand open), each bounded by its
-    box, meet any of ``boxes`` (the cell's fixtures)."""
-    if not boxes:
-        return False
-    links = robot_body(robot).boxes(q, np.full(2, robot.gripper.finger_max_m), pad_m=0.0)
-    return boxes_meet(links, boxes)

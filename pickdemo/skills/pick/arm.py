@@ -156,12 +156,13 @@ class ArmDriver:
             self.motion.reset_at(self.joints.q)
             self.joint = False
 
-    def home(self) -> str | None:
-        """Home: in joint space (over the top if the straight path dips; its note), or a straight line."""
+    def home(self, clear: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> str | None:
+        """Home: in joint space (over the top if the straight path dips, and its legs are ``clear``; its
+        note), or a straight line."""
         if not self.p.joint_transfers:
             self.move.to(self.home_x4, limits=self.p.free)
             return None
-        note = self.over_the_top(self.home_q, self.p.transfer_scale, self.p.free, rise=True)
+        note = self.over_the_top(self.home_q, self.p.transfer_scale, self.p.free, rise=True, clear=clear)
         if note is None:
             self.transfer_to(self.home_q, self.p.transfer_scale)
         return note
@@ -223,13 +224,15 @@ class ArmDriver:
         rise: bool,
         above: Pose | None = None,
         down: Callable[[], None] | None = None,
+        clear: Callable[[np.ndarray, np.ndarray], bool] | None = None,
     ) -> str | None:
         """A transfer to ``q_goal`` whose straight joint path would take the hand down below both of its
         ends goes over the top instead, each leg from rest to rest: straight up from here first
         (``rise``, from the Cartesian motion at rest), in joint space to ``q_goal`` or to a goal
         straight above ``above`` (the goal's pose) and then straight down onto it (``down``: that last
         leg, the caller's, so that it goes to where the plan is by then). The path must keep the hand
-        above the lower of the two ends (less ``max_dip_m``). Its note if so planned (its first leg
+        above the lower of the two ends (less ``max_dip_m``); ``clear(q_a, q_b)``: whether a leg's straight
+        joint path keeps clear of what is in the way (each leg must). Its note if so planned (its first leg
         started); None if the direct path does not dip, or no way over the top was found (the direct
         transfer is then the caller's)."""
         g = self.p.goals
@@ -243,18 +246,20 @@ class ArmDriver:
             q_start = self.q
             if rise:
                 found = None if self.joint else self.rise_from_here(h)
-                if found is None:
+                if found is None or (clear is not None and not clear(self.q, found[1])):
                     continue
                 up, q_start = found
                 legs.append(lambda up=up: self.move.to(up, limits=limits))
             if above is not None:
                 q_via = self.via_above(above, h, q_start, floor, q_goal)
-                if q_via is None:
+                if q_via is None or (clear is not None and not (clear(q_start, q_via) and clear(q_via, q_goal))):
                     continue
                 legs.append(lambda q=q_via: self.transfer_to(q, scale))
                 legs.append(down or (lambda: (self.cartesian(), self.move.to(above, limits=limits))))
             else:
-                if path_low_z(self.kin, q_start, q_goal, g) < floor:
+                if path_low_z(self.kin, q_start, q_goal, g) < floor or (
+                    clear is not None and not clear(q_start, q_goal)
+                ):
                     continue
                 legs.append(lambda: self.transfer_to(q_goal, scale))
             note = (

@@ -132,7 +132,8 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
         if route.waypoints is not None:
             m.arm.follow(route.waypoints, scale)
             return
-    note = m.arm.over_the_top(q, scale, limits, rise=True, above=m.plan.place_above)
+    clear = None if scene is None else m.router.clearance(scene, fingers)
+    note = m.arm.over_the_top(q, scale, limits, rise=True, above=m.plan.place_above, clear=clear)
     m.note(note)
     if note is None:
         m.arm.transfer_to(q, scale)

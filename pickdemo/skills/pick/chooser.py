@@ -18,8 +18,8 @@ from pickdemo.motion.ik_goals import along_line, goal_candidates, line_reach, li
 from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import ObjectCloud, TargetModel
 from pickdemo.perception.neighbours import NEIGHBOURHOOD_M, OWN_MARGIN_M
+from pickdemo.robot.collision import CollisionScene, Obstacle, robot_geometry
 from pickdemo.robot.kinematics import IKParams, Kinematics
-from pickdemo.robot.self_geometry import arm_meets
 from pickdemo.skills.pick.arm import ArmDriver
 from pickdemo.skills.pick.intercept import Interceptor, leaves_reach
 from pickdemo.skills.pick.params import MachineParams
@@ -311,18 +311,20 @@ class GraspChooser:
         return None
 
     def arm_meets_fixture(self, plan: GraspPlan, q_grasp: np.ndarray) -> str:
-        """Where the arm, its links bounded by boxes, would meet a fixture on this plan's way in and out:
-        at the grasp (its IK solution ``q_grasp``), the pregrasp, and where it takes the target out to
-        ("" if nowhere)."""
+        """Where the arm (its links' collision geometry, the fingers open as the plan opens them) would
+        meet a fixture on this plan's way in and out: at the grasp (its IK solution ``q_grasp``), the
+        pregrasp, and where it takes the target out to ("" if nowhere)."""
         solids = boxes_near(self.solids, plan.grasp.position, ARM_NEAR_M)
         if not solids:
             return ""
         poses = [("pregrasp", plan.pregrasp)] + ([("way out", plan.withdraw)] if plan.withdraw is not None else [])
-        if arm_meets(self.kin.robot, q_grasp, solids):
+        scene = CollisionScene(robot_geometry(self.kin.robot), [Obstacle("a fixture", b) for b in solids])
+        fingers = plan.open_m or self.kin.robot.gripper.finger_max_m
+        if not scene.free(q_grasp, fingers):
             return "the arm would meet a fixture at the grasp"
         for name, pose in poses:
             res = self.kin.solve(pose, q_grasp, self.rng, IKParams())
-            if res.success and arm_meets(self.kin.robot, res.q, solids):
+            if res.success and not scene.free(res.q, fingers):
                 return f"the arm would meet a fixture at the {name}"
         return ""
 

@@ -119,15 +119,12 @@ class Router:
         return CollisionScene(robot_geometry(self.kin.robot), obstacles, held)
 
     def joint(self, scene: CollisionScene, q_from: np.ndarray, q_goal: np.ndarray, fingers_m: float) -> Route:
-        """A transfer in joint space: straight if its line is free, else a planned path."""
-        if not scene.model.collisionPairs or scene.segment_free(q_from, q_goal, fingers_m, JOINT_STEP_RAD):
-            return STRAIGHT
-        hit = self._blocked(scene, q_from, q_goal, fingers_m)
-        near = nearest_turn(q_goal, q_from, self.kin.lower, self.kin.upper)
-        if not np.array_equal(near, q_goal) and scene.segment_free(q_from, near, fingers_m, JOINT_STEP_RAD):
-            return Route(waypoints=near[None, :], note=f"{hit[0]} would meet {hit[1]} on the straight way: "
-                         "to the same posture a turn nearer, straight")  # fmt: skip
-        return self._plan(scene, q_from, near, fingers_m, hit)
+        """A transfer in joint space to ``q_goal`` (each joint a whole turn nearer where it can be): straight
+        if its line is free, else a planned path."""
+        near = nearest_turn(q_goal, q_from, self.kin.lower, self.kin.upper)  # (the same posture, the shorter way)
+        if not scene.model.collisionPairs or scene.segment_free(q_from, near, fingers_m, JOINT_STEP_RAD):
+            return STRAIGHT if np.array_equal(near, q_goal) else Route(waypoints=near[None, :])
+        return self._plan(scene, q_from, near, fingers_m, self._blocked(scene, q_from, near, fingers_m))
 
     def line_blocked(
         self, scene: CollisionScene, q_from: np.ndarray, ends: Sequence[Pose], fingers_m: float
@@ -148,6 +145,11 @@ class Router:
                 q = q_k
             start = end
         return None
+
+    def clearance(self, scene: CollisionScene, fingers_m: float) -> Callable[[np.ndarray, np.ndarray], bool]:
+        """``clear(q_a, q_b)``: whether the straight joint path between two configurations keeps clear
+        (for the legs of a way over the top, :meth:`~pickdemo.skills.pick.arm.ArmDriver.over_the_top`)."""
+        return lambda qa, qb: scene.segment_free(qa, qb, fingers_m, JOINT_STEP_RAD)
 
     def accepting(
         self, scene: CollisionScene, ends: Sequence[Pose], fingers_m: float, stop_m: float = LINE_END_M

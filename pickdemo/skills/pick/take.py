@@ -63,8 +63,10 @@ def enter_look(m: PickMachine, obs: Observation) -> None:
 def go_home(m: PickMachine) -> None:
     """Home, in joint space around what is in the way where the straight way meets it (else as
     :meth:`~pickdemo.skills.pick.arm.ArmDriver.home` goes)."""
+    clear = None
     if m.p.plan_around and m.p.joint_transfers:
-        route = m.router.joint(m.router.scene(m.world), m.arm.q, m.arm.home_q, m.grip.finger_max_m)
+        scene = m.router.scene(m.world)
+        route = m.router.joint(scene, m.arm.q, m.arm.home_q, m.grip.finger_max_m)
         m.note(route.note)
         if route.failure is not None:
             m.fail(Stage.MOTION_PLANNING, f"home: {route.failure}")
@@ -72,7 +74,8 @@ def go_home(m: PickMachine) -> None:
         if route.waypoints is not None:
             m.arm.follow(route.waypoints, m.p.transfer_scale)
             return
-    m.note(m.arm.home())
+        clear = m.router.clearance(scene, m.grip.finger_max_m)
+    m.note(m.arm.home(clear))
 
 
 def tick_look(m: PickMachine, obs: Observation) -> Transition:
@@ -179,7 +182,8 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
         return
     fingers = m.plan.open_m or m.grip.finger_max_m
     scene = m.router.scene(m.world) if m.p.plan_around else None
-    accept = None if scene is None else m.router.accepting(scene, [m.plan.grasp, half_turn(m.plan.grasp)], fingers)
+    grasps = [m.plan.grasp, half_turn(m.plan.grasp)]  # (the descent checked all the way: the target is no obstacle)
+    accept = None if scene is None else m.router.accepting(scene, grasps, fingers, stop_m=0.0)
     q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept)
     if q is None:
         m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
@@ -196,7 +200,10 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
         if route.waypoints is not None:
             m.arm.follow(route.waypoints, m.p.transfer_scale, down)
             return
-    note = m.arm.over_the_top(q, m.p.transfer_scale, m.p.free, rise=False, above=m.plan.pregrasp, down=down)
+    clear = None if scene is None else m.router.clearance(scene, fingers)
+    note = m.arm.over_the_top(
+        q, m.p.transfer_scale, m.p.free, rise=False, above=m.plan.pregrasp, down=down, clear=clear
+    )
     m.note(note)
     if note is None:
         m.arm.transfer_to(q, m.p.transfer_scale)

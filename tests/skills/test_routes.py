@@ -1,0 +1,103 @@
+"""The pick's routes around what is in the way (:mod:`pickdemo.skills.pick.routes`): no simulator; a
+world model's objects and the task's fixtures as the robot knows them, the shipped robots' geometry."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.robot import robot_named
+from pickdemo.robot.collision import TABLE, Obstacle
+from pickdemo.robot.kinematics import kinematics_of
+from pickdemo.skills.pick.routes import STRAIGHT, Router, held_box, nearest_turn
+from pickdemo.worldmodel import WorldModel
+from pickdemo.worldmodel.objects import TrackedObject
+
+DOWN = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+
+
+def _box(centre, size) -> OrientedBox:  # noqa: ANN001
+    half = np.asarray(size, dtype=float) / 2.0
+    return OrientedBox(Pose(np.asarray(centre, dtype=float), np.eye(3)), -half, half)
+
+
+TABLE_BOX = Obstacle(TABLE, _box((0.45, 0.0, -0.025), (1.4, 1.2, 0.05)))
+
+
+def _object(world: WorldModel, centre, size, *, target: bool = False) -> TrackedObject:  # noqa: ANN001
+    obj = TrackedObject(
+        id=world.next_id, centre=np.array([centre[0], centre[1], size[2] / 2.0]), extents=(size[0], size[1]),
+        yaw_rad=0.0, top_m=size[2], colour=(0.5, 0.5, 0.5), cov=np.eye(3) * 1e-6, first_seen_s=0.0,
+        last_seen_s=0.0, is_target=target,
+    )  # fmt: skip
+    obj.by_camera = {"camera": np.array([[centre[0], centre[1], size[2]]])}
+    world.objects[obj.id] = obj
+    world.next_id += 1
+    return obj
+
+
+def _router(name: str = "panda", fixtures=(TABLE_BOX,)) -> tuple[Router, object]:  # noqa: ANN001
+    kin = kinematics_of(robot_named(name))
+    return Router(kin, fixtures, np.random.default_rng(0), max_checks=20000), kin
+
+
+def _q(kin, xyz, rng=None) -> np.ndarray:  # noqa: ANN001
+    rng = rng or np.random.default_rng(0)
+    return kin.solve(Pose(np.asarray(xyz, dtype=float), DOWN), kin.robot.home_q, rng).q
+
+
+def test_a_free_way_stays_straight_and_a_wall_in_it_is_planned_around_and_named() -> None:
+    wall = Obstacle("fixtures.wall", _box((0.5, 0.03, 0.1), (0.4, 0.02, 0.2)))
+    router, kin = _router(fixtures=(TABLE_BOX, wall))
+    qa, qb = _q(kin, (0.5, -0.2, 0.12)), _q(kin, (0.5, 0.25, 0.12))
+    scene = router.scene(WorldModel())
+    assert router.joint(scene, qa, _q(kin, (0.5, -0.1, 0.15)), 0.04) is STRAIGHT
+    route = router.joint(scene, qa, qb, 0.04)
+    assert route.failure is None and route.waypoints is not None, route
+    assert "fixtures.wall" in route.note
+    assert np.allclose(route.waypoints[-1], qb)
+    legs = [qa, *route.waypoints]
+    assert all(scene.segment_free(a, b, 0.04, 0.01) for a, b in zip(legs[:-1], legs[1:], strict=True))
+    assert router.plans == 1 and len(router.seconds) == 1 and router.checks[0] > 0
+
+
+def test_the_world_models_objects_are_in_the_way_but_the_target_and_a_held_box_goes_with_the_hand() -> None:
+    router, kin = _router()
+    world = WorldModel()
+    _object(world, (0.5, 0.05, 0.0), (0.06, 0.06, 0.2))
+    target = _object(world, (0.5, -0.2, 0.0), (0.05, 0.05, 0.05), target=True)
+    names = router.scene(world).names
+    assert "object 1" in names and f"object {target.id}" not in names
+    # the target's box held under the hand: it goes where the hand goes
+    grasp = Pose(np.array([0.5, -0.2, 0.025]), DOWN)
+    held = held_box(world, grasp)
+    assert held is not None
+    in_world = grasp @ held.pose
+    assert np.allclose(in_world.position, [0.5, -0.2, 0.025], atol=1e-9)
+    qa = _q(kin, (0.5, -0.2, 0.1))
+    qb = _q(kin, (0.5, 0.25, 0.1))
+    scene = router.scene(world, held=held)
+    assert router.line_blocked(scene, qa, [Pose(np.array([0.5, 0.25, 0.1]), DOWN)], 0.025) is not None
+    assert router.line_blocked(router.scene(world), qa, [Pose(np.array([0.5, -0.2, 0.3]), DOWN)], 0.04) is None
+    route = router.joint(scene, qa, qb, 0.025)
+    assert route.waypoints is not None and route.failure is None
+
+
+def test_a_goals_lowering_onto_its_place_is_checked_short_of_the_place() -> None:
+    router, kin = _router()
+    world = WorldModel()
+    _object(world, (0.5, 0.1, 0.0), (0.1, 0.1, 0.06))
+    place = Pose(np.array([0.5, 0.1, 0.05]), DOWN)  # (its fingers into the box)
+    q_above = _q(kin, (0.5, 0.1, 0.2))
+    accept = router.accepting(router.scene(world), [place], 0.04)
+    assert not accept(q_above, 0)  # (down onto another object)
+    accept = router.accepting(router.scene(WorldModel()), [Pose(np.array([0.5, 0.1, 0.0]), DOWN)], 0.04)
+    assert accept(q_above, 0)  # (down onto the table, stopped short of it)
+
+
+def test_a_goal_a_whole_turn_off_is_the_same_posture_the_shorter_way() -> None:
+    lower, upper = np.full(3, -2.0 * np.pi), np.full(3, 2.0 * np.pi)
+    q = nearest_turn(np.array([5.38, -0.5, 1.0]), np.array([-1.2, 0.0, 0.0]), lower, upper)
+    assert np.allclose(q, [5.38 - 2.0 * np.pi, -0.5, 1.0])
+    panda = np.array([-2.9, 2.9])  # (no room for a turn: kept)
+    assert np.allclose(nearest_turn(np.array([2.5]), np.array([-2.5]), panda[:1], panda[1:]), [2.5])
