@@ -9,7 +9,9 @@ goes with the hand (a box in the TCP's frame). MoveIt's planning scene is the sa
 
 Which contacts are allowed is written here once: the links that no joint moves (the base) stand on
 the table, so they are not checked against it; a held object touches the fingers, so it is checked
-against the obstacles only. Everything else the caller decides by what it passes as obstacles (the
+against the obstacles only, and not against the table: it is lifted straight off it and lowered
+straight onto it at its place (its box, grown by a margin, would meet the table at both), and carried
+above it. Everything else the caller decides by what it passes as obstacles (the
 target is none while the hand goes to it; the place's surface is none at the release).
 """
 
@@ -112,7 +114,7 @@ class CollisionScene:
             links = moving if ob.name == TABLE else range(n_robot)
             for i in links:
                 gm.addCollisionPair(pin.CollisionPair(i, j))
-            if held_id is not None:
+            if held_id is not None and ob.name != TABLE:
                 gm.addCollisionPair(pin.CollisionPair(held_id, j))
         self.model = gm
         self.data = pin.GeometryData(gm)

@@ -12,6 +12,7 @@ import numpy as np
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Stage
 from pickdemo.grasping.top_down import GraspPlan
+from pickdemo.motion.online import hand_frame
 from pickdemo.skills.pick.params import Event, State, Transition
 from pickdemo.skills.pick.plans import half_turn, moved_place, turned_plan
 from pickdemo.skills.pick.views import unsure
@@ -169,6 +170,21 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
     return None
 
 
+#: A re-plan of a grasp from the side whose approach turns more than this is another grasp (rad).
+SIDE_TURN_RAD = float(np.radians(5.0))
+
+
+def _same_side(m: PickMachine, plan: GraspPlan | None) -> GraspPlan | None:
+    """A re-plan, or None where the plan in hand is a grasp from the side and the re-plan turned its
+    approach: the grasps from any side are drawn anew from each cloud of a target that stands still (a
+    side grasp is for one that does), and the arm, on its way in around a shelf's boards, would be sent
+    to another grasp it did not plan its way to."""
+    if plan is None or m.plan is None or hand_frame(m.plan.grasp.rotation) is None:
+        return plan
+    cos = float(np.dot(plan.grasp.rotation[:, 2], m.plan.grasp.rotation[:, 2]))
+    return plan if cos >= np.cos(SIDE_TURN_RAD) else None
+
+
 # ---- APPROACH: to above the target, re-targeted as estimates arrive.
 def enter_approach(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
@@ -219,7 +235,7 @@ def tick_approach(m: PickMachine, obs: Observation) -> Transition:
             return None
         m.after_back_off = State.LOOK
         return State.BACK_OFF, "target lost while approaching: looking again"
-    plan = m.track_plan()
+    plan = _same_side(m, m.track_plan())
     if m.moving_off is not None and not m.finished:
         m.after_back_off = State.LOOK
         return State.BACK_OFF, f"{m.moving_off[0]}, but it stood still: looking again once it stops"
@@ -304,7 +320,7 @@ def tick_descend(m: PickMachine, obs: Observation) -> Transition:
         moved = _touched_early(m, obs)
     if moved is not None:
         return moved
-    plan = m.track_plan()
+    plan = _same_side(m, m.track_plan())
     if plan is not None:
         assert m.descent_plan is not None and m.descent_ref is not None
         xy, v, t = m.descent_ref  # where the descent expected the target now
