@@ -1,8 +1,9 @@
 """The robot's collision model from its robot file, and the boxes it must keep out of (issue 59).
 
 Pure: Pinocchio's geometry model and coal (no simulator). The links' collision geometry is the
-URDF's own (``pin.buildGeomFromUrdf``: meshes as coal's BVH models, boxes and cylinders as
-themselves), posed by the arm's joint angles and the fingers' openings, which the robot measures.
+URDF's own (``pin.buildGeomFromUrdf``: boxes and cylinders as themselves, a mesh as its convex hull,
+as PyBullet takes a moving body's mesh, so that the model and the simulator meet things alike), posed
+by the arm's joint angles and the fingers' openings, which the robot measures.
 What it must keep out of is a set of boxes fixed in the world (the table, the fixtures' known
 geometry, the world model's objects grown by their uncertainty, :class:`Obstacle`); a held object
 goes with the hand (a box in the TCP's frame). MoveIt's planning scene is the same design.
@@ -51,6 +52,10 @@ class RobotGeometry:
         self.model = pin.buildModelFromUrdf(str(urdf))
         dirs = [str(files.package_root), str(files.package_root.parent), str(files.urdf.parent)]
         self.geometry = pin.buildGeomFromUrdf(self.model, str(urdf), pin.COLLISION, package_dirs=dirs)
+        for obj in self.geometry.geometryObjects:  # a mesh as its convex hull, as the simulator takes it
+            if isinstance(obj.geometry, coal.BVHModelBase):
+                obj.geometry.buildConvexRepresentation(False)
+                obj.geometry = obj.geometry.convex
         self.robot = robot
 
         def q_index(joint: str) -> int:

@@ -10,12 +10,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pickdemo.core.geometry import Pose
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Failure, Stage
 from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
-from pickdemo.skills.pick.routes import LINE_END_M, held_box, short_of
+from pickdemo.skills.pick.routes import held_box
 from pickdemo.skills.pick.take import go_home, wrist_load
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
@@ -58,6 +59,17 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
         high = (lower.lift.position[2] - m.plan.grasp.position[2]) * 1e3
         m.note(f"lifting only {high:.0f} mm: higher, the arm could not keep the hand pointing down")
         m.plan = lower
+    if m.p.plan_around and m.plan.withdraw is None:  # (a shelf's way out is its own)
+        fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
+        scene = m.router.scene(m.world, held=m.held)
+        share = m.router.free_share(scene, m.arm.motion.q, m.plan.lift, fingers)
+        if share < 1.0:  # lifted only as high as it keeps clear (the carry then goes around)
+            z = m.plan.grasp.position[2] + share * (m.plan.lift.position[2] - m.plan.grasp.position[2])
+            z = max(z, m.plan.grasp.position[2] + m.p.payload.lift_off_m)
+            m.note(f"lifting only {(z - m.plan.grasp.position[2]) * 1e3:.0f} mm: higher, it would meet something")
+            m.plan = dataclasses.replace(
+                m.plan, lift=Pose(np.array([*m.plan.lift.position[:2], z]), m.plan.lift.rotation)
+            )
     motion = m.arm.motion
     lift = m.arm.move.x4(m.plan.lift)
     v = motion.velocity[:2]
@@ -101,8 +113,7 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
     scene = m.router.scene(m.world, held=m.held) if p.plan_around else None
     if straight and (not p.joint_transfers or m.arm.straight_carry_ok(m.plan, m.lift_scale)):
-        lowered = short_of(m.plan.place_above, m.plan.place, LINE_END_M)  # (then down onto the place)
-        ends = [m.plan.place_above, lowered]
+        ends = [m.plan.place_above, m.plan.place]  # (then down onto the place)
         hit = None if scene is None else m.router.line_blocked(scene, m.arm.motion.q, ends, fingers)
         if hit is None or not p.joint_transfers:
             m.arm.move.to(m.plan.place_above, limits=p.free.scaled(m.lift_scale * m.scale.carry_share()))

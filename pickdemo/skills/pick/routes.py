@@ -33,9 +33,6 @@ MARGIN_M = 0.01
 HELD_MARGIN_M = 0.01
 #: A straight Cartesian motion is checked every this far along it (m).
 LINE_STEP_M = 0.02
-#: A line that ends in a contact allowed there (the fingers about the target, the held object on its
-#: place) is checked to this far short of its end (m): the held object's margin, and half a centimetre.
-LINE_END_M = 0.015
 #: A straight joint transfer is checked every this much of its largest joint's travel (rad).
 JOINT_STEP_RAD = 0.02
 
@@ -59,15 +56,6 @@ STRAIGHT = Route()
 def grown(box: OrientedBox, by_m: float | np.ndarray) -> OrientedBox:
     g = np.broadcast_to(np.asarray(by_m, dtype=float), (3,))
     return OrientedBox(box.pose, np.asarray(box.lo) - g, np.asarray(box.hi) + g)
-
-
-def short_of(start: Pose, end: Pose, by_m: float) -> Pose:
-    """``end`` drawn back ``by_m`` toward ``start`` (at ``start`` if nearer)."""
-    d = end.position - start.position
-    length = float(np.linalg.norm(d))
-    if length <= by_m:
-        return start
-    return Pose(end.position - d / length * by_m, end.rotation)
 
 
 def nearest_turn(q: np.ndarray, q_from: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -152,17 +140,29 @@ class Router:
         return lambda qa, qb: scene.segment_free(qa, qb, fingers_m, JOINT_STEP_RAD)
 
     def accepting(
-        self, scene: CollisionScene, ends: Sequence[Pose], fingers_m: float, stop_m: float = LINE_END_M
+        self, scene: CollisionScene, ends: Sequence[Pose], fingers_m: float
     ) -> Callable[[np.ndarray, int], bool]:
         """``accept(q, i)`` for :meth:`~pickdemo.skills.pick.arm.ArmDriver.goal`: whether the straight line
-        from the hand's pose at ``q`` to ``ends[i]`` (a descent to the grasp, a lowering to the place),
-        stopped ``stop_m`` short of it, keeps clear (what the hand touches at its end is allowed: the
-        target at the grasp, the place under what it holds)."""
+        from the hand's pose at ``q`` to ``ends[i]`` (a descent to the grasp, a lowering to the place)
+        keeps clear (what the hand touches at its end is allowed: the target is no obstacle, and the
+        held object is not checked against the table)."""
 
         def accept(q: np.ndarray, i: int) -> bool:
-            return self.line_blocked(scene, q, [short_of(self.kin.forward(q), ends[i], stop_m)], fingers_m) is None
+            return self.line_blocked(scene, q, [ends[i]], fingers_m) is None
 
         return accept
+
+    def free_share(self, scene: CollisionScene, q_from: np.ndarray, end: Pose, fingers_m: float) -> float:
+        """How much of the hand's straight Cartesian motion to ``end`` from the arm at ``q_from`` keeps
+        clear, as a share of its length (1.0: all of it; a lift stops below what it would meet)."""
+        start = self.kin.forward(q_from)
+        n = max(2, int(np.ceil(float(np.linalg.norm(end.position - start.position)) / LINE_STEP_M)))
+        for k, q_k in enumerate(along_line(self.kin, q_from, start, end, n), start=1):
+            if q_k is None:
+                return 1.0  # (not followed to its end: the caller's checks say so)
+            if not scene.free(q_k, fingers_m):
+                return (k - 1) / n
+        return 1.0
 
     @staticmethod
     def _blocked(scene: CollisionScene, qa: np.ndarray, qb: np.ndarray, fingers_m: float) -> tuple[str, str] | None:

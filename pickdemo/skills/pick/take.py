@@ -198,8 +198,8 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
         return
     fingers = m.plan.open_m or m.grip.finger_max_m
     scene = m.router.scene(m.world) if m.p.plan_around else None
-    grasps = [m.plan.grasp, half_turn(m.plan.grasp)]  # (the descent checked all the way: the target is no obstacle)
-    accept = None if scene is None else m.router.accepting(scene, grasps, fingers, stop_m=0.0)
+    grasps = [m.plan.grasp, half_turn(m.plan.grasp)]
+    accept = None if scene is None else m.router.accepting(scene, grasps, fingers)
     q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept)
     if q is None:
         m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
