@@ -54,11 +54,15 @@ class Goal:
     dip_m: float = 0.0  # how far the transfer to it would take the hand below the lower of its two ends
 
 
-def along_line(kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, n: int) -> Iterator[np.ndarray | None]:
+def along_line(
+    kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, n: int, posture: np.ndarray | None = None
+) -> Iterator[np.ndarray | None]:
     """The per-tick IK's joints at ``n`` points of the straight line from ``start`` (the arm at ``q``)
-    to ``end`` (its orientation), each warm-started from the last and held to the posture at ``q``;
-    ``None`` where it does not converge (and nothing after)."""
-    q_prev = q_start = np.asarray(q, dtype=float)
+    to ``end`` (its orientation), each warm-started from the last and held to the posture at ``q`` (or
+    ``posture``: the Cartesian motion's, where it is under way); ``None`` where it does not converge
+    (and nothing after)."""
+    q_prev = np.asarray(q, dtype=float)
+    q_start = q_prev if posture is None else np.asarray(posture, dtype=float)
     for k in range(1, n + 1):
         p = start.position + (end.position - start.position) * (k / n)
         res = kin.track(Pose(p, end.rotation), q_prev, max_iterations=8, posture=q_start)

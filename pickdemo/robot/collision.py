@@ -54,7 +54,9 @@ class RobotGeometry:
         self.geometry = pin.buildGeomFromUrdf(self.model, str(urdf), pin.COLLISION, package_dirs=dirs)
         for obj in self.geometry.geometryObjects:  # a mesh as its convex hull, as the simulator takes it
             if isinstance(obj.geometry, coal.BVHModelBase):
-                obj.geometry.buildConvexRepresentation(False)
+                obj.geometry.buildConvexHull(
+                    True, "Qt"
+                )  # (buildConvexRepresentation keeps the mesh's faces: not a hull)
                 obj.geometry = obj.geometry.convex
         self.robot = robot
 

@@ -62,7 +62,7 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
     if m.p.plan_around and m.plan.withdraw is None:  # (a shelf's way out is its own)
         fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
         scene = m.router.scene(m.world, held=m.held)
-        share = m.router.free_share(scene, m.arm.motion.q, m.plan.lift, fingers)
+        share = m.router.free_share(scene, m.arm.motion.q, m.plan.lift, fingers, m.arm.motion.posture)
         if share < 1.0:  # lifted only as high as it keeps clear (the carry then goes around)
             z = m.plan.grasp.position[2] + share * (m.plan.lift.position[2] - m.plan.grasp.position[2])
             z = max(z, m.plan.grasp.position[2] + m.p.payload.lift_off_m)
@@ -114,7 +114,8 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     scene = m.router.scene(m.world, held=m.held) if p.plan_around else None
     if straight and (not p.joint_transfers or m.arm.straight_carry_ok(m.plan, m.lift_scale)):
         ends = [m.plan.place_above, m.plan.place]  # (then down onto the place)
-        hit = None if scene is None else m.router.line_blocked(scene, m.arm.motion.q, ends, fingers)
+        posture = m.arm.motion.posture
+        hit = None if scene is None else m.router.line_blocked(scene, m.arm.motion.q, ends, fingers, posture)
         if hit is None or not p.joint_transfers:
             m.arm.move.to(m.plan.place_above, limits=p.free.scaled(m.lift_scale * m.scale.carry_share()))
             return

@@ -115,16 +115,22 @@ class Router:
         return self._plan(scene, q_from, near, fingers_m, self._blocked(scene, q_from, near, fingers_m))
 
     def line_blocked(
-        self, scene: CollisionScene, q_from: np.ndarray, ends: Sequence[Pose], fingers_m: float
+        self,
+        scene: CollisionScene,
+        q_from: np.ndarray,
+        ends: Sequence[Pose],
+        fingers_m: float,
+        posture: np.ndarray | None = None,
     ) -> tuple[str, str] | None:
         """What the hand's straight Cartesian motion through ``ends`` (one line after another) from the
-        arm at ``q_from`` would meet first, as the per-tick IK follows it (the link, what it meets), or None."""
+        arm at ``q_from`` would meet first, as the per-tick IK follows it (held to ``posture``, the Cartesian
+        motion's, if given; the link, what it meets), or None."""
         if not scene.model.collisionPairs:
             return None
         q, start = q_from, self.kin.forward(q_from)
         for end in ends:
             n = max(2, int(np.ceil(float(np.linalg.norm(end.position - start.position)) / LINE_STEP_M)))
-            for q_k in along_line(self.kin, q, start, end, n):
+            for q_k in along_line(self.kin, q, start, end, n, posture):
                 if q_k is None:
                     return None  # (not followed to its end: the caller's checks say so)
                 hit = scene.contact(q_k, fingers_m)
@@ -152,12 +158,14 @@ class Router:
 
         return accept
 
-    def free_share(self, scene: CollisionScene, q_from: np.ndarray, end: Pose, fingers_m: float) -> float:
+    def free_share(
+        self, scene: CollisionScene, q_from: np.ndarray, end: Pose, fingers_m: float, posture: np.ndarray | None = None
+    ) -> float:
         """How much of the hand's straight Cartesian motion to ``end`` from the arm at ``q_from`` keeps
         clear, as a share of its length (1.0: all of it; a lift stops below what it would meet)."""
         start = self.kin.forward(q_from)
         n = max(2, int(np.ceil(float(np.linalg.norm(end.position - start.position)) / LINE_STEP_M)))
-        for k, q_k in enumerate(along_line(self.kin, q_from, start, end, n), start=1):
+        for k, q_k in enumerate(along_line(self.kin, q_from, start, end, n, posture), start=1):
             if q_k is None:
                 return 1.0  # (not followed to its end: the caller's checks say so)
             if not scene.free(q_k, fingers_m):
