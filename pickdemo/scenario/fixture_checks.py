@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 
 from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
+from pickdemo.robot.collision import CollisionScene, Obstacle, robot_geometry
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.scenario.base import ScenarioError
 from pickdemo.scenario.fixtures import BinSpec, ModelSpec
@@ -70,6 +71,8 @@ def check_fixtures(sc: Scenario) -> None:
             _check_walls_free(sc, f, key)
         else:
             _check_model(sc, f, key)
+        _check_home_clear(sc, f, key)
+    _check_not_enclosed(sc)
 
 
 def _xy(f: BinSpec | ModelSpec) -> str:
@@ -151,3 +154,48 @@ def _check_model(sc: Scenario, f: ModelSpec, key: str) -> None:
                 f"{what}: ({x:.3f}, {y:.3f}) m is inside or against {key} (what stands there needs "
                 f"{r * 1e3:.0f} mm clear around it)"
             )
+
+
+def _check_home_clear(sc: Scenario, f: BinSpec | ModelSpec, key: str) -> None:
+    """The robot at its home posture (where every episode starts) stands clear of the fixture, by its
+    links' collision geometry."""
+    robot = sc.robot_description
+    scene = CollisionScene(robot_geometry(robot), [Obstacle(key, b) for b in f.boxes()])
+    hit = scene.contact(robot.home_q, robot.gripper.finger_max_m)
+    if hit is not None:
+        raise ScenarioError(f"{key}.position: the {f.kind} at {_xy(f)} meets the robot's {hit[0]} at its home posture")
+
+
+#: The ways a hand can come to a target: from above, and from each side across the table.
+APPROACHES = ((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, -1.0, 0.0))
+#: A way is closed when a fixture stands in it within this far (m) ...
+CLOSED_WITHIN_M = 0.6
+#: ... looked for every this far along it (m).
+CLOSED_STEP_M = 0.005
+
+
+def _check_not_enclosed(sc: Scenario) -> None:
+    """A target that fixtures enclose on every side a hand can come from (above, and the four sides),
+    wherever its range puts it, cannot be picked: refused before it runs."""
+    boxes = [b for f in sc.fixtures for b in f.boxes()]
+    target = next((o for o in sc.objects if o.target), None)
+    if not boxes or target is None:
+        return
+    rng = target.region_range
+    if rng is None:
+        assert target.position is not None
+        spots = [tuple(target.position)]
+    else:
+        (x0, x1), (y0, y1) = rng
+        spots = [(x0, y0), (x0, y1), (x1, y0), (x1, y1), ((x0 + x1) / 2.0, (y0 + y1) / 2.0)]
+    steps = np.arange(CLOSED_STEP_M, CLOSED_WITHIN_M, CLOSED_STEP_M)[:, None]
+    for x, y in spots:
+        z = (target.level_m or 0.0) + 0.02  # (about its middle, on what it stands on)
+        at = np.array([x, y, z])
+        if not all(any(b.contains(at + steps * np.array(d)).any() for b in boxes) for d in APPROACHES):
+            return
+    x, y = spots[-1]
+    raise ScenarioError(
+        f"objects.{target.name}: at ({x:.3f}, {y:.3f}) m the fixtures enclose it on every side a hand can "
+        "come from (above and the four sides across the table): no approach can reach it"
+    )

@@ -38,6 +38,9 @@ velocity_scale = 1.0
 max_attempts = 3
 """
 
+#: The fixtures the motion scenarios ship (a wall, a cubby).
+FIXTURES = Path(__file__).resolve().parents[2] / "assets" / "fixtures"
+
 SECOND = '\n[[objects]]\nname = "other"\nshape = "box"\nsize = [0.05, 0.05, 0.05]\ncolor = [0.1, 0.1, 0.9]\n'
 
 
@@ -524,6 +527,18 @@ FILE_CASES: list[tuple[str, str, str]] = [
         + _model("position = [0.0, 1.5, -0.75]"),
         "objects.cube at (-0.02, 1.15): out of the arm's reach",
     ),  # fmt: skip
+    (
+        "model: meets the robot at home",
+        GOOD + _model(f'position = [0.31, 0.0, 0.38]\nyaw_deg = 90.0\nfile = "{FIXTURES / "wall.urdf"}"', name="wall"),
+        "fixtures.wall.position: the model at (0.310, 0.000) meets the robot's panda_",
+    ),
+    (
+        "model: the target enclosed on every side",
+        _edit("position_range = [[0.45, 0.55], [-0.05, 0.05]]", "position_range = [[0.53, 0.58], [-0.04, 0.04]]")
+        + _model(f'position = [0.56, 0.0, 0.0]\nfile = "{FIXTURES / "cubby.urdf"}"', name="cubby")
+        + _model(f'position = [0.437, 0.0, 0.0]\nyaw_deg = 90.0\nfile = "{FIXTURES / "wall.urdf"}"', name="door"),
+        "objects.cube: at (0.555, 0.000) m the fixtures enclose it on every side a hand can come from",
+    ),
     (
         "object: on no fixture's top",
         _edit("target = true", "target = true\nlevel_m = 0.1"),
