@@ -19,7 +19,7 @@ target is none while the hand goes to it; the place's surface is none at the rel
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import coal
@@ -127,6 +127,8 @@ class CollisionScene:
         self.data = pin.GeometryData(gm)
         self._pin = geometry.model.createData()
         self.checks = 0  # configurations checked (a planner's effort)
+        #: the same scene with tighter margins, where its maker has one (a planner whose ends are within these)
+        self.tighter: Callable[[], CollisionScene] | None = None
 
     def free(self, arm_q: np.ndarray, fingers_m: np.ndarray | float) -> bool:
         """Whether nothing of the robot (and what it holds) meets an obstacle at these joint states."""

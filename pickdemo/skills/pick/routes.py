@@ -29,6 +29,9 @@ from pickdemo.worldmodel import WorldModel
 #: An object's box is grown by this every way, beyond two of its standard deviations (m): the arm's
 #: and the held object's clearance from what the cameras saw; a fixture's by this alone.
 MARGIN_M = 0.01
+#: The margin a motion is planned with when one of its ends is within the other (m): the hand at a
+#: grasp beside a neighbour, the fixtures' own clearance.
+TIGHT_MARGIN_M = 0.003
 #: The held object's box is grown by this every way (m): it may turn a little in the fingers.
 HELD_MARGIN_M = 0.01
 #: A straight Cartesian motion is checked every this far along it (m).
@@ -95,16 +98,23 @@ class Router:
         self.seconds: list[float] = []  # each plan's wall time (the profile's and the bench's)
         self.checks: list[int] = []  # the states each plan checked (none found: its budget)
 
-    def scene(self, world: WorldModel, *, held: OrientedBox | None = None) -> CollisionScene:
+    def scene(
+        self, world: WorldModel, *, held: OrientedBox | None = None, margin_m: float = MARGIN_M
+    ) -> CollisionScene:
         """The robot among the fixtures and the world's objects but the target (the hand goes to it,
-        or holds it: then ``held``, its box in the TCP's frame)."""
-        obstacles = list(self.fixtures)
+        or holds it: then ``held``, its box in the TCP's frame), each grown by ``margin_m`` (an object's
+        by two of its standard deviations besides). Its ``tighter``: the same at :data:`TIGHT_MARGIN_M`."""
+        grow = margin_m - MARGIN_M
+        obstacles = [o if o.name == TABLE else Obstacle(o.name, grown(o.box, grow)) for o in self.fixtures]
         for obj in world.objects.values():
             if obj.is_target or len(obj.by_camera) == 0:
                 continue
             sigma = np.sqrt(np.clip(np.diag(obj.cov), 0.0, None))
-            obstacles.append(Obstacle(f"object {obj.id}", grown(obj.box, MARGIN_M + 2.0 * sigma)))
-        return CollisionScene(robot_geometry(self.kin.robot), obstacles, held)
+            obstacles.append(Obstacle(f"object {obj.id}", grown(obj.box, margin_m + 2.0 * sigma)))
+        scene = CollisionScene(robot_geometry(self.kin.robot), obstacles, held)
+        tighter = margin_m > TIGHT_MARGIN_M
+        scene.tighter = (lambda: self.scene(world, held=held, margin_m=TIGHT_MARGIN_M)) if tighter else None
+        return scene
 
     def joint(self, scene: CollisionScene, q_from: np.ndarray, q_goal: np.ndarray, fingers_m: float) -> Route:
         """A transfer in joint space to ``q_goal`` (each joint a whole turn nearer where it can be): straight
@@ -163,6 +173,8 @@ class Router:
     ) -> float:
         """How much of the hand's straight Cartesian motion to ``end`` from the arm at ``q_from`` keeps
         clear, as a share of its length (1.0: all of it; a lift stops below what it would meet)."""
+        if not scene.free(q_from, fingers_m):
+            return 1.0  # (it starts within a margin, beside its neighbour: the margin says nothing of the way up)
         start = self.kin.forward(q_from)
         n = max(2, int(np.ceil(float(np.linalg.norm(end.position - start.position)) / LINE_STEP_M)))
         for k, q_k in enumerate(along_line(self.kin, q_from, start, end, n, posture), start=1):
@@ -192,9 +204,11 @@ class Router:
         said = "" if hit is None else f"{hit[0]} would meet {hit[1]}"
         for end, q in (("start", q_from), ("goal", q_goal)):
             at = scene.contact(q, fingers_m)
-            if at is not None:  # (the model's margins are wider than the grasp's clearance: straight, as before)
-                return Route(note=f"{said} on the straight way, but the {end} is not free in the model "
-                                  f"({at[0]} within the margin of {at[1]}): going straight")  # fmt: skip
+            if at is not None and scene.tighter is not None:  # (a hand beside its target is within a margin)
+                return self._plan(scene.tighter(), q_from, q_goal, fingers_m, hit)
+            if at is not None:  # (within even the tight margin: straight, as before)
+                within = f"{at[0]} within {TIGHT_MARGIN_M * 1e3:.0f} mm of {at[1]}"
+                return Route(note=f"{said} on the straight way, but the {end} is not free ({within}): going straight")
         t0 = time.perf_counter()
         seed = int(self.rng.integers(2**31 - 1))
         path = plan_joint_path(
