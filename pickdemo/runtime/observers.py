@@ -213,6 +213,7 @@ class _OverlayObserver(Observer):
             grasp=None if plan is None or m.state.value not in GRASP_STATES else plan.grasp,
             grasp_width_m=0.0 if plan is None else plan.object_width_m,
             objects=_world_labels(m),
+            planned_path=getattr(m, "planned_path", None),
         )
 
 

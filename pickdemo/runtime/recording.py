@@ -94,6 +94,7 @@ class RerunRecorder(Observer):
         self.setpoints: list[tuple[float, np.ndarray]] = []
         self.commands: list[tuple[float, np.ndarray]] = []
         self.tracked: list[tuple[float, Pose]] = []
+        self._planned: np.ndarray | None = None  # the planned path last drawn
         model = ep.model
         g = model.geometry
         shapes: tuple = ()  # an object nobody described: its axes only (its shape is what the camera sees)
@@ -129,6 +130,14 @@ class RerunRecorder(Observer):
         if m.tracker.initialised:
             tp = m.tracker.predict(now)
             self.tracked.append((now, Pose.from_xyz_rpy(tp.position, yaw=tp.yaw_rad)))
+        planned = getattr(m, "planned_path", None)  # a path planned around something, while the arm is on it
+        if (planned is None) != (self._planned is None) or (planned is not None and planned is not self._planned):
+            self._time(now)
+            if planned is None:
+                self.rec.log("world/planned_path", self.rr.Clear(recursive=False))
+            else:
+                self.rec.log("world/planned_path", self.rr.LineStrips3D([planned], radii=0.003, colors=[[80, 255, 80]]))
+            self._planned = planned
 
     def frame(self, ep: EpisodeView, now: float, frame: RGBDFrame, result: PoseEstimate | PerceptionError) -> None:
         rr = self.rr

@@ -36,6 +36,7 @@ ELLIPSE_COLOUR = (255, 200, 0)
 FEATURE_COLOUR = (255, 255, 0)
 PATH_COLOUR = (255, 0, 255)
 GRASP_COLOUR = (255, 140, 0)
+PLANNED_COLOUR = (80, 255, 80)  # the TCP along a path planned around something
 ID_COLOUR = (120, 230, 255)  # the world model's ids (the target's in the tracker's colour)
 CAPTION_BAR_PX = 28
 LEGEND_BAR_PX = 20
@@ -82,6 +83,7 @@ class Overlay:
     grasp_width_m: float = 0.0
     #: the world model's objects: (id, where its top's middle is, whether it is the target)
     objects: tuple[tuple[int, np.ndarray, bool], ...] = ()
+    planned_path: np.ndarray | None = None  # (N, 3) the TCP along a path planned around something
 
 
 def _to_pixels(points_world: np.ndarray, K: Intrinsics, T_world_cam: Pose) -> np.ndarray | None:
@@ -132,6 +134,10 @@ def draw_overlay(img: np.ndarray, K: Intrinsics, T_world_cam: Pose, ov: Overlay)
         if uv is not None:
             for a in uv[::2]:
                 cv2.circle(out, _pt(a), 1, PATH_COLOUR, -1)
+    if ov.planned_path is not None and len(ov.planned_path) > 1:
+        uv = _to_pixels(ov.planned_path, K, T)
+        if uv is not None:
+            cv2.polylines(out, [np.round(uv).astype(np.int32)], False, PLANNED_COLOUR, 1, cv2.LINE_AA)
     if ov.tracked is not None:
         uv = _to_pixels(ov.tracked, K, T)
         if uv is not None:
@@ -199,6 +205,9 @@ def legend_bar(width: int, height: int = LEGEND_BAR_PX) -> np.ndarray:
         cv2.circle(bar, (u, y), 3, GRASP_COLOUR, 2, cv2.LINE_AA)
     x += 22
     text("planned grasp")
+    cv2.polylines(bar, [np.array([[x, y + 4], [x + 6, y - 4], [x + 14, y - 2]], np.int32)], False, PLANNED_COLOUR, 1)
+    x += 18
+    text("planned path")
     return bar
 
 

@@ -395,3 +395,17 @@ def test_bench_table_and_plot_of_several_scenarios(tmp_path: Path) -> None:
     all_ok = [r for r in results if r["success"]]
     _not_blank(write_bench_plots(summarise(all_ok), all_ok, tmp_path / "all_ok.png"), min_colours=20)
     assert cv2.imread(str(tmp_path / "all_ok.png")).shape[1] < cv2.imread(str(tmp_path / "some_failed.png")).shape[1]
+
+
+def test_the_video_draws_a_planned_path_in_its_colour() -> None:
+    from pickdemo.core.camera import Intrinsics
+    from pickdemo.core.geometry import Pose
+    from pickdemo.runtime.video import PLANNED_COLOUR, Overlay, draw_overlay
+
+    K = Intrinsics(fx=500.0, fy=500.0, cx=320.0, cy=240.0, width=640, height=480)
+    down = Pose(np.array([0.5, 0.0, 1.0]), np.diag([1.0, -1.0, -1.0]))  # a camera 1 m above, looking down
+    path = np.array([[0.4, -0.1, 0.1], [0.5, 0.0, 0.3], [0.6, 0.1, 0.1]])
+    img = np.zeros((480, 640, 3), np.uint8)
+    drawn = draw_overlay(img, K, down, Overlay(caption="", planned_path=path))
+    assert np.all(drawn.reshape(-1, 3) == PLANNED_COLOUR, axis=1).sum() > 50
+    assert not np.any(draw_overlay(img, K, down, Overlay(caption="")))

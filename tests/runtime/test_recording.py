@@ -84,3 +84,17 @@ def test_rerun_without_rerun_sdk_is_a_usage_error(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and ".[rerun]" in err and "--rerun" in err
     assert not (tmp_path / "x.rrd").exists()
+
+
+@pytest.mark.slow
+def test_a_path_planned_around_a_wall_is_drawn_in_the_recording_while_the_arm_is_on_it(tmp_path: Path) -> None:
+    pytest.importorskip("rerun")
+    from rerun.chunk import RrdReader
+
+    rrd = tmp_path / "episode.rrd"
+    scenario = Path(__file__).resolve().parents[2] / "scenarios" / "motion_over_a_wall.toml"
+    assert main(["run", str(scenario), "--seed", "3", "--out", str(tmp_path / "out"), "--rerun", str(rrd)]) == 0
+    store = RrdReader(rrd).store()
+    assert "/world/planned_path" in set(store.schema().entity_paths())
+    held = {c.archetype for c in store.schema().columns_for(entity_path="/world/planned_path")}
+    assert "rerun.archetypes.LineStrips3D" in held, held

@@ -43,5 +43,12 @@ class MachineReadout:
         """The joint command last sent (where the next controller takes over)."""
         return self.arm.limiter.q.copy()
 
+    @property
+    def planned_path(self) -> np.ndarray | None:
+        """(N, 3) where the TCP goes on the path planned around something, while the arm is on it
+        (None: no such path under way), for the video and the recording to draw."""
+        under_way = bool(self.arm.legs) or (self.arm.joint and not self.arm.joints.finished)
+        return self.router.path if under_way else None
+
     def cartesian_limits(self) -> tuple[list[float], list[float], list[float]]:
         return self.arm.cartesian_limits()

@@ -97,6 +97,7 @@ class Router:
         self.plans = 0
         self.seconds: list[float] = []  # each plan's wall time (the profile's and the bench's)
         self.checks: list[int] = []  # the states each plan checked (none found: its budget)
+        self.path: np.ndarray | None = None  # (N, 3) the TCP along the last path planned, for drawing
 
     def scene(
         self, world: WorldModel, *, held: OrientedBox | None = None, margin_m: float = MARGIN_M
@@ -119,6 +120,7 @@ class Router:
     def joint(self, scene: CollisionScene, q_from: np.ndarray, q_goal: np.ndarray, fingers_m: float) -> Route:
         """A transfer in joint space to ``q_goal`` (each joint a whole turn nearer where it can be): straight
         if its line is free, else a planned path."""
+        self.path = None  # (a new motion: the last path drawn no more)
         near = nearest_turn(q_goal, q_from, self.kin.lower, self.kin.upper)  # (the same posture, the shorter way)
         if not scene.model.collisionPairs or scene.segment_free(q_from, near, fingers_m, JOINT_STEP_RAD):
             return STRAIGHT if np.array_equal(near, q_goal) else Route(waypoints=near[None, :])
@@ -184,6 +186,12 @@ class Router:
                 return (k - 1) / n
         return 1.0
 
+    def _tcp_along(self, waypoints: np.ndarray, per_leg: int = 12) -> np.ndarray:
+        """The TCP's positions along a joint path (each leg a straight line in joint space)."""
+        legs = [a + (b - a) * t for a, b in zip(waypoints[:-1], waypoints[1:], strict=True)
+                for t in np.linspace(0.0, 1.0, per_leg, endpoint=False)]  # fmt: skip
+        return np.array([self.kin.forward(q).position for q in [*legs, waypoints[-1]]])
+
     @staticmethod
     def _blocked(scene: CollisionScene, qa: np.ndarray, qb: np.ndarray, fingers_m: float) -> tuple[str, str] | None:
         n = max(1, int(np.ceil(float(np.max(np.abs(qb - qa))) / JOINT_STEP_RAD)))
@@ -222,5 +230,6 @@ class Router:
         if path is None:
             return Route(failure=f"no path found in {self.max_checks} states checked: {said}", seconds=seconds)
         waypoints = path.waypoints[1:]
+        self.path = self._tcp_along(path.waypoints)
         note = f"planned around: {said} on the straight way, so by {len(waypoints) - 1} waypoint(s)"
         return Route(waypoints=waypoints, note=note, checks=path.checks, seconds=seconds)
