@@ -150,6 +150,12 @@ class ArmDriver:
             self.joints.start(self.motion.q, q_goal, scale=scale)
             self.joint = True
 
+    def joint_line(self, q_goal: np.ndarray, scale: float) -> None:
+        """A short line run as a joint transfer from rest (a grasp from the side's: see
+        :meth:`~pickdemo.skills.pick.routes.Router.line_in_joints`), at this share of the limits."""
+        self.joints.start(self.q, q_goal, scale=scale)
+        self.joint = True
+
     def cartesian(self) -> None:
         """The Cartesian motion takes over, at rest where a transfer left the arm."""
         if self.joint:

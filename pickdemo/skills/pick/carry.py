@@ -53,6 +53,7 @@ def _dropped(m: PickMachine, obs: Observation, stage: Stage, outcome: str) -> Tr
 def enter_lift(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
     m.grip.watch_hold()
+    m.arm.cartesian()  # (a side grasp's descent in joint space: the lift is a Cartesian line)
     m.held = held_box(m.world, m.kin.forward(obs.arm_q))  # (its box where it stood, as the hand holds it now)
     lower = m.arm.lift_in_reach(m.plan)
     if lower is not m.plan:

@@ -23,7 +23,7 @@ from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.motion.ik_goals import along_line
 from pickdemo.motion.planner import plan_joint_path
 from pickdemo.robot.collision import TABLE, CollisionScene, Obstacle, robot_geometry
-from pickdemo.robot.kinematics import Kinematics
+from pickdemo.robot.kinematics import IKParams, Kinematics
 from pickdemo.worldmodel import WorldModel
 
 #: An object's box is grown by this every way, beyond two of its standard deviations (m): the arm's
@@ -36,6 +36,10 @@ TIGHT_MARGIN_M = 0.003
 HELD_MARGIN_M = 0.01
 #: A straight Cartesian motion is checked every this far along it (m).
 LINE_STEP_M = 0.02
+#: A short line run as a joint transfer keeps the TCP this close to it (m) ...
+JOINT_LINE_M = 0.003
+#: ... and its orientation this close to the line's (rad).
+JOINT_LINE_RAD = float(np.radians(3.0))
 #: A straight joint transfer is checked every this much of its largest joint's travel (rad).
 JOINT_STEP_RAD = 0.02
 
@@ -151,6 +155,28 @@ class Router:
                 q = q_k
             start = end
         return None
+
+    def line_in_joints(
+        self, q_from: np.ndarray, pose: Pose, rng: np.random.Generator, ik: IKParams
+    ) -> np.ndarray | None:
+        """The IK goal of ``pose`` on the branch of ``q_from`` whose straight joint path keeps the TCP
+        within :data:`JOINT_LINE_M` of the straight line to it, and its orientation within
+        :data:`JOINT_LINE_RAD` (a short line of a grasp from the side, which the per-tick IK loses near
+        the arm's joint limits: run as a joint transfer instead), or None."""
+        res = self.kin.solve(pose, q_from, rng, ik)
+        if not res.success:
+            return None
+        a, b = self.kin.forward(q_from).position, pose.position
+        ab = b - a
+        length2 = float(ab @ ab)
+        for t in np.linspace(0.0, 1.0, 11)[1:-1]:
+            at = self.kin.forward(q_from + (res.q - q_from) * t)
+            s = 0.0 if length2 == 0.0 else float(np.clip((at.position - a) @ ab / length2, 0.0, 1.0))
+            off = float(np.linalg.norm(at.position - (a + s * ab)))
+            turn = np.arccos(np.clip((np.trace(at.rotation.T @ pose.rotation) - 1.0) / 2.0, -1.0, 1.0))
+            if off > JOINT_LINE_M or turn > JOINT_LINE_RAD:
+                return None
+        return res.q
 
     def clearance(self, scene: CollisionScene, fingers_m: float) -> Callable[[np.ndarray, np.ndarray], bool]:
         """``clear(q_a, q_b)``: whether the straight joint path between two configurations keeps clear

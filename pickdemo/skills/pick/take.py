@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pickdemo.core.geometry import Pose
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Stage
 from pickdemo.grasping.top_down import GraspPlan
@@ -206,7 +207,13 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
         return
     if turned:
         m.plan = turned_plan(m.plan, pick=True, place=True)
-    down = lambda: (m.arm.cartesian(), m.go_to(m.plan.pregrasp, limits=m.p.free))  # noqa: E731
+
+    def down() -> None:  # the last leg, to where the plan is by then
+        if _side_line(m, m.plan.pregrasp, m.p.transfer_scale):
+            return
+        m.arm.cartesian()
+        m.go_to(m.plan.pregrasp, limits=m.p.free)
+
     if scene is not None:
         route = m.router.joint(scene, m.arm.q, q, fingers)
         m.note(route.note)
@@ -310,8 +317,27 @@ def enter_descend(m: PickMachine, obs: Observation) -> None:
     m.descent_plan = m.plan
     v = m.intercept.velocity(m.now_s)
     m.descent_ref = (m.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, m.planned_at_s)
+    if _side_line(m, m.plan.grasp, SIDE_LINE_SCALE):
+        return
     m.arm.cartesian()
     m.go_to(m.plan.grasp, limits=m.intercept.near_limits(m.now_s))
+
+
+#: A grasp from the side's descent, run as a joint transfer, at this share of the joints' limits.
+SIDE_LINE_SCALE = 0.2
+
+
+def _side_line(m: PickMachine, pose: Pose, scale: float) -> bool:
+    """A grasp from the side's short straight line (the last of the way in, the descent) as a joint
+    transfer, where one keeps to the line (the per-tick IK loses tilted lines near the arm's joint
+    limits, as in a shelf's bin); False: the caller's Cartesian line."""
+    if not m.p.plan_around or hand_frame(pose.rotation) is None:
+        return False
+    q = m.router.line_in_joints(m.arm.q, pose, m.rng, m.p.goals.ik)
+    if q is None:
+        return False
+    m.arm.joint_line(q, scale)
+    return True
 
 
 def tick_descend(m: PickMachine, obs: Observation) -> Transition:
@@ -333,7 +359,8 @@ def tick_descend(m: PickMachine, obs: Observation) -> Transition:
                 f"the target moved {off * 1e3:.0f} mm, {np.degrees(turned):.0f} deg during the descent: "
                 "backing off to approach again"
             )
-        m.go_to(plan.grasp)
+        if not m.arm.joint:  # (a side grasp's descent in joint space goes to where it was planned)
+            m.go_to(plan.grasp)
     arrived = m.arm.finished or m.intercept.with_target(m.plan.grasp, m.now_s, m.planned_at_s)
     if arrived and not m.finished:
         return State.CLOSE, "at the grasp pose"
