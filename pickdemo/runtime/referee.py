@@ -24,6 +24,7 @@ from pickdemo.runtime.world import World
 from pickdemo.runtime.world_score import WorldScore
 from pickdemo.scenario.fixtures import seen_boxes
 from pickdemo.scenario.load import Scenario
+from pickdemo.sim.contacts import log_contacts
 from pickdemo.worldmodel import SceneView, WorldModel
 
 #: Above this, the tracker's belief was off when the robot committed to the grasp (scored on the truth).
@@ -67,7 +68,7 @@ class _WorldScoring:
     def log_collisions(self, target: str | None, place_xy: tuple[float, float] | None, objects=frozenset()) -> None:  # noqa: ANN001
         """From now on, the robot's contacts (and the target's) are judged as collisions or not
         (:mod:`pickdemo.runtime.collisions`)."""
-        self._contacts = self.world.scene.log_contacts()
+        self._contacts = log_contacts(self.world.scene)
         self._contacts.watch(target)
         self.collisions = CollisionTally(target, place_xy, frozenset(objects))
 

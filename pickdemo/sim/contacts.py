@@ -9,8 +9,13 @@ A contact begins when its pair (who, which link, what) was not touching in the l
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+import pybullet as p
+
+if TYPE_CHECKING:  # (the scene imports this module)
+    from pickdemo.sim.scene import Scene
 
 #: A pair apart for fewer steps than this (0.1 s at 240 Hz) touching again is the same contact.
 GAP_STEPS = 24
@@ -77,3 +82,17 @@ class ContactLog:
         """The contacts that began since the last call."""
         out, self._began = self._began, []
         return out
+
+
+def log_contacts(scene: Scene) -> ContactLog:
+    """From now on, the contacts that begin between the scene's robot and anything else, read after
+    each step (the truth, for scoring only)."""
+    c, robot = scene.client, scene.bodies["robot"]
+    links = {j: n for n, j in scene.link_index.items()}
+    fixed = {-1}  # the links no joint moves (the base, and what is fixed to it)
+    for j in range(c.getNumJoints(robot)):  # (a parent's index is below its child's)
+        info = c.getJointInfo(robot, j)
+        if info[2] == p.JOINT_FIXED and info[16] in fixed:
+            fixed.add(j)
+    scene.contact_log = ContactLog(c, scene.bodies, scene.fixture_bodies, links, fixed)
+    return scene.contact_log

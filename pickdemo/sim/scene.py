@@ -148,7 +148,9 @@ class Scene:
         self.fixture_bodies: dict[str, list[int]] = {}  # a bin's parts (not objects on the table)
         self.still_boxes: list[StillBox] = []  # in the order they were built
         self.belt = None
-        self.contact_log: ContactLog | None = None  # (the truth, for scoring: :meth:`log_contacts`)
+        self.contact_log: ContactLog | None = (
+            None  # (the truth, for scoring: :func:`~pickdemo.sim.contacts.log_contacts`)
+        )
         if scenario.conveyor is not None:  # before the table: TinyRenderer then shades only the belt where both are
             self.belt = Belt(self.client, scenario.conveyor)
             self.bodies["conveyor"] = self.belt.body
@@ -342,19 +344,6 @@ class Scene:
                 self.contact_log.read(self.sim_time_s)
             if self.gui:  # pace the window for a human; never affects the simulation's outcome
                 time.sleep(self.time_step_s)
-
-    def log_contacts(self) -> ContactLog:
-        """From now on, the contacts that begin between the robot and anything else, each step (the
-        truth, for scoring only)."""
-        c, robot = self.client, self.bodies["robot"]
-        links = {j: n for n, j in self.link_index.items()}
-        fixed = {-1}  # the links no joint moves (the base, and what is fixed to it)
-        for j in range(c.getNumJoints(robot)):  # (a parent's index is below its child's)
-            info = c.getJointInfo(robot, j)
-            if info[2] == p.JOINT_FIXED and info[16] in fixed:
-                fixed.add(j)
-        self.contact_log = ContactLog(c, self.bodies, self.fixture_bodies, links, fixed)
-        return self.contact_log
 
     # ------------------------------------------------------------------------------ its state
     def state(self) -> np.ndarray:

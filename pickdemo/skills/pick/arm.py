@@ -312,7 +312,7 @@ class ArmDriver:
         # turn only when that angle has no goal whose line can be followed and whose path does not dip.
         g = self.p.goals
         found = goal_candidates(self.kin, [pose], self.q, self.rng, g, lines_to=[line_to])
-        clear = found if accept is None else [c for c in found if accept(c.q, 0)]
+        clear = found if accept is None else [c for c in found if c.line_ok and accept(c.q, 0)]
         goal = choose_goal(clear, g)
         # (a jaw's hand turned half a turn about its TCP, the fixed jaw's face, would close away from
         # the object: its other angles are the grasp chooser's, each planned anew)
@@ -323,7 +323,7 @@ class ArmDriver:
             turned = goal_candidates(self.kin, poses[1:], self.q, self.rng, g, lines_to=ends[1:])
             turned = [dataclasses.replace(t, index=1) for t in turned]
             found += turned
-            clear += turned if accept is None else [c for c in turned if accept(c.q, 1)]
+            clear += turned if accept is None else [c for c in turned if c.line_ok and accept(c.q, 1)]
             goal = choose_goal(clear, g)
         if goal is None and accept is not None and found:
             # none clear: the arm's other postures, from more starts (each turned pose's too)
@@ -332,7 +332,7 @@ class ArmDriver:
             ends = [line_to] if not equivalent else [line_to, (half_turned or (None, half_turn(line_to)))[1]]
             for i, (p, e) in enumerate(zip(poses, ends, strict=True)):
                 extra = goal_candidates(self.kin, [p], self.q, self.rng, more, lines_to=[e])
-                clear += [dataclasses.replace(c, index=i) for c in extra if accept(c.q, i)]
+                clear += [dataclasses.replace(c, index=i) for c in extra if c.line_ok and accept(c.q, i)]
             goal = choose_goal(clear, g) or choose_goal(found, g)
         if goal is None:
             return None, 0

@@ -117,8 +117,11 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
         ends = [m.plan.place_above, m.plan.place]  # (then down onto the place)
         posture = m.arm.motion.posture
         hit = None if scene is None else m.router.line_blocked(scene, m.arm.motion.q, ends, fingers, posture)
+        limits = p.free.scaled(m.lift_scale * m.scale.carry_share())
         if hit is None or not p.joint_transfers:
-            m.arm.move.to(m.plan.place_above, limits=p.free.scaled(m.lift_scale * m.scale.carry_share()))
+            m.arm.move.to(m.plan.place_above, limits=limits)
+            return
+        if _carried_higher(m, scene, fingers, limits, hit):
             return
         m.note(f"carried in joint space: on the straight line, {hit[0]} would meet {hit[1]}")
     elif straight:
@@ -150,6 +153,29 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     m.note(note)
     if note is None:
         m.arm.transfer_to(q, scale)
+
+
+#: A carry whose straight line meets something goes this much higher first, if that keeps clear (m).
+CARRY_HIGHER_M = (0.05, 0.1, 0.15)
+
+
+def _carried_higher(m: PickMachine, scene, fingers: float, limits, hit: tuple[str, str]) -> bool:  # noqa: ANN001
+    """The carry as straight lines over what the straight one would meet: up, across, down to above the
+    place (the held object lifted over a tall box, a wall), where they keep clear and the per-tick IK
+    follows them; False: none does."""
+    assert m.plan is not None
+    here = m.kin.forward(m.arm.motion.q)
+    for dz in CARRY_HIGHER_M:
+        up, over = m.arm.raised(here, dz), m.arm.raised(m.plan.place_above, dz)
+        ends = [up, over, m.plan.place_above, m.plan.place]
+        if m.router.line_blocked(scene, m.arm.motion.q, ends, fingers, m.arm.motion.posture, untracked=True):
+            continue
+        m.arm.legs.clear()
+        m.arm.legs.extend([lambda over=over: m.arm.move.to(over), lambda: m.arm.move.to(m.plan.place_above)])
+        m.arm.move.to(up, limits=limits)
+        m.note(f"carried {dz * 1e2:.0f} cm higher: on the straight line, {hit[0]} would meet {hit[1]}")
+        return True
+    return False
 
 
 def tick_transport(m: PickMachine, obs: Observation) -> Transition:

@@ -137,6 +137,8 @@ class Router:
         ends: Sequence[Pose],
         fingers_m: float,
         posture: np.ndarray | None = None,
+        *,
+        untracked: bool = False,
     ) -> tuple[str, str] | None:
         """What the hand's straight Cartesian motion through ``ends`` (one line after another) from the
         arm at ``q_from`` would meet first, as the per-tick IK follows it (held to ``posture``, the Cartesian
@@ -147,8 +149,8 @@ class Router:
         for end in ends:
             n = max(2, int(np.ceil(float(np.linalg.norm(end.position - start.position)) / LINE_STEP_M)))
             for q_k in along_line(self.kin, q, start, end, n, posture):
-                if q_k is None:
-                    return None  # (not followed to its end: the caller's checks say so)
+                if q_k is None:  # (not followed to its end: the caller's checks say so, or it is said)
+                    return ("the hand's line", "the arm's reach") if untracked else None
                 hit = scene.contact(q_k, fingers_m)
                 if hit is not None:
                     return hit
