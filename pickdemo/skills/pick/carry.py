@@ -13,6 +13,7 @@ import numpy as np
 from pickdemo.core.geometry import Pose
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Failure, Stage
+from pickdemo.motion.ik_goals import along_line, line_trackable
 from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
@@ -170,12 +171,27 @@ def _carried_higher(m: PickMachine, scene, fingers: float, limits, hit: tuple[st
         ends = [up, over, m.plan.place_above, m.plan.place]
         if m.router.line_blocked(scene, m.arm.motion.q, ends, fingers, m.arm.motion.posture, untracked=True):
             continue
+        if not _followed(m, ends[:3], limits.velocity):  # (near a singular posture on the way)
+            continue
         m.arm.legs.clear()
         m.arm.legs.extend([lambda over=over: m.arm.move.to(over), lambda: m.arm.move.to(m.plan.place_above)])
         m.arm.move.to(up, limits=limits)
         m.note(f"carried {dz * 1e2:.0f} cm higher: on the straight line, {hit[0]} would meet {hit[1]}")
         return True
     return False
+
+
+def _followed(m: PickMachine, ends: list, speed_m_s: float) -> bool:
+    """Whether the per-tick IK follows these straight lines one after another, from where the arm is,
+    at this speed, with its joints within their speed limits (:func:`~pickdemo.motion.ik_goals.line_trackable`)."""
+    g = dataclasses.replace(m.p.goals, line_speed_m_s=speed_m_s)
+    q, start = m.arm.motion.q, m.kin.forward(m.arm.motion.q)
+    for end in ends:
+        if not line_trackable(m.kin, q, start, end, g):
+            return False
+        *_, q = along_line(m.kin, q, start, end, g.line_steps)
+        start = end
+    return True
 
 
 def tick_transport(m: PickMachine, obs: Observation) -> Transition:
