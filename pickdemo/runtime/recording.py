@@ -57,7 +57,7 @@ ENTITIES = (
     "/joints/command/q1",
     "/phases",
 )
-_JOINTS = tuple(f"q{i}" for i in range(1, 8))
+_JOINTS = tuple(f"q{i}" for i in range(1, 8))  # (at most 7: a robot's own arm has as many as it has)
 
 
 class RecordingUnavailable(RuntimeError):
@@ -252,7 +252,8 @@ class RerunRecorder(Observer):
             rec.set_time(TIMELINE, duration=float(self.ticks[-1]))
             rec.log("world/tcp/path", rr.LineStrips3D([tcp], radii=0.002))
         series("tcp/setpoint", ("x", "y", "z", "yaw"), self.setpoints)
-        series("joints/command", _JOINTS, self.commands)
+        dof = len(self.commands[0][1]) if self.commands else 0  # (the robot's own arm: 7, 6 or 5 joints)
+        series("joints/command", _JOINTS[:dof], self.commands)
         poses("world/truth", list(zip(self.ticks, self.truth, strict=True)))
         poses("world/tracker", self.tracked)
 

@@ -92,8 +92,8 @@ def test_a_path_planned_around_a_wall_is_drawn_in_the_recording_while_the_arm_is
     from rerun.chunk import RrdReader
 
     rrd = tmp_path / "episode.rrd"
-    scenario = Path(__file__).resolve().parents[2] / "scenarios" / "motion_over_a_wall.toml"
-    assert main(["run", str(scenario), "--seed", "3", "--out", str(tmp_path / "out"), "--rerun", str(rrd)]) == 0
+    scenario = Path(__file__).resolve().parents[2] / "scenarios" / "so101_motion_over_a_wall.toml"
+    assert main(["run", str(scenario), "--seed", "0", "--out", str(tmp_path / "out"), "--rerun", str(rrd)]) == 0
     store = RrdReader(rrd).store()
     assert "/world/planned_path" in set(store.schema().entity_paths())
     held = {c.archetype for c in store.schema().columns_for(entity_path="/world/planned_path")}
