@@ -321,7 +321,12 @@ class GraspChooser:
         scene = CollisionScene(robot_geometry(self.kin.robot), [Obstacle("a fixture", b) for b in solids])
         fingers = plan.open_m or self.kin.robot.gripper.finger_max_m
         if not scene.free(q_grasp, fingers):
-            return "the arm would meet a fixture at the grasp"
+            # the arm's other postures at the grasp (a 7-joint arm's elbow has room to move) before refusing
+            others = goal_candidates(self.kin, [plan.grasp], q_grasp, self.rng, self.p.goals)
+            free = [c.q for c in others if scene.free(c.q, fingers)]
+            if not free:
+                return "the arm would meet a fixture at the grasp"
+            q_grasp = free[0]
         for name, pose in poses:
             res = self.kin.solve(pose, q_grasp, self.rng, IKParams())
             if res.success and not scene.free(res.q, fingers):
