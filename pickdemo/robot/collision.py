@@ -147,10 +147,20 @@ class CollisionScene:
                 return self.names[pair.first], self.names[pair.second]
         return None
 
+    def segment_contact(
+        self, qa: np.ndarray, qb: np.ndarray, fingers_m: np.ndarray | float, step_rad: float = 0.02
+    ) -> tuple[str, str] | None:
+        """The first contact (as :meth:`contact`) on the straight joint path from ``qa`` to ``qb``,
+        checked every ``step_rad`` of its largest joint's travel (ends included), or None."""
+        n = max(1, int(np.ceil(float(np.max(np.abs(qb - qa))) / step_rad)))
+        for t in np.linspace(0.0, 1.0, n + 1):
+            hit = self.contact(qa + (qb - qa) * t, fingers_m)
+            if hit is not None:
+                return hit
+        return None
+
     def segment_free(
         self, qa: np.ndarray, qb: np.ndarray, fingers_m: np.ndarray | float, step_rad: float = 0.02
     ) -> bool:
-        """Whether the straight joint path from ``qa`` to ``qb`` is free, checked every ``step_rad``
-        of its largest joint's travel (ends included)."""
-        n = max(1, int(np.ceil(float(np.max(np.abs(qb - qa))) / step_rad)))
-        return all(self.free(qa + (qb - qa) * t, fingers_m) for t in np.linspace(0.0, 1.0, n + 1))
+        """Whether the straight joint path from ``qa`` to ``qb`` is free (:meth:`segment_contact`)."""
+        return self.segment_contact(qa, qb, fingers_m, step_rad) is None

@@ -128,7 +128,9 @@ class Router:
         near = nearest_turn(q_goal, q_from, self.kin.lower, self.kin.upper)  # (the same posture, the shorter way)
         if not scene.model.collisionPairs or scene.segment_free(q_from, near, fingers_m, JOINT_STEP_RAD):
             return STRAIGHT if np.array_equal(near, q_goal) else Route(waypoints=near[None, :])
-        return self._plan(scene, q_from, near, fingers_m, self._blocked(scene, q_from, near, fingers_m))
+        return self._plan(
+            scene, q_from, near, fingers_m, scene.segment_contact(q_from, near, fingers_m, JOINT_STEP_RAD)
+        )
 
     def line_blocked(
         self,
@@ -219,15 +221,6 @@ class Router:
         legs = [a + (b - a) * t for a, b in zip(waypoints[:-1], waypoints[1:], strict=True)
                 for t in np.linspace(0.0, 1.0, per_leg, endpoint=False)]  # fmt: skip
         return np.array([self.kin.forward(q).position for q in [*legs, waypoints[-1]]])
-
-    @staticmethod
-    def _blocked(scene: CollisionScene, qa: np.ndarray, qb: np.ndarray, fingers_m: float) -> tuple[str, str] | None:
-        n = max(1, int(np.ceil(float(np.max(np.abs(qb - qa))) / JOINT_STEP_RAD)))
-        for t in np.linspace(0.0, 1.0, n + 1):
-            hit = scene.contact(qa + (qb - qa) * t, fingers_m)
-            if hit is not None:
-                return hit
-        return None
 
     def _plan(
         self,
