@@ -262,7 +262,10 @@ def tick_approach(m: PickMachine, obs: Observation) -> Transition:
                 return None
             if turned:
                 m.plan = turned_plan(plan, pick=True, place=True)
-            m.arm.joints.retarget(q)
+            if _retarget_clear(m, q):
+                m.arm.joints.retarget(q)
+            elif before is not None:
+                m.plan = before  # (the plan of the goal the arm goes on to)
         else:
             m.go_to(plan.pregrasp)
     arrived = m.arm.finished or m.intercept.with_target(m.plan.pregrasp, m.now_s, m.planned_at_s)
@@ -281,6 +284,19 @@ def tick_approach(m: PickMachine, obs: Observation) -> Transition:
         moving = m.intercept.velocity(m.now_s) is not None
         return State.DESCEND, "above the target" + (", moving with it" if moving else "")
     return None
+
+
+def _retarget_clear(m: PickMachine, q: np.ndarray) -> bool:
+    """Whether a transfer under way may turn to the re-plan's goal ``q``: its straight path from where the
+    arm is now, and the descent from it, keep clear (a re-plan's goal may be on another branch, whose
+    path was never checked: the arm goes on to the goal it has, and the descent corrects)."""
+    if not m.p.plan_around:
+        return True
+    assert m.plan is not None
+    fingers = m.plan.open_m or m.grip.finger_max_m
+    scene = m.router.scene(m.world)
+    accept = m.router.accepting(scene, [m.plan.grasp], fingers)
+    return m.router.straight_free(scene, m.arm.q, q, fingers) and accept(q, 0)
 
 
 # ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
