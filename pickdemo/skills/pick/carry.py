@@ -17,7 +17,7 @@ from pickdemo.motion.ik_goals import along_line, line_trackable
 from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
-from pickdemo.skills.pick.routes import LINE_MARGIN_M, held_box
+from pickdemo.skills.pick.routes import held_box
 from pickdemo.skills.pick.take import go_home, wrist_load
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
@@ -63,7 +63,7 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
         m.plan = lower
     if m.p.plan_around and m.plan.withdraw is None:  # (a shelf's way out is its own)
         fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
-        scene = m.router.scene(m.world, held=m.held, margin_m=LINE_MARGIN_M)
+        scene = m.router.scene(m.world, held=m.held)
         share = m.router.free_share(scene, m.arm.motion.q, m.plan.lift, fingers, m.arm.motion.posture)
         if share < 1.0:  # lifted only as high as it keeps clear (the carry then goes around)
             z = m.plan.grasp.position[2] + share * (m.plan.lift.position[2] - m.plan.grasp.position[2])
@@ -114,24 +114,22 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     straight = not (p.joint_transfers and p.carry_in_joint_space)
     fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
     scene = m.router.scene(m.world, held=m.held) if p.plan_around else None
-    # (the lines the per-tick IK follows: checked with a wider margin)
-    lines = None if scene is None else m.router.scene(m.world, held=m.held, margin_m=LINE_MARGIN_M)
     if straight and (not p.joint_transfers or m.arm.straight_carry_ok(m.plan, m.lift_scale)):
         ends = [m.plan.place_above, m.plan.place]  # (then down onto the place)
         posture = m.arm.motion.posture
-        hit = None if lines is None else m.router.line_blocked(lines, m.arm.motion.q, ends, fingers, posture)
+        hit = None if scene is None else m.router.line_blocked(scene, m.arm.motion.q, ends, fingers, posture)
         limits = p.free.scaled(m.lift_scale * m.scale.carry_share())
         if hit is None or not p.joint_transfers:
             m.arm.move.to(m.plan.place_above, limits=limits)
             return
-        if _carried_higher(m, lines, fingers, limits, hit):
+        if _carried_higher(m, scene, fingers, limits, hit):
             return
         m.note(f"carried in joint space: on the straight line, {hit[0]} would meet {hit[1]}")
     elif straight:
         m.note("carried in joint space: the straight line would pass too near a singular posture")
     # in joint space, to a goal from which the lowering can be tracked
     other = turned_plan(m.plan, pick=False, place=True)
-    accept = None if lines is None else m.router.accepting(lines, [m.plan.place, other.place], fingers)
+    accept = None if scene is None else m.router.accepting(scene, [m.plan.place, other.place], fingers)
     q, turned = m.arm.goal(
         m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place), accept=accept
     )

@@ -29,10 +29,6 @@ from pickdemo.worldmodel import WorldModel
 #: An object's box is grown by this every way, beyond two of its standard deviations (m): the arm's
 #: and the held object's clearance from what the cameras saw; a fixture's by this alone.
 MARGIN_M = 0.01
-#: What a straight Cartesian carry is checked against is grown by this instead (m): the per-tick IK's
-#: free swing drifts from the line's simulation by more than the margin near a posture far from home
-#: (motion_over_a_wall seed 25: a forearm passed within 5 mm of the wall whose line cleared it by 1 cm).
-LINE_MARGIN_M = 0.02
 #: The margin a motion is planned with when one of its ends is within the other (m): the hand at a
 #: grasp beside a neighbour, the fixtures' own clearance.
 TIGHT_MARGIN_M = 0.003
