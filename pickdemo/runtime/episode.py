@@ -457,7 +457,7 @@ class Episode:
         self.referee.first_estimate(result)  # truth: for scoring only
         if self.counts.frames == 1:  # the first look: disturbances are timed from here
             self.pushes = [
-                PushPlayer(draw_push(d, now, world.rngs["disturbance"]), self.target_name)
+                PushPlayer(draw_push(d, now, world.rngs["disturbance"]), d.object or self.target_name)
                 for d in self.scenario.disturbances
             ]
         # Truth: for scoring only (an estimate that perception's own checks rejected included).

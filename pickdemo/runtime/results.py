@@ -92,7 +92,7 @@ def episode_result(
         estimates_off_fit_rejected=ref.wrong_estimates_self_rejected if ref is not None else 0,
         target_off_table=ref.off_table if ref is not None else None,
         perception_method=options.perception_method,
-        disturbances=tuple(p.push.to_dict() for p in pushes),
+        disturbances=tuple({**p.push.to_dict(), "object": p.body} for p in pushes),
         control_tick_wall_ms={
             "median": float(np.median(ticks)),
             "p95": float(np.percentile(ticks, 95)),

@@ -68,7 +68,8 @@ Push = Annotated[float, Field(ge=-0.5, le=0.5)]  # m, how far a push moves the t
 
 
 class DisturbanceSpec(Model):
-    """The target is pushed across the table while the robot works (a slide of ``duration_s``).
+    """The target (or the object named ``object``) is pushed across the table while the robot works (a
+    slide of ``duration_s``).
 
     The offset is fixed (``offset_m``), drawn per axis (``offset_range_m``) or drawn as a distance in
     a random direction (``distance_range_m``); the turn is fixed or drawn, either way when
@@ -85,6 +86,7 @@ class DisturbanceSpec(Model):
     yaw_range_deg: tuple[Angle, Angle] | None = None
     yaw_either_way: bool = False
     duration_s: Annotated[float, Field(gt=0.0, le=2.0)] = 0.3
+    object: Name | None = None  # the object pushed (None: the target)
 
     @model_validator(mode="after")
     def _check(self) -> DisturbanceSpec:
@@ -203,6 +205,9 @@ class Scenario(Model):
             if f.name in names:
                 raise ValueError(f"fixtures.{f.name}: an object has that name; fixtures and objects are named apart")
             names.append(f.name)
+        for i, d in enumerate(self.disturbances):
+            if d.object is not None and d.object not in [o.name for o in self.objects]:
+                raise ValueError(f"disturbances[{i}].object: {d.object!r} is not one of the objects")
         if not self.description.isprintable():
             raise ValueError("description: control characters are not allowed")
         self._place_beside()

@@ -101,3 +101,47 @@ def test_a_goal_a_whole_turn_off_is_the_same_posture_the_shorter_way() -> None:
     assert np.allclose(q, [5.38 - 2.0 * np.pi, -0.5, 1.0])
     panda = np.array([-2.9, 2.9])  # (no room for a turn: kept)
     assert np.allclose(nearest_turn(np.array([2.5]), np.array([-2.5]), panda[:1], panda[1:]), [2.5])
+
+
+def test_a_path_under_way_is_stopped_once_the_world_shows_something_in_it_and_not_for_what_stood_aside() -> None:
+    """The path watch (:mod:`pickdemo.skills.pick.replan`): a joint transfer's rest, checked again when a
+    view changes the world model, names what stands in it now; nothing while the way is clear, nothing
+    twice for the same view, nothing past the attempt's re-plans, nothing for a Cartesian motion."""
+    from types import SimpleNamespace
+
+    from pickdemo.skills.pick.params import MachineParams
+    from pickdemo.skills.pick.replan import PathWatch
+    from pickdemo.skills.pick.states import State
+
+    router, kin = _router()
+    world = WorldModel()
+    qa, qb = _q(kin, (0.3, -0.25, 0.25)), _q(kin, (0.3, 0.25, 0.25))
+    arm = SimpleNamespace(ahead=lambda: [qb], finished=False, q=qa)
+    m = SimpleNamespace(
+        p=MachineParams(), state=State.APPROACH, world=world, attempt=1, arm=arm, held=None, plan=None,
+        grip=SimpleNamespace(finger_max_m=0.04), router=router, grasp_width_m=None,
+    )  # fmt: skip
+    obs = SimpleNamespace(opening_m=0.08)
+    watch = PathWatch()
+    _object(world, (0.6, -0.3), (0.05, 0.05, 0.3))  # aside
+    world.views = 1
+    assert watch.blocked(m, obs) is None
+    post = _object(world, (0.39, 0.0), (0.06, 0.06, 0.4))  # pushed into the way
+    assert watch.blocked(m, obs) is None  # (no new view: not checked again)
+    world.views = 2
+    said = watch.blocked(m, obs)
+    assert said is not None and f"object {post.id}" in said, said
+    arm.ahead = lambda: []  # a Cartesian motion: not watched
+    world.views = 3
+    assert watch.blocked(m, obs) is None
+    arm.ahead = lambda: [qb]
+    for views in range(4, 4 + m.p.max_replans):
+        world.views = views
+        watch.blocked(m, obs)
+    world.views = 99
+    assert watch.blocked(m, obs) is None  # (the attempt's re-plans spent)
+    m.attempt, world.views = 2, 100
+    assert watch.blocked(m, obs) is not None
+    m.p = MachineParams(replan_on_change=False)
+    world.views = 101
+    assert watch.blocked(m, obs) is None

@@ -55,6 +55,7 @@ class ArmDriver:
         self.home_x4 = pose_to_x4(kin.forward(self.home_q))
         self.joint = False  # the joint-space transfer drives the arm (else the Cartesian motion)
         self.legs: deque[Callable[[], None]] = deque()  # the state's motion still to come, leg by leg
+        self.route: list[np.ndarray] = []  # the waypoints of the last path followed (:meth:`follow`)
         self.sample: MotionSample | None = None
         self.braked = False  # (end_at_rest) the motion under way at a failure has come to rest
         self._braking = False
@@ -65,6 +66,17 @@ class ArmDriver:
     def q(self) -> np.ndarray:
         """The arm's commanded configuration now."""
         return self.joints.q if self.joint else self.motion.q
+
+    def ahead(self) -> list[np.ndarray]:
+        """The joint transfer's goal under way and, on a planned path, the waypoints after it ([]: the
+        hand's motion is Cartesian)."""
+        if not self.joint:
+            return []
+        goal = self.joints.target
+        for i, q in enumerate(self.route):
+            if np.array_equal(q, goal):
+                return [goal, *self.route[i + 1 :]]
+        return [goal]
 
     @property
     def leg_finished(self) -> bool:
@@ -215,6 +227,7 @@ class ArmDriver:
         each from rest to rest (a transfer from rest to rest keeps to the straight line in joint space the
         plan checked), then ``then`` (the caller's last leg), if any."""
         self.legs.clear()
+        self.route = list(waypoints)
         for q in waypoints[1:]:
             self.legs.append(lambda q=q: self.transfer_to(q, scale))
         if then is not None:

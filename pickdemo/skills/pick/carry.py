@@ -21,6 +21,7 @@ from pickdemo.skills.pick.routes import held_box
 from pickdemo.skills.pick.take import go_home, wrist_load
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
+    from pickdemo.perception import PoseEstimate
     from pickdemo.skills.pick.machine import PickMachine
 
 
@@ -325,6 +326,19 @@ def tick_verify(m: PickMachine, obs: Observation) -> Transition:
     m.attempt += 1
     m.last_at = seen.copy()  # (picked up again from where it was seen lying)
     return State.LOOK, f"{said}: picking it up again; attempt {m.attempt} of {m.max_attempts} follows"
+
+
+def verify_frame(m: PickMachine, seen: PoseEstimate | None) -> None:
+    """A frame of the last look: over once two in a row agree (it lies still, or is nowhere twice)."""
+    last, m.verify_estimate = m.verify_estimate, seen
+    m.verify_frames += 1
+    if m.verify_frames < 2:
+        return
+    same = last is None and seen is None
+    if last is not None and seen is not None:
+        same = float(np.linalg.norm(seen.pose.position - last.pose.position)) <= m.p.verify_settled_m
+    if same or m.verify_frames >= m.p.verify_max_frames:
+        m.verify_asked, m.verify_settled = True, same
 
 
 def enter_done(m: PickMachine, obs: Observation) -> None:

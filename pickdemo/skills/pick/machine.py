@@ -33,6 +33,7 @@ from pickdemo.robot.collision import Obstacle
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.skills.actions import Grip, Scale
 from pickdemo.skills.pick.arm import ArmDriver
+from pickdemo.skills.pick.carry import verify_frame
 from pickdemo.skills.pick.chooser import GraspChooser
 from pickdemo.skills.pick.intercept import LEAVES_REACH, Interceptor
 from pickdemo.skills.pick.params import (
@@ -53,6 +54,7 @@ from pickdemo.skills.pick.params import (
 from pickdemo.skills.pick.place import PlaceFinder
 from pickdemo.skills.pick.plans import PlacedHigher
 from pickdemo.skills.pick.readout import MachineReadout
+from pickdemo.skills.pick.replan import PathWatch
 from pickdemo.skills.pick.routes import Router
 from pickdemo.skills.pick.search import Searcher
 from pickdemo.skills.pick.sightline import Sightline
@@ -175,7 +177,8 @@ class PickMachine(MachineReadout):
         #: hand angles to take the target by other faces than, if it has them: a finger touched
         #: something beside it going down, or the arm's motion failed
         self.avoid_yaws: list[float] = []
-        self.recovering = False  # a motion failed: the arm is brought to rest, to look again from home
+        self.recovering: tuple[State, str] | None = None  # brought to rest, then to this state (saying so)
+        self.paths = PathWatch()
         self.weighed_force_n = 0.0  # the grip force the payload asked for, once weighed
         self.forced_open = False  # releasing: the fingers were told to open with full force
         self.lifted_off = False  # lifting: past the pause just off the table where it is weighed
@@ -230,7 +233,7 @@ class PickMachine(MachineReadout):
             self._mark_target(frame_time_s)
             return Verdict.UNUSED
         if self.state is State.VERIFY:
-            self._verify_frame(result if isinstance(result, PoseEstimate) else None)
+            verify_frame(self, result if isinstance(result, PoseEstimate) else None)
             return Verdict.UNUSED
         looking = self.state is State.LOOK or (self.state in TRACKING_STATES and not self.open_loop)
         if not looking:
@@ -282,7 +285,9 @@ class PickMachine(MachineReadout):
             self.arm.legs.popleft()()
         if self.finished:
             return self._stopped()
-        if self.recovering:
+        if self.recovering is None and (blocked := self.paths.blocked(self, obs)) is not None:
+            self.recovering = (self.state, f"{blocked}: at rest, planning it again")
+        if self.recovering is not None:
             return self._recover()
         out = self.arm.step(self.grip)
         if isinstance(out, Failure):
@@ -292,7 +297,7 @@ class PickMachine(MachineReadout):
                 nxt = self.retry(out.stage, "motion failed", out.reason)
                 assert nxt is not None  # (an attempt is left)
                 self.note(nxt[1].replace("; attempt", ": braking to look again; attempt"))
-                self.recovering = True
+                self.recovering = (State.LOOK, "at rest after the failed motion: looking again")
                 return self._recover()
             self.fail(out.stage, out.reason)
             return self._stopped()
@@ -300,13 +305,13 @@ class PickMachine(MachineReadout):
         return out
 
     def _recover(self) -> Command:
-        """A tick of bringing the arm to rest after a failed motion (within the joints' limits); at rest,
-        look again from home."""
+        """A tick of bringing the arm to rest (within the joints' limits); at rest, on to the state
+        :attr:`recovering` names."""
         cmd = self.arm.brake(self.grip)
-        if self.arm.braked:
+        if self.arm.braked and self.recovering is not None:
             self.arm.rested()
-            self.recovering = False
-            self.go(State.LOOK, "at rest after the failed motion: looking again")
+            (state, message), self.recovering = self.recovering, None
+            self.go(state, message)
         return cmd
 
     def _stopped(self) -> Command:
@@ -318,18 +323,6 @@ class PickMachine(MachineReadout):
     def abort(self, stage: Stage, reason: str) -> None:
         """End the episode from outside (the step budget is spent)."""
         self.fail(stage, reason)
-
-    def _verify_frame(self, seen: PoseEstimate | None) -> None:
-        """A frame of the last look: over once two in a row agree (it lies still, or is nowhere twice)."""
-        last, self.verify_estimate = self.verify_estimate, seen
-        self.verify_frames += 1
-        if self.verify_frames < 2:
-            return
-        same = last is None and seen is None
-        if last is not None and seen is not None:
-            same = float(np.linalg.norm(seen.pose.position - last.pose.position)) <= self.p.verify_settled_m
-        if same or self.verify_frames >= self.p.verify_max_frames:
-            self.verify_asked, self.verify_settled = True, same
 
     # ============================================================================== transitions
     def go(self, state: State, message: str) -> None:

@@ -133,6 +133,11 @@ class MachineParams:
     #: a motion whose straight way meets something is planned around it (issue 59); off: straight, as before
     plan_around: bool = True
     plan_max_checks: int = 20000  # states a plan checks before it gives up (:mod:`pickdemo.motion.planner`)
+    #: a joint transfer's path is checked again each time a view changes the world model, and planned
+    #: again from rest where it meets something now (:mod:`pickdemo.skills.pick.replan`); at most so often
+    #: an attempt (a world model that keeps changing is not chased for ever)
+    replan_on_change: bool = True
+    max_replans: int = 3
     #: after the place, home, look at the place (a target seen put down off it is picked up again);
     #: off: done once home (a clear round looks at the whole table next)
     verify_place: bool = True

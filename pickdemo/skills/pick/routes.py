@@ -137,6 +137,24 @@ class Router:
         near = nearest_turn(q_goal, q_from, self.kin.lower, self.kin.upper)
         return not scene.model.collisionPairs or scene.segment_free(q_from, near, fingers_m, JOINT_STEP_RAD)
 
+    def path_contact(
+        self, scene: CollisionScene, q_from: np.ndarray, waypoints: Sequence[np.ndarray], fingers_m: float
+    ) -> tuple[str, str] | None:
+        """What the straight joint path from ``q_from`` through ``waypoints`` would meet first (as
+        :meth:`~pickdemo.robot.collision.CollisionScene.contact`), or None; None too where its start or
+        its end meets something already (a motion taken straight knowingly, as :meth:`joint` does)."""
+        if not scene.model.collisionPairs or not waypoints:
+            return None
+        if scene.contact(q_from, fingers_m) is not None or scene.contact(waypoints[-1], fingers_m) is not None:
+            return None
+        q = q_from
+        for w in waypoints:
+            hit = scene.segment_contact(q, w, fingers_m, JOINT_STEP_RAD)
+            if hit is not None:
+                return hit
+            q = w
+        return None
+
     def line_blocked(
         self,
         scene: CollisionScene,
