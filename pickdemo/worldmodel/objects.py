@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.core.geometry import OrientedBox, Pose, box_surface_points
 from pickdemo.perception.model import ObjectCloud
 from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.worldmodel.instances import Instance, SceneView
@@ -42,6 +42,13 @@ MIN_SIDE_M = 0.006
 PIECE_MARGIN_M = 0.01
 #: A view shows an object whole when its footprint seen covers this share of the object's.
 WHOLE_SHARE = 0.5
+#: What a view showed only in part (cut off at its edge) is taken to reach this high over the table (m):
+#: the rest of it is unseen (a region's view of a post beside the target shows its foot only).
+PIECE_TOP_M = 0.5
+#: ... and the grasps see its box's faces as points this far apart (m)
+PIECE_SPACING_M = 0.005
+#: ... and it is gone once a view reads the table's top (this high, m) all over its footprint
+TABLE_SEEN_M = 0.005
 #: Views in a row that should have shown an object and did not, and it is gone.
 GONE_AFTER = 2
 #: An instance whose top is this far above the held object's, as it stood, is it in the hand (m).
@@ -128,6 +135,10 @@ class WorldModel:
         self._target_at: tuple[np.ndarray, float] | None = None
         self._held: int | None = None  # the id of the object in the hand
         self.occupancy = Occupancy()  # the space seen free, apart from the never seen
+        #: what views showed in part and no object took (cut off at the edge of a region's view: an
+        #: object that moved there, in part), kept until a view shows the table there or an object takes
+        #: it: an obstacle to the arm, not an object (its boxes, from its points: :meth:`seen_in_part`)
+        self.pieces: list[OrientedBox] = []
 
     # ---------------------------------------------------------------------------------- update
     def update(self, view: SceneView) -> None:
@@ -157,10 +168,18 @@ class WorldModel:
             taken.add(k)
             matched.add(oid)
             self._seen(self.objects[oid], view.instances[k], view)
+        fresh: list[OrientedBox] = []
         for k, inst in enumerate(view.instances):
-            if k not in taken and not self._piece(inst) and not self._in_hand(inst):  # (no object of its own)
+            if k in taken or self._in_hand(inst):
+                continue
+            if not self._piece(inst):  # (no object of its own)
                 matched.add(self._add(inst, view))  # (new: this view showed it)
+            elif inst.clipped and inst.extents[1] >= MIN_SIDE_M and not self._of_an_object(inst):
+                lo, hi = inst.points.min(axis=0), inst.points.max(axis=0)
+                lo[2], hi[2] = 0.0, max(hi[2], PIECE_TOP_M)  # (on the table; its unseen rest as high as that)
+                fresh.append(OrientedBox(Pose.identity(), lo, hi))
         self._missed(view, matched)
+        self.pieces = [b for b in self.pieces if self._piece_kept(b, fresh, view)] + fresh
         self._mark()
 
     def _add(self, inst: Instance, view: SceneView) -> int:
@@ -207,7 +226,29 @@ class WorldModel:
         beside the hand, saw a piece of it)."""
         if inst.clipped or inst.extents[1] < MIN_SIDE_M:  # (a sliver beside the hand is an edge, not a thing)
             return True
+        return self._of_an_object(inst)
+
+    def _of_an_object(self, inst: Instance) -> bool:
+        """Whether the instance's centre lies in a known object's footprint (a piece of it)."""
         return any(_holds(obj, inst.centre) for obj in self.objects.values())
+
+    def seen_in_part(self) -> list[OrientedBox]:
+        """The boxes of what views showed in part only (:attr:`pieces`)."""
+        return list(self.pieces)
+
+    def _piece_kept(self, box: OrientedBox, fresh: list[OrientedBox], view: SceneView) -> bool:
+        """Whether a piece stays: no piece of this view stands on its footprint (the newer is kept), no
+        object holds its middle, and this view does not show the table all over its footprint."""
+        lo, hi = box.lo[:2], box.hi[:2]
+        if any(np.all(f.lo[:2] <= hi) and np.all(lo <= f.hi[:2]) for f in fresh):
+            return False
+        mid = 0.5 * (lo + hi)
+        if any(_holds(obj, mid) for obj in self.objects.values()):
+            return False
+        inner = lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo)
+        xs, ys = (inner[0][0], mid[0], inner[1][0]), (inner[0][1], mid[1], inner[1][1])
+        spots = np.array([[x, y, TABLE_SEEN_M] for x in xs for y in ys])
+        return not bool(np.all(view.sees(spots)))
 
     def _in_hand(self, inst: Instance) -> bool:
         """Whether the instance is the held object seen in the hand (off the table, above where it was)."""
@@ -332,6 +373,10 @@ class WorldModel:
                 keep &= (d > own[0]) | (p[:, 2] > own[1])
             if keep.any():
                 out.append(p[keep])
+        pieces = tuple(self.seen_in_part())
+        if pieces:  # (what a view showed in part: its box's faces, as a fixture's are seen)
+            p = box_surface_points(pieces, PIECE_SPACING_M)
+            out.append(p[np.hypot(p[:, 0] - at[0], p[:, 1] - at[1]) <= within_m])
         return np.vstack(out) if out else np.zeros((0, 3))
 
     def survey(self, view: SceneView) -> Survey:

@@ -130,7 +130,7 @@ def test_a_path_under_way_is_stopped_once_the_world_shows_something_in_it_and_no
     assert watch.blocked(m, obs) is None  # (no new view: not checked again)
     world.views = 2
     said = watch.blocked(m, obs)
-    assert said is not None and f"object {post.id}" in said, said
+    assert said is not None and said[0] is State.APPROACH and f"object {post.id}" in said[1], said  # (planned again)
     arm.ahead = lambda: []  # a Cartesian motion: not watched
     world.views = 3
     assert watch.blocked(m, obs) is None

@@ -203,3 +203,22 @@ def test_what_stands_at_a_spot_is_never_the_target_itself() -> None:
     world.mark_target(target.centre, 0.03)
     points, _ = world.standing_near((float(target.centre[0]), float(target.centre[1])), 0.2)
     assert len(points) > 0 and np.all(np.hypot(*(points[:, :2] - target.centre[:2]).T) > 0.02)
+
+
+def test_what_a_view_shows_in_part_is_an_obstacle_until_the_table_is_seen_there() -> None:
+    """A tall box cut off at the image's edge is no object (what it is, the view does not show) but an
+    obstacle, its unseen rest taken as high as a guess; the next view of it keeps one, the newer; a view
+    of the table there takes it away."""
+    depth = _noisy_table(0)
+    depth[0:40, 300:340] -= 0.2
+    world = WorldModel()
+    world.update(split_view(_overhead(depth)))
+    assert not world.objects
+    [piece] = world.seen_in_part()
+    assert piece.hi[2] >= 0.5 and piece.lo[2] == 0.0
+    middle = 0.5 * (piece.lo + piece.hi)
+    assert len(world.obstacles(middle, 0.1)) > 0  # (the grasps keep out of it too)
+    world.update(split_view(_overhead(depth, time_s=0.1)))
+    assert len(world.seen_in_part()) == 1
+    world.update(split_view(_overhead(_noisy_table(1), time_s=0.2)))
+    assert world.seen_in_part() == []

@@ -28,6 +28,7 @@ from pickdemo.tracking.belief import TargetBelief
 from pickdemo.worldmodel import WorldModel
 
 DESCENT_OUT_OF_REACH = "the straight descent onto the grasp is out of reach"
+SEEN_IN_PART = "something seen in part"
 #: A fixture's boxes this near the target are the grasps' concern (m): the open hand about it, from its pregrasp
 SOLIDS_NEAR_M = 0.5
 #: ... and the world's objects, beside a target nobody described (m)
@@ -270,6 +271,7 @@ class GraspChooser:
             return Failure(Stage.GRASP_PLANNING, str(exc))
         first_reason = ""  # the best-ranked hand angle's reason, if no angle will do
         steep: list[GraspPlan] = []  # plans whose descent alone the arm cannot follow from the full height
+        unsure: list[GraspPlan] = []  # plans whose arm meets only what was seen in part (its extent a guess)
         for _ in hand_yaws:
             try:
                 plan = next(candidates)
@@ -283,10 +285,14 @@ class GraspChooser:
             first_reason = first_reason or reason
             if reason == DESCENT_OUT_OF_REACH:
                 steep.append(plan)
+            if SEEN_IN_PART in reason:
+                unsure.append(plan)
         for plan in steep:  # (only when no angle will do from the full height: the others' plans are as before)
             lowered = self.lowered(plan, now_s)
             if lowered is not None:
                 return lowered
+        if unsure:  # (never refused on a guess: the routes and the path watch go around what it is)
+            return unsure[0]
         return Failure(Stage.IK, first_reason)
 
     def lowered(self, plan: GraspPlan, now_s: float) -> GraspPlan | None:
@@ -310,27 +316,35 @@ class GraspChooser:
                 return low
         return None
 
+    def _solids_near(self, at: np.ndarray) -> list[Obstacle]:
+        """The fixtures' boxes near ``at``, and what the world model's newest views showed there in part."""
+        near = [Obstacle("a fixture", b) for b in boxes_near(self.solids, at, ARM_NEAR_M)]
+        pieces = () if self.world is None else tuple(self.world.seen_in_part())
+        return near + [Obstacle(SEEN_IN_PART, b) for b in boxes_near(pieces, at, ARM_NEAR_M)]
+
     def arm_meets_fixture(self, plan: GraspPlan, q_grasp: np.ndarray) -> str:
         """Where the arm (its links' collision geometry, the fingers open as the plan opens them) would
-        meet a fixture on this plan's way in and out: at the grasp (its IK solution ``q_grasp``), the
-        pregrasp, and where it takes the target out to ("" if nowhere)."""
-        solids = boxes_near(self.solids, plan.grasp.position, ARM_NEAR_M)
+        meet a fixture (or something seen in part) on this plan's way in and out: at the grasp (its IK
+        solution ``q_grasp``), the pregrasp, and where it takes the target out to ("" if nowhere)."""
+        solids = self._solids_near(plan.grasp.position)
         if not solids:
             return ""
         poses = [("pregrasp", plan.pregrasp)] + ([("way out", plan.withdraw)] if plan.withdraw is not None else [])
-        scene = CollisionScene(robot_geometry(self.kin.robot), [Obstacle("a fixture", b) for b in solids])
+        scene = CollisionScene(robot_geometry(self.kin.robot), solids)
         fingers = plan.open_m or self.kin.robot.gripper.finger_max_m
-        if not scene.free(q_grasp, fingers):
+        hit = scene.contact(q_grasp, fingers)
+        if hit is not None:
             # the arm's other postures at the grasp (a 7-joint arm's elbow has room to move) before refusing
             others = goal_candidates(self.kin, [plan.grasp], q_grasp, self.rng, self.p.goals)
             free = [c.q for c in others if scene.free(c.q, fingers)]
             if not free:
-                return "the arm would meet a fixture at the grasp"
+                return f"the arm would meet {hit[1]} at the grasp"
             q_grasp = free[0]
         for name, pose in poses:
             res = self.kin.solve(pose, q_grasp, self.rng, IKParams())
-            if res.success and not scene.free(res.q, fingers):
-                return f"the arm would meet a fixture at the {name}"
+            hit = scene.contact(res.q, fingers) if res.success else None
+            if hit is not None:
+                return f"the arm would meet {hit[1]} at the {name}"
         return ""
 
     def unreachable(self, plan: GraspPlan, now_s: float) -> str | Failure:
@@ -347,7 +361,7 @@ class GraspChooser:
                 if name not in ("grasp", "place"):  # a moving target's
                     return leaves_reach(name)
                 return f"{name} pose out of reach: {res.reason}"
-            if name == "grasp" and self.solids:
+            if name == "grasp":
                 meets = self.arm_meets_fixture(plan, res.q)
                 if meets:
                     return meets

@@ -285,8 +285,8 @@ class PickMachine(MachineReadout):
             self.arm.legs.popleft()()
         if self.finished:
             return self._stopped()
-        if self.recovering is None and (blocked := self.paths.blocked(self, obs)) is not None:
-            self.recovering = (self.state, f"{blocked}: at rest, planning it again")
+        if self.recovering is None:
+            self.recovering = self.paths.blocked(self, obs)
         if self.recovering is not None:
             return self._recover()
         out = self.arm.step(self.grip)

@@ -32,8 +32,10 @@ class PathWatch:
         self.attempt = 0
         self.replans = 0  # this attempt's
 
-    def blocked(self, m: PickMachine, obs: Observation) -> str | None:
-        """What the path under way would meet now ("<link> would meet <what> on the way"), or None."""
+    def blocked(self, m: PickMachine, obs: Observation) -> tuple[State, str] | None:
+        """Where to go once at rest, and why, if the path under way would meet something now: the state
+        again (it plans from there), or, on the way to a grasp whose own pose meets it, a look again (a
+        grasp chosen with it in view); None: the path is free."""
         if not (m.p.plan_around and m.p.replan_on_change) or m.state not in WATCHED or m.world.views == self.views:
             return None
         self.views = m.world.views
@@ -53,4 +55,7 @@ class PathWatch:
         if hit is None:
             return None
         self.replans += 1
-        return f"{hit[0]} would meet {hit[1]} on the way"
+        said = f"{hit[0]} would meet {hit[1]} on the way"
+        if m.state is State.APPROACH and scene.contact(ahead[-1], fingers) is not None:
+            return State.LOOK, f"{said}, at the grasp's pregrasp too: at rest, looking again"
+        return m.state, f"{said}: at rest, planning it again"

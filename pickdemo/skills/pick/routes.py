@@ -116,6 +116,8 @@ class Router:
                 continue
             sigma = np.sqrt(np.clip(np.diag(obj.cov), 0.0, None))
             obstacles.append(Obstacle(f"object {obj.id}", grown(obj.box, margin_m + 2.0 * sigma)))
+        for box in world.seen_in_part():  # (the newest view showed it only in part: not an object yet)
+            obstacles.append(Obstacle("something seen in part", grown(box, margin_m)))
         scene = CollisionScene(robot_geometry(self.kin.robot), obstacles, held)
         tighter = margin_m > TIGHT_MARGIN_M
         scene.tighter = (lambda: self.scene(world, held=held, margin_m=TIGHT_MARGIN_M)) if tighter else None
@@ -141,11 +143,9 @@ class Router:
         self, scene: CollisionScene, q_from: np.ndarray, waypoints: Sequence[np.ndarray], fingers_m: float
     ) -> tuple[str, str] | None:
         """What the straight joint path from ``q_from`` through ``waypoints`` would meet first (as
-        :meth:`~pickdemo.robot.collision.CollisionScene.contact`), or None; None too where its start or
-        its end meets something already (a motion taken straight knowingly, as :meth:`joint` does)."""
-        if not scene.model.collisionPairs or not waypoints:
-            return None
-        if scene.contact(q_from, fingers_m) is not None or scene.contact(waypoints[-1], fingers_m) is not None:
+        :meth:`~pickdemo.robot.collision.CollisionScene.contact`), or None; None too where its start
+        meets something already (the arm leaving it: a motion taken straight knowingly, as :meth:`joint` does)."""
+        if not scene.model.collisionPairs or not waypoints or scene.contact(q_from, fingers_m) is not None:
             return None
         q = q_from
         for w in waypoints:
