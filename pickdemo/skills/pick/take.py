@@ -183,7 +183,13 @@ def _same_side(m: PickMachine, plan: GraspPlan | None) -> GraspPlan | None:
     if plan is None or m.plan is None or hand_frame(m.plan.grasp.rotation) is None:
         return plan
     cos = float(np.dot(plan.grasp.rotation[:, 2], m.plan.grasp.rotation[:, 2]))
-    return plan if cos >= np.cos(SIDE_TURN_RAD) else None
+    if cos < np.cos(SIDE_TURN_RAD):
+        return None
+    # the parallel gripper's equivalent nearest the hand in hand (a re-drawn grasp may come turned half a
+    # turn about its approach: near a joint's limit the arm cannot turn so, and jumped to another branch)
+    if float(np.dot(plan.grasp.rotation[:, 1], m.plan.grasp.rotation[:, 1])) < 0.0:
+        return turned_plan(plan, pick=True, place=True)
+    return plan
 
 
 # ---- APPROACH: to above the target, re-targeted as estimates arrive.
