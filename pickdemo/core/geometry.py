@@ -136,8 +136,15 @@ def _box_frames(boxes: tuple[OrientedBox, ...] | list[OrientedBox]) -> tuple[np.
 def boxes_meet(a: tuple[OrientedBox, ...] | list[OrientedBox], b: tuple[OrientedBox, ...] | list[OrientedBox]) -> bool:
     """Whether any box of ``a`` overlaps any box of ``b`` (the separating axis test over each pair's 15
     axes, every pair at once)."""
+    return bool(meeting(a, b).any())
+
+
+def meeting(
+    a: tuple[OrientedBox, ...] | list[OrientedBox], b: tuple[OrientedBox, ...] | list[OrientedBox]
+) -> np.ndarray:
+    """(len(a),) bool: which boxes of ``a`` overlap a box of ``b`` (:func:`boxes_meet`, box by box)."""
     if not a or not b:
-        return False
+        return np.zeros(len(a), dtype=bool)
     ca, Ra, ha = _box_frames(a)
     cb, Rb, hb = _box_frames(b)
     A = Ra[:, None]  # (na, 1, 3, 3): columns are the axes
@@ -154,7 +161,7 @@ def boxes_meet(a: tuple[OrientedBox, ...] | list[OrientedBox], b: tuple[Oriented
     ra = np.einsum("ak,abkm->abm", ha, np.abs(np.einsum("aki,abkm->abim", Ra, axes)))
     rb = np.einsum("bk,abkm->abm", hb, np.abs(np.einsum("bki,abkm->abim", Rb, axes)))
     separated = (dist > ra + rb + 1e-12).any(axis=2)
-    return bool((~separated).any())
+    return (~separated).any(axis=1)
 
 
 def top_below(boxes: tuple[OrientedBox, ...] | list[OrientedBox], x: float, y: float, z: float) -> float | None:

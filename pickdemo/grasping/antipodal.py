@@ -19,6 +19,10 @@ vertical, the far face out of square with the closing axis (``1 - |n . y|``), th
 cloud's centroid about the closing axis (its weight turns it in the grip), and a width near the
 opening's limit (the cloud grasps' rule: the narrower span leaves the estimate's error more room).
 
+The checks run on the candidates together, a batch at a time (their points in every candidate's frame
+by one matrix product; the open hand's boxes against the fixtures', every pair at once): one by one,
+numpy's overhead a call was four fifths of a shelf item's grasp planning.
+
 The hand frame is the TCP's: ``z`` the approach (from the palm to the finger tips), ``y`` the closing
 axis, ``x = y x z`` across the pads. A top-down grasp has ``z`` straight down; it is the special case.
 """
@@ -31,8 +35,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet, top_below
-from pickdemo.grasping.clearance import HAND_DEPTH_M, hand_boxes, hand_meets
+from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet, meeting, top_below
+from pickdemo.grasping.clearance import HAND_DEPTH_M, hand_boxes
 from pickdemo.grasping.top_down import GraspParams, GraspPlan, GraspPlanningError
 from pickdemo.robot.description import Gripper
 
@@ -50,6 +54,8 @@ SUPPORT_BAND_M = 0.008
 #: a pad's height and this (m) down
 SHALLOW_ROLL_DEG = 75.0
 SHALLOW_PAD_MARGIN_M = 0.004
+#: Candidates checked together (their points in their frames at once: the batch's memory, not its result)
+BATCH = 128
 
 
 @dataclass(frozen=True)
@@ -165,6 +171,7 @@ def sample_antipodal(
     shallow = min(depth, 2.0 * gripper.pad_half_height_m + SHALLOW_PAD_MARGIN_M)
     over = top_below(fixtures, float(centroid[0]), float(centroid[1]), top + 2.0) if fixtures else None
     rolls = p.rolls_deg + (p.level_rolls_deg if over is not None and over > top else ())
+    tried: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (contact, closing axis, approach)
     for i in picks:
         n = normal_at(pts, int(i), p.normal_neighbours, centroid)
         on_top = abs(n[2]) >= SIDE_NORMAL_Z
@@ -180,101 +187,157 @@ def sample_antipodal(
                 if on_top:
                     contact = pts[i] + DOWN * (shallow if abs(roll) >= SHALLOW_ROLL_DEG else depth)
                 z = _rotate(z0, y, np.radians(roll))
-                if np.arccos(np.clip(z @ DOWN, -1.0, 1.0)) > max_tilt:
-                    continue
-                found = _candidate(pts, obs, contact, y, z, surface_z, gripper, widest, centroid, p)
-                if found is not None and fixtures:
-                    opening = gripper.finger_max_m if found.open_m is None else found.open_m
-                    at = Pose(found.position, found.rotation)
-                    if hand_meets(at, gripper, opening, grasp.pregrasp_height_m, fixtures):
-                        found = None
-                if found is not None:
-                    out.append(found)
+                if np.arccos(np.clip(z @ DOWN, -1.0, 1.0)) <= max_tilt:
+                    tried.append((contact, y, z))
+    for s in range(0, len(tried), BATCH):  # (every candidate's checks at once, a batch at a time)
+        chunk = tried[s : s + BATCH]
+        found = _candidates(pts, obs, *(np.array(col) for col in zip(*chunk, strict=True)), surface_z, gripper,
+                            widest, centroid, p)  # fmt: skip
+        kept = [g for g in found if g is not None]
+        if kept and fixtures:  # the open hand from the pregrasp in, every candidate's boxes at once
+            boxes = [
+                b
+                for g in kept
+                for b in hand_boxes(Pose(g.position, g.rotation), gripper,
+                                    gripper.finger_max_m if g.open_m is None else g.open_m, grasp.pregrasp_height_m)
+            ]  # fmt: skip
+            meets = meeting(boxes, fixtures).reshape(len(kept), -1).any(axis=1)
+            kept = [g for g, m in zip(kept, meets, strict=True) if not m]
+        out.extend(kept)
     out.sort(key=lambda g: g.cost)
     return out
 
 
-def _candidate(
+def _candidates(
     pts: np.ndarray,
     obs: np.ndarray,
-    contact: np.ndarray,
-    y: np.ndarray,
-    z: np.ndarray,
+    contacts: np.ndarray,
+    ys: np.ndarray,
+    zs: np.ndarray,
     surface_z: float,
     gripper: Gripper,
     widest: float,
     centroid: np.ndarray,
     p: AntipodalParams,
-) -> AntipodalGrasp | None:
-    """The grasp closing along ``y`` approached along ``z`` with its pads at ``contact``'s depth (backed
-    off when the palm would meet the object), or None if it does not fit or collides."""
-    x = _cross(y, z)
-    R = np.column_stack([x, y, z])
+) -> list[AntipodalGrasp | None]:
+    """Each candidate's grasp (closing along ``ys[j]``, approached along ``zs[j]``, its pads at
+    ``contacts[j]``'s depth, backed off when the palm would meet the object), or None where it does not
+    fit or collides: every candidate's points in its own frame at once (the checks batched)."""
+    K = len(contacts)
+    if K == 0:
+        return []
+    xs = np.cross(ys, zs)
+    Rs = np.stack([xs, ys, zs], axis=2)  # (K, 3, 3): columns x, y, z
     hh, hw = gripper.pad_half_height_m, gripper.pad_half_width_m
+    palm, c = gripper.palm_above_tcp_m, p.clearance_m
     step = hh / max(p.depth_steps, 1)
-    # coming in level or nearly, the pads close where the sides fall from the top seen: what stands above
-    # them bounds the object there too (a single view shows the top and one side, not the far side)
-    level = float(z @ DOWN) <= np.cos(np.radians(SHALLOW_ROLL_DEG)) + 1e-9
+    level = zs @ DOWN <= np.cos(np.radians(SHALLOW_ROLL_DEG)) + 1e-9  # (K,)
+    # (K, N) each: the points along each candidate's axes at depth 0, a product of the cloud with every
+    # candidate's axis (BLAS), less the contact's
+    lx, ly, lz0 = ((a @ pts.T) - np.einsum("kd,kd->k", a, contacts)[:, None] for a in (xs, ys, zs))
+    across = np.abs(lx) < hw
+    palm_across = np.abs(lx) < gripper.palm_half_width_m
+    # the first depth at which the pads' band fits and the palm clears the object (-1: none; -2: rejected)
+    chosen = np.full(K, -1)
+    width = np.zeros(K)
+    mid = np.zeros(K)
+    lo_b = np.zeros(K)
+    hi_b = np.zeros(K)
+    bands = np.zeros((K, pts.shape[0]), dtype=bool)
+    slabs = np.zeros((K, pts.shape[0]), dtype=bool)
     for k in range(p.depth_steps + 1):
-        tcp = contact - z * (k * step)
-        local = (pts - tcp) @ R
-        slab = band = (np.abs(local[:, 0]) < hw) & (np.abs(local[:, 2]) < hh)  # where the pads meet it
-        if level:
-            band = slab | ((np.abs(local[:, 2]) < hh) & (pts[:, 2] > tcp[2]))
-        if band.sum() < 3:
-            return None
-        lo, hi = local[band, 1].min(), local[band, 1].max()
-        width = float(hi - lo)
-        if width > widest:
-            return None
-        mid = 0.5 * (lo + hi)
-        centre = tcp + y * mid
-        local[:, 1] -= mid
-        if _palm_hits(local, gripper, p.clearance_m):
-            continue  # the palm meets the object: back off along the approach
-        # wide open, as the top-down grasps go in (a single view may hide how far the object reaches
-        # behind); only where that meets a wall, a neighbour or the surface, as far as it needs
-        obs_local = (obs - centre) @ R if len(obs) else obs
-        if len(obs) and _palm_hits(obs_local, gripper, p.clearance_m):
-            return None
-        opening = None
-        for o in (gripper.finger_max_m, min(width / 2.0 + p.open_margin_m, gripper.finger_max_m)):
-            hits = _fingers_hit(local, gripper, p, o) or (
-                len(obs) and _fingers_hit(obs_local, gripper, p, o, obstacle=True)
-            )
-            reach = o + gripper.finger_thickness_m
-            corners = np.array([[sx * hw, sy * reach, hh] for sx in (-1, 1) for sy in (-1, 1)])
-            if not hits and (centre + corners @ R.T)[:, 2].min() >= surface_z + 0.002:
-                opening = o
-                break
-        if opening is None:
-            return None
-        # antipodal: the faces the pads meet (the band's two extremes) square to the closing axis; an end
-        # where the view of the object ends along the axis, on a face seen turned away from it (a box's
-        # front seen, its side not), is a face the camera did not see: the other end decides. Where the
-        # band holds what stands above the pads, an end is the pads' own points there (none: unseen)
-        extent = (float(local[:, 1].min()), float(local[:, 1].max()))
-        ends = (float(local[band, 1].min()), float(local[band, 1].max()))
+        at = np.flatnonzero(chosen == -1)  # (the candidates still backing off)
+        if len(at) == 0:
+            break
+        lz, ly_a = lz0[at] + k * step, ly[at]
+        pad = np.abs(lz) < hh
+        slab = across[at] & pad
+        tcp_z = contacts[at, 2] - zs[at, 2] * (k * step)
+        band = slab | (level[at, None] & pad & (pts[None, :, 2] > tcp_z[:, None]))
+        count = band.sum(axis=1)
+        with np.errstate(invalid="ignore"):  # (an empty band: refused below)
+            lo = np.where(band, ly_a, np.inf).min(axis=1)
+            hi = np.where(band, ly_a, -np.inf).max(axis=1)
+            w, m = hi - lo, 0.5 * (lo + hi)
+        bad = (count < 3) | (w > widest)
+        chosen[at[bad]] = -2
+        palm_hit = (
+            (lz < -palm + c) & (lz > -palm - HAND_DEPTH_M) & (np.abs(ly_a - m[:, None]) < gripper.palm_half_length_m)
+            & palm_across[at]
+        ).any(axis=1)  # fmt: skip
+        ok = ~bad & ~palm_hit
+        g = at[ok]
+        chosen[g] = k
+        width[g], mid[g], lo_b[g], hi_b[g] = w[ok], m[ok], lo[ok], hi[ok]
+        bands[g], slabs[g] = band[ok], slab[ok]
+    out: list[AntipodalGrasp | None] = [None] * K
+    live = np.flatnonzero(chosen >= 0)
+    if len(live) == 0:
+        return out
+    R, z, y = Rs[live], zs[live], ys[live]
+    k_at = chosen[live]
+    lz = lz0[live] + (k_at * step)[:, None]
+    ly_c = ly[live] - mid[live][:, None]  # (the pads' middle: centred between them)
+    lx_l = lx[live]
+    centre = contacts[live] - z * (k_at * step)[:, None] + y * mid[live][:, None]
+    keep = np.ones(len(live), dtype=bool)
+    if len(obs):
+        o = np.einsum("knd,kdm->knm", obs[None, :, :] - centre[:, None, :], R)  # (L, M, 3)
+        ox, oy, oz = o[..., 0], o[..., 1], o[..., 2]
+        keep &= ~(
+            (oz < -palm + c) & (oz > -palm - HAND_DEPTH_M) & (np.abs(oy) < gripper.palm_half_length_m)
+            & (np.abs(ox) < gripper.palm_half_width_m)
+        ).any(axis=1)  # fmt: skip
+    fmax = gripper.finger_max_m
+    openings = np.stack([np.full(len(live), fmax), np.minimum(width[live] / 2.0 + p.open_margin_m, fmax)], axis=1)
+    along = (lz > -palm - p.approach_m) & (lz < hh + c)
+    fing_across = np.abs(lx_l) < hw + c
+    ay = np.abs(ly_c)
+    if len(obs):
+        o_along = (oz > -palm - p.approach_m) & (oz < hh + c)
+        o_across = np.abs(ox) < hw + c
+        o_ay = np.abs(oy)
+    opening = np.full(len(live), np.nan)
+    for i in range(2):
+        o_m = openings[:, i][:, None]
+        inner, outer = o_m - c, o_m + gripper.finger_thickness_m + c
+        hits = (along & fing_across & (ay > inner) & (ay < outer)).any(axis=1)
+        if len(obs):
+            hits |= (o_along & o_across & (o_ay < outer)).any(axis=1)
+        reach = openings[:, i] + gripper.finger_thickness_m
+        low = centre[:, 2] - hw * np.abs(R[:, 2, 0]) - reach * np.abs(R[:, 2, 1]) + hh * R[:, 2, 2]
+        fits = np.isnan(opening) & ~hits & (low >= surface_z + 0.002)
+        opening[fits] = openings[fits, i]
+    keep &= ~np.isnan(opening)
+    normals: dict[int, np.ndarray] = {}
+    cone = np.cos(np.radians(p.friction_cone_deg))
+    for j in np.flatnonzero(keep):
+        g = int(live[j])
+        lyj = ly_c[j]
+        band, slab = bands[g], slabs[g]
+        extent = (float(lyj.min()), float(lyj.max()))
+        ends = (float(lo_b[g] - mid[g]), float(hi_b[g] - mid[g]))
         seen = []
         for end, far in zip(ends, extent, strict=True):
-            near_end = np.flatnonzero(slab & (np.abs(local[:, 1] - end) < 2.0 * p.voxel_m))
+            near_end = np.flatnonzero(slab & (np.abs(lyj - end) < 2.0 * p.voxel_m))
             if len(near_end) == 0:
                 continue
-            e = int(near_end[np.argmax(np.abs(local[near_end, 1] - 0.5 * (ends[0] + ends[1])))])
-            a = abs(float(normal_at(pts, e, p.normal_neighbours, centroid) @ y))
-            if not (a < UNSEEN_FACE_ALIGNMENT and abs(float(local[e, 1]) - far) < p.voxel_m):
+            e = int(near_end[np.argmax(np.abs(lyj[near_end] - 0.5 * (ends[0] + ends[1])))])
+            if e not in normals:
+                normals[e] = normal_at(pts, e, p.normal_neighbours, centroid)
+            a = abs(float(normals[e] @ ys[g]))
+            if not (a < UNSEEN_FACE_ALIGNMENT and abs(float(lyj[e]) - far) < p.voxel_m):
                 seen.append(a)
-        if not seen or min(seen) < np.cos(np.radians(p.friction_cone_deg)):
-            return None  # a face outside the friction cone: squeezed, it slides out between the pads
-        aligned = min(seen)
-        square = 1.0 - aligned
-        lever = float(np.linalg.norm(_cross(centroid - centre, y)))
-        tilt = float(np.arccos(np.clip(z @ DOWN, -1.0, 1.0)))
-        cost = (
-            p.tilt_weight * tilt + p.square_weight * square + p.lever_weight * lever + p.width_weight * width / widest
-        )
-        return AntipodalGrasp(centre, R, width, cost, None if opening >= gripper.finger_max_m else opening)
-    return None
+        if not seen or min(seen) < cone:
+            continue
+        w = float(width[g])
+        square = 1.0 - min(seen)
+        lever = float(np.linalg.norm(_cross(centroid - centre[j], ys[g])))
+        tilt = float(np.arccos(np.clip(zs[g] @ DOWN, -1.0, 1.0)))
+        cost = p.tilt_weight * tilt + p.square_weight * square + p.lever_weight * lever + p.width_weight * w / widest
+        o_j = float(opening[j])
+        out[g] = AntipodalGrasp(centre[j].copy(), Rs[g].copy(), w, cost, None if o_j >= fmax else o_j)
+    return out
 
 
 def _fingers_hit(
