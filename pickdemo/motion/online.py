@@ -397,10 +397,24 @@ class OnlineMotion:
         if np.any(np.abs(dq) > v_max):
             j = int(np.argmax(np.abs(dq) / v_max))
             raise MotionError(f"joint {j + 1} would move at {abs(dq[j]):.2f} rad/s, beyond its limit (a singularity?)")
+        # A joint heading for its stop keeps the room to brake before it (the brake after a failed motion
+        # ran joint 5 past its stop, and the robot's reflex stopped the arm: pick_shelf seed 10).
+        room = np.where(dq > 0.0, self.kin.upper - res.q, res.q - self.kin.lower)
+        a = BRAKE_SHARE * self.kin.robot.limits.max_acceleration_rad_s2
+        jerk = BRAKE_SHARE * self.kin.robot.limits.max_jerk_rad_s3
+        need = np.abs(dq) * (np.abs(dq) / (2.0 * a) + a / jerk)
+        if np.any(room < need):
+            j = int(np.argmax(need - room))
+            raise MotionError(
+                f"joint {j + 1} would reach its stop at {abs(dq[j]):.2f} rad/s, too fast to brake before it"
+            )
         self.q = res.q
         return res.q.copy(), dq
 
 
+#: A Cartesian motion keeps each joint this share of the datasheet's braking from its stop (the brake
+#: after a failed motion uses more: :data:`JOINT_LIMIT_SHARE`)
+BRAKE_SHARE = 0.5
 #: A transfer plans within this share of the datasheet's joint velocity, acceleration and jerk: the
 #: command sampled at the control rate and differenced (as ``peak_joint_limit_ratio`` measures it) then
 #: stays within the datasheet.

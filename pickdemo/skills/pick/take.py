@@ -137,15 +137,14 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
     ):  # fmt: skip
         m.looked_from.append(m.arm.q.copy())  # (looked from here, and found nothing)
         aside = m.sight.aside(m.looked_from, m.rng)
-        m.no_aside = aside is None
-        if aside is not None:  # (the frames start again once it is there)
-            q, hid, still = aside
+        m.no_aside = aside is None or not _routed(m, aside[0])
+        if not m.no_aside:  # (the frames start again once it is there)
+            _, hid, still = aside
             m.note(
                 f"no estimate in {m.look_frames} frames, and the arm hides {hid:.0%} of the table from the camera: "
                 f"moving aside to look again (it still hides {still:.0%} of that)"
             )
             m.look_frames = 0
-            m.arm.transfer_to(q, m.p.transfer_scale)
             return None
     if (
         m.look_frames >= m.p.look_aside_frames and len(m.searched) < m.p.look_searches and m.belief.accepted == 0
@@ -155,20 +154,40 @@ def tick_look(m: PickMachine, obs: Observation) -> Transition:
         if found is not None:  # (no camera on the hand, or nothing left never seen: it fails below)
             at, q, area = found
             m.searched.append(at)
-            m.note(
-                f"no estimate in {m.look_frames} frames: looking with the hand's camera from above "
-                f"({at[0]:.2f}, {at[1]:.2f}), where no view has seen {area * 1e4:.0f} cm^2 of the table"
-            )
-            m.look_frames = 0
-            m.search_camera = m.searcher.camera.name
-            m.arm.transfer_to(q, m.p.transfer_scale)
-            return None
+            if _routed(m, q):
+                m.note(
+                    f"no estimate in {m.look_frames} frames: looking with the hand's camera from above "
+                    f"({at[0]:.2f}, {at[1]:.2f}), where no view has seen {area * 1e4:.0f} cm^2 of the table"
+                )
+                m.look_frames = 0
+                m.search_camera = m.searcher.camera.name
+                return None
     if m.look_frames >= m.p.look_max_frames:
         m.fail(
             Stage.PERCEPTION,
             f"no estimate of the target in {m.look_frames} frames: {m.counters.last_error or 'rejected'}",
         )
     return None
+
+
+def _routed(m: PickMachine, q: np.ndarray) -> bool:
+    """A transfer to look from ``q`` (aside, or with the hand's camera), around what is in the way where
+    its straight way meets it; False (and no motion): ``q`` itself meets something, or no way was found."""
+    if not (m.p.plan_around and m.p.joint_transfers):
+        m.arm.transfer_to(q, m.p.transfer_scale)
+        return True
+    scene, fingers = m.router.scene(m.world), m.grip.finger_max_m
+    if scene.contact(q, fingers) is not None:
+        return False
+    route = m.router.joint(scene, m.arm.q, q, fingers)
+    if route.failure is not None:
+        return False
+    m.note(route.note)
+    if route.waypoints is not None:
+        m.arm.follow(route.waypoints, m.p.transfer_scale)
+    else:
+        m.arm.transfer_to(q, m.p.transfer_scale)
+    return True
 
 
 #: A re-plan of a grasp from the side whose approach turns more than this is another grasp (rad).
