@@ -161,3 +161,21 @@ def test_a_tilted_hand_keeps_its_tilt_along_a_straight_line_into_the_grasp() -> 
         off = tcp.position - pregrasp.position
         assert np.linalg.norm(off - z * (off @ z)) < 2e-4  # on the approach axis
     assert np.allclose(kin.forward(samples[-1].q).position, grasp.position, atol=1e-4)
+
+
+def test_a_joint_running_at_its_stop_fails_the_motion_while_a_brake_still_fits() -> None:
+    """Turning the hand drives joint 7 at its stop: the motion fails with the joint still short of it by
+    what braking from its speed needs (the brake after a failed motion ran a joint past its stop, and
+    the robot's reflex stopped the arm)."""
+    from pickdemo.motion.online import MotionError
+
+    kin = kinematics_of(ROBOT)
+    q0 = np.array(ROBOT.home_q, dtype=float)
+    q0[6] = kin.upper[6] - 0.3
+    m = OnlineMotion(kin, q0, DT, CartesianLimits(yaw_velocity=2.0, yaw_acceleration=10.0, yaw_jerk=100.0))
+    goal = pose_to_x4(kin.forward(q0))
+    goal[3] -= 0.6  # (joint 7 turns up to its stop this way)
+    m.set_target(goal)
+    with pytest.raises(MotionError, match="too fast to brake"):
+        _run(m, 600)
+    assert kin.upper[6] - m.q[6] > 0.05  # (well short of the stop: room to brake from its speed)
