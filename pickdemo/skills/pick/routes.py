@@ -214,9 +214,9 @@ class Router:
         self, scene: CollisionScene, ends: Sequence[Pose], fingers_m: float
     ) -> Callable[[np.ndarray, int], bool]:
         """``accept(q, i)`` for :meth:`~pickdemo.skills.pick.arm.ArmDriver.goal`: whether the arm at ``q``,
-        and the straight line from the hand's pose there to ``ends[i]`` (a descent to the grasp, a lowering to the place)
-        keeps clear (what the hand touches at its end is allowed: the target is no obstacle, and the
-        held object is not checked against the table)."""
+        and the straight line from the hand's pose there to ``ends[i]`` (a descent to the grasp, a lowering
+        to the place), keep clear (what the hand touches at its end is allowed: the target is no obstacle,
+        and the held object is not checked against the table)."""
 
         def accept(q: np.ndarray, i: int) -> bool:
             return scene.contact(q, fingers_m) is None and self.line_blocked(scene, q, [ends[i]], fingers_m) is None
