@@ -122,7 +122,8 @@ def test_a_straight_carry_that_would_pin_a_joint_at_its_limit_is_refused() -> No
     seed = np.array([2.14, -0.45, -2.59, -2.0, -0.34, 2.36, -0.14])
     q = kin.track(top_down_pose(start).to_se3(), seed, max_iterations=50).q
     assert kin.limit_margin(q) > 0.25 and np.allclose(kin.forward(q).position, start[:3], atol=1e-4)
-    assert "IK lost the Cartesian setpoint" in _carry(kin, start, end, q, limits)
+    # (followed, it fails: joint 1 runs at its stop, too fast to brake before it, or the IK loses the line)
+    assert any(said in _carry(kin, start, end, q, limits) for said in ("too fast to brake", "IK lost the Cartesian"))
     kw = dict(speed_m_s=limits.velocity, posture=q)
     assert not straight_carry_ok(kin, q, start, end, place, **kw, params=p.goals)
     # (the margin is what refuses it: without it the line passes)

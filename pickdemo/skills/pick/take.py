@@ -177,8 +177,10 @@ def _routed(m: PickMachine, q: np.ndarray) -> bool:
         m.arm.transfer_to(q, m.p.transfer_scale)
         return True
     scene, fingers = m.router.scene(m.world), m.grip.finger_max_m
-    if scene.contact(q, fingers) is not None:
-        return False
+    if scene.contact(q, fingers) is not None:  # (within the margins: as the routes do, the tight ones)
+        tight = scene.tighter() if scene.tighter is not None else scene
+        if tight.contact(q, fingers) is not None:
+            return False
     route = m.router.joint(scene, m.arm.q, q, fingers)
     if route.failure is not None:
         return False
@@ -259,6 +261,9 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
 
 def tick_approach(m: PickMachine, obs: Observation) -> Transition:
     hidden = m.belief.initialised and m.sight.hidden(obs.arm_q, m.belief.predict(obs.time_s).position[None, :])[0]
+    # (on a path planned around something, the cameras may not see a target that stood still: a hand's
+    # camera looks where the path turns it)
+    hidden = hidden or (bool(m.arm.legs) and m.intercept.velocity(m.now_s) is None)
     if not m.open_loop and m.belief.lost(obs.time_s) and not hidden:  # (hidden by the arm: on, on its belief)
         # Nothing it sees agrees with its belief any more: look again from home, a few times.
         m.relooks += 1
