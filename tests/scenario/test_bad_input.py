@@ -320,6 +320,11 @@ FILE_CASES: list[tuple[str, str, str]] = [
         GOOD + "[[disturbances]]\nat_time_s = -1.0\noffset_m = [0.05, 0.0]\n",
         "disturbances[0].at_time_s: Input should be greater than or equal to 0",
     ),
+    (
+        "a push of an object the scene does not have",
+        GOOD + '[[disturbances]]\nat_time_s = 0.5\noffset_m = [0.05, 0.0]\nobject = "post"\n',
+        "disturbances[0].object: 'post' is not one of the objects",
+    ),
     ("invalid TOML", GOOD + "\n[[objects]\n", "invalid TOML"),
     # ---- a clear round
     (
