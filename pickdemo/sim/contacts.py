@@ -4,6 +4,9 @@ object the hand may hold) and anything else in the scene: the truth, for scoring
 
 A contact begins when its pair (who, which link, what) was not touching in the last
 :data:`GAP_STEPS` steps: a pair that chatters on and off as it slides is one contact, not hundreds.
+Touching means at most :data:`TOUCH_M` apart: Bullet keeps a pair's points in its contact manifold
+from a few millimetres apart on (its contact threshold about convex hulls), and such a point, with no
+force, is no touch (a hand 2.5 mm above a wall's top had been counted as meeting it).
 """
 
 from __future__ import annotations
@@ -19,6 +22,8 @@ if TYPE_CHECKING:  # (the scene imports this module)
 
 #: A pair apart for fewer steps than this (0.1 s at 240 Hz) touching again is the same contact.
 GAP_STEPS = 24
+#: Two bodies touch when their nearest points are at most this far apart (m; below 0: penetrating).
+TOUCH_M = 0.0
 
 
 @dataclass(frozen=True)
@@ -66,7 +71,7 @@ class ContactLog:
     def _pairs(self, body: int, who: str, time_s: float) -> None:
         for pt in self._contacts(bodyA=body):
             other = pt[2]
-            if other == self.robot or other == body:
+            if other == self.robot or other == body or pt[8] > TOUCH_M:  # (apart: in the manifold, not touching)
                 continue
             key = (body, pt[3], other, pt[4])
             last = self._last.get(key)

@@ -7,7 +7,7 @@ import pytest
 from episodes import describe, episodes
 
 from pickdemo.runtime.collisions import PLACE_RADIUS_M, CollisionTally
-from pickdemo.sim.contacts import Contact
+from pickdemo.sim.contacts import Contact, ContactLog
 
 
 def _c(who: str, other: str, at: tuple[float, float, float] = (0.5, 0.0, 0.0), *, base: bool = False) -> Contact:
@@ -55,3 +55,30 @@ def test_a_held_mug_carried_past_a_tall_box_touches_nothing_and_every_episode_sa
     hit = [r for r in results if r.success and r.collisions["count"] > 0]  # type: ignore[index]
     assert not hit, "; ".join(f"{describe(r)}: {r.collisions}" for r in hit)
     assert sum(r.success for r in results) >= 7, "; ".join(describe(r) for r in results)
+
+
+class _Client:
+    """A stand-in for a BulletClient: the contact points of one step (pybullet's tuple layout)."""
+
+    def __init__(self) -> None:
+        self.points: list[tuple] = []
+
+    def getContactPoints(self, bodyA: int) -> list[tuple]:  # noqa: N802, N803 - pybullet's names
+        return [pt for pt in self.points if pt[1] == bodyA]
+
+
+def _point(distance_m: float, force_n: float) -> tuple:
+    # (flag, bodyA, bodyB, linkA, linkB, onA, onB, normal, distance, normal force, ...)
+    return (0, 1, 2, 8, -1, (0.4, 0.0, 0.2), (0.4, 0.0, 0.2), (0.0, 0.0, 1.0), distance_m, force_n)
+
+
+def test_a_point_bullet_keeps_a_few_millimetres_apart_is_no_contact_and_a_touch_is_one() -> None:
+    client = _Client()
+    log = ContactLog(client, {"robot": 1, "wall": 2}, {}, {8: "panda_hand"}, set())
+    client.points = [_point(0.0025, 0.0)]  # (as seen: a hand 2.5 mm above a wall's top, no force)
+    log.read(1.0)
+    assert log.take() == []
+    client.points = [_point(-0.0002, 3.0)]
+    log.read(1.1)
+    began = log.take()
+    assert [(c.who, c.link, c.other) for c in began] == [("robot", "panda_hand", "wall")]
