@@ -299,13 +299,15 @@ class ArmDriver:
         seeded: np.ndarray | None = None,
         half_turned: tuple[Pose, Pose] | None = None,
         accept: Callable[[np.ndarray, int], bool] | None = None,
+        near: Callable[[np.ndarray, int], bool] | None = None,
     ) -> tuple[np.ndarray | None, int]:
         """The IK goal for a top-down TCP pose, or the same pose turned half a turn (a parallel gripper
         closes the same way) when the pose's own angle will not do: the best of several solutions
         (:mod:`pickdemo.motion.ik_goals`); and 1 if turned. ``seeded``: a re-plan keeps to the solution
         near the goal it had, if there is one. ``accept(q, index)``: whether the straight line that follows
         a goal (of the pose, or the turned one) keeps clear of what is in the way: those that do first; if
-        none does, the best of all (the caller's route says what is in the way)."""
+        none does, those ``near`` accepts (the same within tighter margins), then the best of all (the
+        caller's route says what is in the way)."""
         if seeded is not None:
             res = self.kin.solve(pose, seeded, self.rng, self.p.goals.ik)
             if res.success and self.joint and not self.joints.finished:
@@ -344,9 +346,15 @@ class ArmDriver:
             poses = [pose] if not equivalent else [pose, *(half_turned or (half_turn(pose), half_turn(line_to)))[:1]]
             ends = [line_to] if not equivalent else [line_to, (half_turned or (None, half_turn(line_to)))[1]]
             for i, (p, e) in enumerate(zip(poses, ends, strict=True)):
-                extra = goal_candidates(self.kin, [p], self.q, self.rng, more, lines_to=[e])
-                clear += [dataclasses.replace(c, index=i) for c in extra if c.line_ok and accept(c.q, i)]
-            goal = choose_goal(clear, g) or choose_goal(found, g)
+                extra = [dataclasses.replace(c, index=i) for c in goal_candidates(self.kin, [p], self.q, self.rng, more, lines_to=[e])]
+                clear += [c for c in extra if c.line_ok and accept(c.q, i)]
+                found += extra
+            goal = choose_goal(clear, g)
+            if goal is None and near is not None:
+                # within the tight margins, a goal whose line can be followed (in a shelf's bin, the
+                # hand's way in keeps within a centimetre of the boards), before one whose line cannot
+                goal = choose_goal([c for c in found if c.line_ok and near(c.q, c.index)], g)
+            goal = goal or choose_goal(found, g)
         if goal is None:
             return None, 0
         if goal.line_ok:

@@ -130,9 +130,11 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
         m.note("carried in joint space: the straight line would pass too near a singular posture")
     # in joint space, to a goal from which the lowering can be tracked
     other = turned_plan(m.plan, pick=False, place=True)
-    accept = None if scene is None else m.router.accepting(scene, [m.plan.place, other.place], fingers)
+    ends = [m.plan.place, other.place]
+    accept = None if scene is None else m.router.accepting(scene, ends, fingers)
+    near = None if scene is None else m.router.accepting_near(scene, ends, fingers)
     q, turned = m.arm.goal(
-        m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place), accept=accept
+        m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place), accept=accept, near=near
     )
     if q is None:
         m.fail(Stage.IK, "place pose out of reach: no IK solution for either hand angle")

@@ -223,6 +223,23 @@ class Router:
 
         return accept
 
+    def accepting_near(
+        self, scene: CollisionScene, ends: Sequence[Pose], fingers_m: float
+    ) -> Callable[[np.ndarray, int], bool] | None:
+        """:meth:`accepting` within the scene's tight margins (its ``tighter``, made when first asked;
+        None: it has none)."""
+        if scene.tighter is None:
+            return None
+        make = scene.tighter
+        tight: list[CollisionScene] = []
+
+        def near(q: np.ndarray, i: int) -> bool:
+            if not tight:
+                tight.append(make())
+            return self.accepting(tight[0], ends, fingers_m)(q, i)
+
+        return near
+
     def free_share(
         self, scene: CollisionScene, q_from: np.ndarray, end: Pose, fingers_m: float, posture: np.ndarray | None = None
     ) -> float:

@@ -228,7 +228,8 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
     scene = m.router.scene(m.world) if m.p.plan_around else None
     grasps = [m.plan.grasp, half_turn(m.plan.grasp)]
     accept = None if scene is None else m.router.accepting(scene, grasps, fingers)
-    q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept)
+    near = None if scene is None else m.router.accepting_near(scene, grasps, fingers)
+    q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept, near=near)
     if q is None:
         m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
         return
