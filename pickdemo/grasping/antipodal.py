@@ -451,7 +451,9 @@ def way_out(
         )
 
     top = params.transport_height_m
-    if not fixtures or (clear(top, 0.0) and clear(top / 2.0, 0.0)):
+    # (lifted straight up, still with room to rise: under a shelf's board, the arm would have to find
+    # its own way out between the boards, and a planner in joint space rarely does)
+    if not fixtures or (clear(top, 0.0) and clear(top / 2.0, 0.0) and out_at(top, 0.0)):
         return top, 0.0
     h = top
     while h >= LEAST_LIFT_M:

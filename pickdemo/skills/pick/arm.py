@@ -162,10 +162,14 @@ class ArmDriver:
             self.joints.start(self.motion.q, q_goal, scale=scale)
             self.joint = True
 
-    def joint_line(self, q_goal: np.ndarray, scale: float) -> None:
-        """A short line run as a joint transfer from rest (a grasp from the side's: see
-        :meth:`~pickdemo.skills.pick.routes.Router.line_in_joints`), at this share of the limits."""
-        self.joints.start(self.q, q_goal, scale=scale)
+    def joint_line(self, waypoints: np.ndarray, scale: float) -> None:
+        """A straight line of the hand's run as joint transfers from rest to rest through ``waypoints``
+        (K, dof) (a grasp from the side's: see :func:`~pickdemo.motion.lines.line_in_joints`),
+        at this share of the limits."""
+        self.legs.clear()
+        for q in waypoints[1:]:
+            self.legs.append(lambda q=q: self.transfer_to(q, scale))
+        self.joints.start(self.q, waypoints[0], scale=scale)
         self.joint = True
 
     def cartesian(self) -> None:
@@ -346,7 +350,8 @@ class ArmDriver:
             poses = [pose] if not equivalent else [pose, *(half_turned or (half_turn(pose), half_turn(line_to)))[:1]]
             ends = [line_to] if not equivalent else [line_to, (half_turned or (None, half_turn(line_to)))[1]]
             for i, (p, e) in enumerate(zip(poses, ends, strict=True)):
-                extra = [dataclasses.replace(c, index=i) for c in goal_candidates(self.kin, [p], self.q, self.rng, more, lines_to=[e])]
+                extra = goal_candidates(self.kin, [p], self.q, self.rng, more, lines_to=[e])
+                extra = [dataclasses.replace(c, index=i) for c in extra]
                 clear += [c for c in extra if c.line_ok and accept(c.q, i)]
                 found += extra
             goal = choose_goal(clear, g)

@@ -18,7 +18,7 @@ from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.skills.pick.routes import held_box
-from pickdemo.skills.pick.take import go_home, wrist_load
+from pickdemo.skills.pick.take import SIDE_LINE_SCALE, go_home, side_line, wrist_load
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
     from pickdemo.perception import PoseEstimate
@@ -56,7 +56,8 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
     m.grip.watch_hold()
     m.arm.cartesian()  # (a side grasp's descent in joint space: the lift is a Cartesian line)
-    m.held = held_box(m.world, m.kin.forward(obs.arm_q))  # (its box where it stood, as the hand holds it now)
+    # (its box where it stood, as the hand holds it now)
+    m.held = held_box(m.world, m.kin.forward(obs.arm_q), m.router.solids)
     lower = m.arm.lift_in_reach(m.plan)
     if lower is not m.plan:
         high = (lower.lift.position[2] - m.plan.grasp.position[2]) * 1e3
@@ -77,13 +78,16 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
     lift = m.arm.move.x4(m.plan.lift)
     v = motion.velocity[:2]
     m.lifted_off = np.any(v != 0.0)  # (a target held on the move is weighed at the top)
+    m.scale.start()
+    m.withdrawing = False
     if m.lifted_off:  # held on the move: carry on along its way a little while rising
         lift[:2] = motion.setpoint[:2] + v * m.p.lift_lead_s
     else:  # first just off the table, to weigh it before it hangs long at the first grip force
         lift[2] = m.plan.grasp.position[2] + m.p.payload.lift_off_m
+        off = Pose(np.array([*m.plan.lift.position[:2], lift[2]]), m.plan.lift.rotation)
+        if side_line(m, off, SIDE_LINE_SCALE):
+            return
     motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
-    m.scale.start()
-    m.withdrawing = False
 
 
 def tick_lift(m: PickMachine, obs: Observation) -> Transition:
@@ -99,13 +103,20 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
             reason = f"fingers at {obs.opening_m * 1e3:.1f} mm, {m.grasp_width_m * 1e3:.1f} mm when it was grasped"
             return m.retry(Stage.LIFT, "turned in the grip", reason)
         m.lifted_off = True
+        if side_line(m, m.plan.lift, SIDE_LINE_SCALE):
+            return None
+        m.arm.cartesian()
         lift = m.arm.move.x4(m.plan.lift)
         m.arm.motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
         return None
     if m.plan.withdraw is not None and not m.withdrawing:  # under a shelf's board: back out the way it came in
         m.withdrawing = True
+        if side_line(m, m.plan.withdraw, SIDE_LINE_SCALE):
+            return None
+        m.arm.cartesian()
         m.arm.move.to(m.plan.withdraw, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
         return None
+    m.arm.cartesian()  # (a side grasp's lift in joint space: the carry starts at rest where it left the arm)
     return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
 
 
@@ -277,6 +288,8 @@ def tick_release(m: PickMachine, obs: Observation) -> Transition:
 
 def enter_retreat(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
+    if side_line(m, m.plan.retreat, SIDE_LINE_SCALE):
+        return
     m.arm.move.to(m.plan.retreat, limits=m.arm.line_limits(m.plan.retreat))
 
 

@@ -15,6 +15,7 @@ from pickdemo.grasping.clearance import near as boxes_near
 from pickdemo.grasping.selection import GraspRequest, GraspSelector
 from pickdemo.grasping.top_down import GraspPlan, GraspPlanningError
 from pickdemo.motion.ik_goals import along_line, goal_candidates, line_reach, line_speed_scale
+from pickdemo.motion.lines import lines_followed
 from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import ObjectCloud, TargetModel
 from pickdemo.perception.neighbours import NEIGHBOURHOOD_M, OWN_MARGIN_M
@@ -28,6 +29,7 @@ from pickdemo.tracking.belief import TargetBelief
 from pickdemo.worldmodel import WorldModel
 
 DESCENT_OUT_OF_REACH = "the straight descent onto the grasp is out of reach"
+WAY_OUT_NOT_FOLLOWED = "the arm cannot follow the way out from among the fixtures"
 SEEN_IN_PART = "something seen in part"
 #: A fixture's boxes this near the target are the grasps' concern (m): the open hand about it, from its pregrasp
 SOLIDS_NEAR_M = 0.5
@@ -347,6 +349,18 @@ class GraspChooser:
                 return f"the arm would meet {hit[1]} at the {name}"
         return ""
 
+    def takes_out(self, plan: GraspPlan, q_grasp: np.ndarray) -> bool:
+        """Whether the arm, at the grasp as ``q_grasp`` or in another of its postures there, can follow
+        the plan's lift and its way out from among the fixtures as straight lines (run as joint paths:
+        :func:`~pickdemo.motion.lines.line_in_joints`). Beside a shelf, the hand backing out level
+        brings the wrist near the arm's base, where the elbow runs out of room on some postures."""
+        assert plan.withdraw is not None
+        ways = [plan.lift, plan.withdraw]
+        if lines_followed(self.kin, q_grasp, ways, self.rng, self.p.goals.ik):
+            return True
+        others = goal_candidates(self.kin, [plan.grasp], q_grasp, self.rng, self.p.goals)
+        return any(lines_followed(self.kin, c.q, ways, self.rng, self.p.goals.ik) for c in others)
+
     def unreachable(self, plan: GraspPlan, now_s: float) -> str | Failure:
         """Why the arm cannot do this plan's pick and place ("" if it can; a failure to end the episode
         at once: a moving target that cannot be met at all)."""
@@ -365,6 +379,8 @@ class GraspChooser:
                 meets = self.arm_meets_fixture(plan, res.q)
                 if meets:
                     return meets
+                if plan.withdraw is not None and not self.takes_out(plan, res.q):
+                    return WAY_OUT_NOT_FOLLOWED
             if name == "grasp" and line_speed_scale(self.kin, res.q, plan.grasp, plan.pregrasp, self.p.goals) < floor:
                 # The descent follows the vertical line from the pregrasp (a small arm's hand points down
                 # only low near its base, and a jaw's TCP is beside the object, on the side its angle

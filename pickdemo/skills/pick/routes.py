@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pickdemo.core.geometry import OrientedBox, Pose
+from pickdemo.core.geometry import OrientedBox, Pose, top_below
 from pickdemo.motion.ik_goals import along_line
 from pickdemo.motion.planner import plan_joint_path
 from pickdemo.robot.collision import TABLE, CollisionScene, Obstacle, robot_geometry
-from pickdemo.robot.kinematics import IKParams, Kinematics
+from pickdemo.robot.kinematics import Kinematics
 from pickdemo.worldmodel import WorldModel
 
 #: An object's box is grown by this every way, beyond two of its standard deviations (m): the arm's
@@ -36,10 +36,6 @@ TIGHT_MARGIN_M = 0.003
 HELD_MARGIN_M = 0.01
 #: A straight Cartesian motion is checked every this far along it (m).
 LINE_STEP_M = 0.02
-#: A short line run as a joint transfer keeps the TCP this close to it (m) ...
-JOINT_LINE_M = 0.003
-#: ... and its orientation this close to the line's (rad).
-JOINT_LINE_RAD = float(np.radians(3.0))
 #: A straight joint transfer is checked every this much of its largest joint's travel (rad).
 JOINT_STEP_RAD = 0.02
 
@@ -77,13 +73,22 @@ def nearest_turn(q: np.ndarray, q_from: np.ndarray, lower: np.ndarray, upper: np
     return out
 
 
-def held_box(world: WorldModel, tcp: Pose) -> OrientedBox | None:
+def held_box(world: WorldModel, tcp: Pose, solids: Sequence[OrientedBox] = ()) -> OrientedBox | None:
     """The held object's box in the TCP's frame (its world-model box where it stood, as the hand holds it
-    now at ``tcp``), grown by :data:`HELD_MARGIN_M`; None: the world holds nothing for it."""
+    now at ``tcp``), grown by :data:`HELD_MARGIN_M`; None: the world holds nothing for it. A world
+    model's box stands on the table; one that stood on a fixture's top (a shelf's board, a bin's floor:
+    the highest of ``solids``' tops under its middle) begins there, or its box held would be as tall
+    again as it is, and could not be taken out between a shelf's boards."""
     target = world.target
     if target is None:
         return None
-    box = grown(target.box, HELD_MARGIN_M)
+    box = target.box
+    x, y, top = box.pose.position[0], box.pose.position[1], target.top_m
+    floor = top_below(list(solids), float(x), float(y), top) if solids else None
+    if floor is not None and 0.0 < floor < top:
+        half = np.array([box.hi[0], box.hi[1], (top - floor) / 2.0])
+        box = OrientedBox(Pose(np.array([x, y, (top + floor) / 2.0]), box.pose.rotation), -half, half)
+    box = grown(box, HELD_MARGIN_M)
     return OrientedBox(tcp.inverse() @ box.pose, box.lo, box.hi)
 
 
@@ -94,6 +99,8 @@ class Router:
         self, kin: Kinematics, fixtures: Sequence[Obstacle], rng: np.random.Generator, *, max_checks: int
     ) -> None:
         self.kin = kin
+        #: the fixtures' solid parts as they are (what a held object stood on: :func:`held_box`)
+        self.solids = tuple(o.box for o in fixtures if o.name != TABLE)
         # (the fixtures grown by the margin: the arm follows its commands to within millimetres)
         self.fixtures = tuple(o if o.name == TABLE else Obstacle(o.name, grown(o.box, MARGIN_M)) for o in fixtures)
         self.rng = rng  # the planner's seeds, one per plan
@@ -182,28 +189,6 @@ class Router:
                 q = q_k
             start = end
         return None
-
-    def line_in_joints(
-        self, q_from: np.ndarray, pose: Pose, rng: np.random.Generator, ik: IKParams
-    ) -> np.ndarray | None:
-        """The IK goal of ``pose`` on the branch of ``q_from`` whose straight joint path keeps the TCP
-        within :data:`JOINT_LINE_M` of the straight line to it, and its orientation within
-        :data:`JOINT_LINE_RAD` (a short line of a grasp from the side, which the per-tick IK loses near
-        the arm's joint limits: run as a joint transfer instead), or None."""
-        res = self.kin.solve(pose, q_from, rng, ik)
-        if not res.success:
-            return None
-        a, b = self.kin.forward(q_from).position, pose.position
-        ab = b - a
-        length2 = float(ab @ ab)
-        for t in np.linspace(0.0, 1.0, 11)[1:-1]:
-            at = self.kin.forward(q_from + (res.q - q_from) * t)
-            s = 0.0 if length2 == 0.0 else float(np.clip((at.position - a) @ ab / length2, 0.0, 1.0))
-            off = float(np.linalg.norm(at.position - (a + s * ab)))
-            turn = np.arccos(np.clip((np.trace(at.rotation.T @ pose.rotation) - 1.0) / 2.0, -1.0, 1.0))
-            if off > JOINT_LINE_M or turn > JOINT_LINE_RAD:
-                return None
-        return res.q
 
     def clearance(self, scene: CollisionScene, fingers_m: float) -> Callable[[np.ndarray, np.ndarray], bool]:
         """``clear(q_a, q_b)``: whether the straight joint path between two configurations keeps clear

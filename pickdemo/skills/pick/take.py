@@ -5,6 +5,7 @@ the machine (:mod:`~pickdemo.skills.pick.states` holds the table the machine dis
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -13,6 +14,7 @@ from pickdemo.core.geometry import Pose
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Stage
 from pickdemo.grasping.top_down import GraspPlan
+from pickdemo.motion.lines import line_in_joints, lines_followed
 from pickdemo.motion.online import hand_frame
 from pickdemo.skills.pick.params import Event, State, Transition
 from pickdemo.skills.pick.plans import half_turn, moved_place, turned_plan
@@ -20,6 +22,9 @@ from pickdemo.skills.pick.views import unsure
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
     from pickdemo.skills.pick.machine import PickMachine
+
+#: Whether the arm at ``q`` may go to a goal of the pose of index ``i`` (:meth:`.arm.ArmDriver.goal`).
+Accept = Callable[[np.ndarray, int], bool]
 
 
 def wrist_load(m: PickMachine, obs: Observation) -> float:
@@ -229,6 +234,8 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
     grasps = [m.plan.grasp, half_turn(m.plan.grasp)]
     accept = None if scene is None else m.router.accepting(scene, grasps, fingers)
     near = None if scene is None else m.router.accepting_near(scene, grasps, fingers)
+    if m.plan.withdraw is not None and accept is not None:  # (and the way out of a shelf's bin followed)
+        accept, near = _taking_out(m, accept), _taking_out(m, near)
     q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept, near=near)
     if q is None:
         m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
@@ -237,7 +244,7 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
         m.plan = turned_plan(m.plan, pick=True, place=True)
 
     def down() -> None:  # the last leg, to where the plan is by then
-        if _side_line(m, m.plan.pregrasp, m.p.transfer_scale):
+        if side_line(m, m.plan.pregrasp, m.p.transfer_scale):
             return
         m.arm.cartesian()
         m.go_to(m.plan.pregrasp, limits=m.p.free)
@@ -258,6 +265,22 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
     m.note(note)
     if note is None:
         m.arm.transfer_to(q, m.p.transfer_scale)
+
+
+def _taking_out(m: PickMachine, accept: Accept | None) -> Accept | None:
+    """``accept`` (a goal of the pregrasp, of the plan or the plan turned half a turn), where the arm
+    can also follow the descent, the lift and the way out from there, as the chooser checked the plan."""
+    if accept is None:
+        return None
+    assert m.plan is not None
+    plans = (m.plan, turned_plan(m.plan, pick=True, place=True))
+
+    def taking_out(q: np.ndarray, i: int) -> bool:
+        p = plans[i]
+        ways = [p.grasp, p.lift, p.withdraw]
+        return accept(q, i) and lines_followed(m.kin, q, ways, m.rng, m.p.goals.ik)
+
+    return taking_out
 
 
 def tick_approach(m: PickMachine, obs: Observation) -> Transition:
@@ -364,7 +387,7 @@ def enter_descend(m: PickMachine, obs: Observation) -> None:
     m.descent_plan = m.plan
     v = m.intercept.velocity(m.now_s)
     m.descent_ref = (m.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, m.planned_at_s)
-    if _side_line(m, m.plan.grasp, SIDE_LINE_SCALE):
+    if side_line(m, m.plan.grasp, SIDE_LINE_SCALE):
         return
     m.arm.cartesian()
     m.go_to(m.plan.grasp, limits=m.intercept.near_limits(m.now_s))
@@ -374,16 +397,17 @@ def enter_descend(m: PickMachine, obs: Observation) -> None:
 SIDE_LINE_SCALE = 0.2
 
 
-def _side_line(m: PickMachine, pose: Pose, scale: float) -> bool:
-    """A grasp from the side's short straight line (the last of the way in, the descent) as a joint
-    transfer, where one keeps to the line (the per-tick IK loses tilted lines near the arm's joint
-    limits, as in a shelf's bin); False: the caller's Cartesian line."""
+def side_line(m: PickMachine, pose: Pose, scale: float) -> bool:
+    """A grasp from the side's straight line (the last of the way in, the descent, the lift, the way
+    out, the retreat from the place) as joint transfers, where they keep to the line (the per-tick IK
+    loses tilted lines near the arm's joint limits, as in a shelf's bin); False: the caller's
+    Cartesian line."""
     if not m.p.plan_around or hand_frame(pose.rotation) is None:
         return False
-    q = m.router.line_in_joints(m.arm.q, pose, m.rng, m.p.goals.ik)
-    if q is None:
+    waypoints = line_in_joints(m.kin, m.arm.q, pose, m.rng, m.p.goals.ik)
+    if waypoints is None:
         return False
-    m.arm.joint_line(q, scale)
+    m.arm.joint_line(waypoints, scale)
     return True
 
 

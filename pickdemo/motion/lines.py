@@ -1,0 +1,83 @@
+"""A straight line of the hand's as a joint path: the joints solved along it (as MoveIt's Cartesian
+paths), joined into as few straight legs in joint space as keep the hand to the line. A transfer from
+rest to rest keeps to its straight line in joint space, so such a path is run by the joint transfers,
+where the per-tick IK loses a tilted line near the arm's joint limits (a grasp from the side in a
+shelf's bin). Pure: no simulator.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from pickdemo.core.geometry import Pose
+from pickdemo.motion.ik_goals import along_line
+from pickdemo.robot.kinematics import IKParams, Kinematics
+
+#: Each leg keeps the TCP this close to the line (m) ...
+JOINT_LINE_M = 0.003
+#: ... and its orientation this close to the line's (rad).
+JOINT_LINE_RAD = float(np.radians(3.0))
+#: The line's joints are solved every this far along it (m).
+JOINT_LINE_STEP_M = 0.01
+
+
+def line_in_joints(
+    kin: Kinematics, q_from: np.ndarray, pose: Pose, rng: np.random.Generator, ik: IKParams
+) -> np.ndarray | None:
+    """The joints of a straight line of the hand's (a grasp from the side's way in, its descent, its
+    lift and way out: the per-tick IK loses tilted lines near the arm's joint limits, as in a shelf's
+    bin) as a joint path: its waypoints (K, dof) after ``q_from``, each leg's straight joint path
+    keeping the TCP within :data:`JOINT_LINE_M` of the line and its orientation within
+    :data:`JOINT_LINE_RAD` of ``pose``'s; or None. One leg to the IK goal on ``q_from``'s branch where
+    it keeps so; else the line's joints every :data:`JOINT_LINE_STEP_M` (the IK warm-started from
+    the last, as MoveIt's Cartesian paths), joined into as few legs as keep so."""
+    a, b = kin.forward(q_from).position, pose.position
+    res = kin.solve(pose, q_from, rng, ik)
+    if res.success and _keeps_to(kin, q_from, res.q, a, b, pose.rotation):
+        return res.q[None, :]
+    n = max(2, int(np.ceil(float(np.linalg.norm(b - a)) / JOINT_LINE_STEP_M)))
+    qs = [np.asarray(q_from, dtype=float)]
+    for q_k in along_line(kin, q_from, kin.forward(q_from), pose, n):
+        if q_k is None:
+            return None
+        qs.append(q_k)
+    out, i = [], 0
+    while i < n:  # (the farthest point each leg can go to and keep to the line)
+        j = next((j for j in range(n, i + 1, -1) if _keeps_to(kin, qs[i], qs[j], a, b, pose.rotation)), i + 1)
+        if j == i + 1 and not _keeps_to(kin, qs[i], qs[j], a, b, pose.rotation):
+            return None
+        out.append(qs[j])
+        i = j
+    return np.array(out)
+
+
+def _keeps_to(
+    kin: Kinematics, qa: np.ndarray, qb: np.ndarray, a: np.ndarray, b: np.ndarray, rotation: np.ndarray
+) -> bool:
+    """Whether the straight joint path from ``qa`` to ``qb`` keeps the TCP within :data:`JOINT_LINE_M`
+    of the line from ``a`` to ``b``, and its orientation within :data:`JOINT_LINE_RAD` of ``rotation``."""
+    ab = b - a
+    length2 = float(ab @ ab)
+    for t in np.linspace(0.0, 1.0, 11)[1:-1]:
+        at = kin.forward(qa + (qb - qa) * t)
+        s = 0.0 if length2 == 0.0 else float(np.clip((at.position - a) @ ab / length2, 0.0, 1.0))
+        off = float(np.linalg.norm(at.position - (a + s * ab)))
+        turn = np.arccos(np.clip((np.trace(at.rotation.T @ rotation) - 1.0) / 2.0, -1.0, 1.0))
+        if off > JOINT_LINE_M or turn > JOINT_LINE_RAD:
+            return False
+    return True
+
+
+def lines_followed(
+    kin: Kinematics, q: np.ndarray, poses: Sequence[Pose], rng: np.random.Generator, ik: IKParams
+) -> bool:
+    """Whether the arm at ``q`` can follow the straight lines through ``poses`` in turn, each as
+    :func:`line_in_joints` (a lift, then the way out of a shelf's bin)."""
+    for pose in poses:
+        waypoints = line_in_joints(kin, q, pose, rng, ik)
+        if waypoints is None:
+            return False
+        q = waypoints[-1]
+    return True
