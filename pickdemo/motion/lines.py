@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from pickdemo.core.geometry import Pose
-from pickdemo.motion.ik_goals import along_line
+from pickdemo.motion.online import LOST_M, LOST_RAD
 from pickdemo.robot.kinematics import IKParams, Kinematics
 
 #: Each leg keeps the TCP this close to the line (m) ...
@@ -39,10 +39,11 @@ def line_in_joints(
         return res.q[None, :]
     n = max(2, int(np.ceil(float(np.linalg.norm(b - a)) / JOINT_LINE_STEP_M)))
     qs = [np.asarray(q_from, dtype=float)]
-    for q_k in along_line(kin, q_from, kin.forward(q_from), pose, n):
-        if q_k is None:
+    for k in range(1, n + 1):  # (held to the start's posture; lost as the per-tick IK would lose it)
+        res = kin.track(Pose(a + (b - a) * (k / n), pose.rotation), qs[-1], max_iterations=8, posture=qs[0])
+        if not res.success and (res.position_error_m > LOST_M or res.rotation_error_rad > LOST_RAD):
             return None
-        qs.append(q_k)
+        qs.append(res.q)
     out, i = [], 0
     while i < n:  # (the farthest point each leg can go to and keep to the line)
         j = next((j for j in range(n, i + 1, -1) if _keeps_to(kin, qs[i], qs[j], a, b, pose.rotation)), i + 1)

@@ -390,7 +390,7 @@ class OnlineMotion:
 
     def _joints(self, x4: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         res = self.kin.track(hand_se3(x4, self.frame), self.q, posture=self.posture)
-        if not res.success and (res.position_error_m > 1e-3 or res.rotation_error_rad > np.radians(0.5)):
+        if not res.success and (res.position_error_m > LOST_M or res.rotation_error_rad > LOST_RAD):
             raise MotionError(f"IK lost the Cartesian setpoint {np.round(x4, 4).tolist()}: {res.reason}")
         dq = (res.q - self.q) / self.dt_s
         v_max = self.kin.robot.limits.max_velocity_rad_s
@@ -412,6 +412,10 @@ class OnlineMotion:
         return res.q.copy(), dq
 
 
+#: The per-tick IK has lost a Cartesian setpoint once it ends this far from it (m, rad): short of its
+#: tolerance, but within this, the arm is where the line wants it, to a millimetre.
+LOST_M = 1e-3
+LOST_RAD = float(np.radians(0.5))
 #: A Cartesian motion keeps each joint this share of the datasheet's braking from its stop (the brake
 #: after a failed motion uses more: :data:`JOINT_LIMIT_SHARE`)
 BRAKE_SHARE = 0.5

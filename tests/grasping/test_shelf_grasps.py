@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose, boxes_meet
-from pickdemo.grasping.antipodal import sample_antipodal, way_out
+from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
+from pickdemo.grasping.antipodal import OUT_MARGIN_M, out_direction, sample_antipodal, way_out
 from pickdemo.grasping.clearance import hand_boxes, near
 from pickdemo.grasping.top_down import GraspParams
 from pickdemo.robot import robot_named
@@ -74,3 +74,24 @@ def test_nothing_over_the_object_no_level_grasp() -> None:
     centre = np.array([0.5, 0.0, size[2] / 2.0])
     grasps = sample_antipodal(seen_box(centre, size), 0.0, GRIPPER, np.random.default_rng(0))
     assert grasps and max(np.degrees(g.tilt_rad) for g in grasps) < 75.0
+
+
+def test_under_a_board_high_enough_to_lift_it_the_hand_still_backs_out_before_it_rises() -> None:
+    """A board 30 cm over the table: lifted its full 12 cm, the hand would still be under it, where the
+    arm would have to find its own way out between the boards: it backs out first."""
+    size = (0.05, 0.05, 0.11)
+    centre = np.array([0.0, 0.6, size[2] / 2.0])
+    board = OrientedBox(
+        Pose(np.array([0.0, 0.7, 0.31]), np.eye(3)), np.array([-0.4, -0.2, -0.01]), np.array([0.4, 0.2, 0.01])
+    )
+    cloud = seen_box(centre, size)
+    params = GraspParams()
+    grasps = sample_antipodal(cloud, 0.0, GRIPPER, np.random.default_rng(0), grasp=params, fixtures=(board,))
+    level = [g for g in grasps if g.rotation[1, 2] > 0.8]
+    assert level, "no grasp from the front"
+    held = (cloud.min(axis=0), cloud.max(axis=0))
+    out = way_out(level[0], held, GRIPPER, params, (board,))
+    assert out is not None
+    lift, back = out
+    assert back > 0.0
+    assert held[1][1] - out_direction(level[0].rotation)[1] * back < 0.5 - OUT_MARGIN_M  # (before the board's edge)

@@ -145,3 +145,17 @@ def test_a_path_under_way_is_stopped_once_the_world_shows_something_in_it_and_no
     m.p = MachineParams(replan_on_change=False)
     world.views = 101
     assert watch.blocked(m, obs) is None
+
+
+def test_a_held_object_that_stood_on_a_board_is_held_as_tall_as_it_is_not_from_the_table_up() -> None:
+    world = WorldModel()
+    _object(world, (0.0, 0.57, 0.0), (0.05, 0.09, 0.14), target=True)  # (a world model's box: from the table)
+    board = _box((0.0, 0.7, 0.05), (0.9, 0.9, 0.03))  # (its top 6.5 cm up)
+    tcp = Pose(np.array([0.0, 0.57, 0.12]), DOWN)
+    on_table, on_board = held_box(world, tcp), held_box(world, tcp, [board])
+    assert on_table is not None and on_board is not None
+    assert abs((on_table.hi[2] - on_table.lo[2]) - (0.14 + 0.02)) < 1e-9
+    assert abs((on_board.hi[2] - on_board.lo[2]) - (0.14 - 0.065 + 0.02)) < 1e-9
+    centre = (tcp @ on_board.pose).position[2]
+    bottom = centre - (on_board.hi[2] - on_board.lo[2]) / 2.0
+    assert abs(bottom - (0.065 - 0.01)) < 1e-9  # (grown by its margin below the board's top)
