@@ -24,7 +24,7 @@ JOINT_LINE_STEP_M = 0.01
 
 
 def line_in_joints(
-    kin: Kinematics, q_from: np.ndarray, pose: Pose, rng: np.random.Generator, ik: IKParams
+    kin: Kinematics, q_from: np.ndarray, pose: Pose, rng: np.random.Generator, ik: IKParams, *, partial: bool = False
 ) -> np.ndarray | None:
     """The joints of a straight line of the hand's (a grasp from the side's way in, its descent, its
     lift and way out: the per-tick IK loses tilted lines near the arm's joint limits, as in a shelf's
@@ -32,7 +32,8 @@ def line_in_joints(
     keeping the TCP within :data:`JOINT_LINE_M` of the line and its orientation within
     :data:`JOINT_LINE_RAD` of ``pose``'s; or None. One leg to the IK goal on ``q_from``'s branch where
     it keeps so; else the line's joints every :data:`JOINT_LINE_STEP_M` (the IK warm-started from
-    the last, as MoveIt's Cartesian paths), joined into as few legs as keep so."""
+    the last, as MoveIt's Cartesian paths), joined into as few legs as keep so. ``partial``: where the
+    arm cannot follow the whole line, the path as far along it as it can (None: not a step)."""
     a, b = kin.forward(q_from).position, pose.position
     res = kin.solve(pose, q_from, rng, ik)
     if res.success and _keeps_to(kin, q_from, res.q, a, b, pose.rotation):
@@ -42,7 +43,10 @@ def line_in_joints(
     for k in range(1, n + 1):  # (held to the start's posture; lost as the per-tick IK would lose it)
         res = kin.track(Pose(a + (b - a) * (k / n), pose.rotation), qs[-1], max_iterations=8, posture=qs[0])
         if not res.success and (res.position_error_m > LOST_M or res.rotation_error_rad > LOST_RAD):
-            return None
+            if not partial or k == 1:
+                return None
+            b, n = kin.forward(qs[-1]).position, k - 1  # (the line as far as it was followed)
+            break
         qs.append(res.q)
     out, i = [], 0
     while i < n:  # (the farthest point each leg can go to and keep to the line)

@@ -111,7 +111,7 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
         return None
     if m.plan.withdraw is not None and not m.withdrawing:  # under a shelf's board: back out the way it came in
         m.withdrawing = True
-        if side_line(m, m.plan.withdraw, SIDE_LINE_SCALE):
+        if side_line(m, m.plan.withdraw, SIDE_LINE_SCALE, partial=True):
             return None
         m.arm.cartesian()
         m.arm.move.to(m.plan.withdraw, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))

@@ -29,7 +29,7 @@ from pickdemo.tracking.belief import TargetBelief
 from pickdemo.worldmodel import WorldModel
 
 DESCENT_OUT_OF_REACH = "the straight descent onto the grasp is out of reach"
-WAY_OUT_NOT_FOLLOWED = "the arm cannot follow the way out from among the fixtures"
+WAY_OUT_NOT_FOLLOWED = "the arm cannot follow the lift from among the fixtures"
 SEEN_IN_PART = "something seen in part"
 #: A fixture's boxes this near the target are the grasps' concern (m): the open hand about it, from its pregrasp
 SOLIDS_NEAR_M = 0.5
@@ -351,11 +351,10 @@ class GraspChooser:
 
     def takes_out(self, plan: GraspPlan, q_grasp: np.ndarray) -> bool:
         """Whether the arm, at the grasp as ``q_grasp`` or in another of its postures there, can follow
-        the plan's lift and its way out from among the fixtures as straight lines (run as joint paths:
-        :func:`~pickdemo.motion.lines.line_in_joints`). Beside a shelf, the hand backing out level
-        brings the wrist near the arm's base, where the elbow runs out of room on some postures."""
-        assert plan.withdraw is not None
-        ways = [plan.lift, plan.withdraw]
+        the plan's lift from among the fixtures as a straight line (run as a joint path:
+        :func:`~pickdemo.motion.lines.line_in_joints`; the way out after it goes as far as the arm
+        follows it, and the carry's plan from there)."""
+        ways = [plan.lift]
         if lines_followed(self.kin, q_grasp, ways, self.rng, self.p.goals.ik):
             return True
         others = goal_candidates(self.kin, [plan.grasp], q_grasp, self.rng, self.p.goals)

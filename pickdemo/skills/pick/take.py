@@ -269,7 +269,7 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
 
 def _taking_out(m: PickMachine, accept: Accept | None) -> Accept | None:
     """``accept`` (a goal of the pregrasp, of the plan or the plan turned half a turn), where the arm
-    can also follow the descent, the lift and the way out from there, as the chooser checked the plan."""
+    can also follow the descent and the lift from there, as the chooser checked the plan."""
     if accept is None:
         return None
     assert m.plan is not None
@@ -277,7 +277,7 @@ def _taking_out(m: PickMachine, accept: Accept | None) -> Accept | None:
 
     def taking_out(q: np.ndarray, i: int) -> bool:
         p = plans[i]
-        ways = [p.grasp, p.lift, p.withdraw]
+        ways = [p.grasp, p.lift]
         return accept(q, i) and lines_followed(m.kin, q, ways, m.rng, m.p.goals.ik)
 
     return taking_out
@@ -397,16 +397,20 @@ def enter_descend(m: PickMachine, obs: Observation) -> None:
 SIDE_LINE_SCALE = 0.2
 
 
-def side_line(m: PickMachine, pose: Pose, scale: float) -> bool:
+def side_line(m: PickMachine, pose: Pose, scale: float, *, partial: bool = False) -> bool:
     """A grasp from the side's straight line (the last of the way in, the descent, the lift, the way
     out, the retreat from the place) as joint transfers, where they keep to the line (the per-tick IK
     loses tilted lines near the arm's joint limits, as in a shelf's bin); False: the caller's
-    Cartesian line."""
+    Cartesian line. ``partial``: as far along it as the arm can follow it (the way out of a shelf's bin:
+    backing out level brings the wrist near the arm's base; the carry's plan goes on from there)."""
     if not m.p.plan_around or hand_frame(pose.rotation) is None:
         return False
-    waypoints = line_in_joints(m.kin, m.arm.q, pose, m.rng, m.p.goals.ik)
+    waypoints = line_in_joints(m.kin, m.arm.q, pose, m.rng, m.p.goals.ik, partial=partial)
     if waypoints is None:
         return False
+    short = float(np.linalg.norm(m.kin.forward(waypoints[-1]).position - pose.position))
+    if short > 0.005:
+        m.note(f"going only part of the way: {short * 1e3:.0f} mm short, the arm could not follow the line further")
     m.arm.joint_line(waypoints, scale)
     return True
 
