@@ -159,3 +159,20 @@ def test_a_held_object_that_stood_on_a_board_is_held_as_tall_as_it_is_not_from_t
     centre = (tcp @ on_board.pose).position[2]
     bottom = centre - (on_board.hi[2] - on_board.lo[2]) / 2.0
     assert abs(bottom - (0.065 - 0.01)) < 1e-9  # (grown by its margin below the board's top)
+
+
+def test_a_goal_none_keeps_clear_of_by_the_margin_is_one_clear_within_the_tight_margins_before_any_other() -> None:
+    from pickdemo.skills.pick import MachineParams
+    from pickdemo.skills.pick.arm import ArmDriver
+
+    kin = kinematics_of(robot_named("panda"))
+    arm = ArmDriver(kin, kin.robot.home_q, 0.1, MachineParams(), np.random.default_rng(0))
+    above, grasp = Pose(np.array([0.5, 0.1, 0.2]), DOWN), Pose(np.array([0.5, 0.1, 0.1]), DOWN)
+    seen: list[np.ndarray] = []
+
+    def near(q: np.ndarray, i: int) -> bool:  # (one posture of those offered: the last one asked of)
+        seen.append(q)
+        return len(seen) == 3
+
+    q, _ = arm.goal(above, grasp, accept=lambda q, i: False, near=near)
+    assert len(seen) >= 3 and q is not None and np.array_equal(q, seen[2])

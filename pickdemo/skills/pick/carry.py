@@ -288,7 +288,7 @@ def tick_release(m: PickMachine, obs: Observation) -> Transition:
 
 def enter_retreat(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
-    if side_line(m, m.plan.retreat, SIDE_LINE_SCALE):
+    if side_line(m, m.plan.retreat, SIDE_LINE_SCALE, partial=True):  # (then home, planned, from there)
         return
     m.arm.move.to(m.plan.retreat, limits=m.arm.line_limits(m.plan.retreat))
 
