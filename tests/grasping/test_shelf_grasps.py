@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
-from pickdemo.grasping.antipodal import OUT_MARGIN_M, out_direction, sample_antipodal, way_out
+from pickdemo.grasping.antipodal import sample_antipodal
 from pickdemo.grasping.clearance import hand_boxes, near
+from pickdemo.grasping.side_plans import OUT_MARGIN_M, out_direction, way_out
 from pickdemo.grasping.top_down import GraspParams
 from pickdemo.robot import robot_named
 from pickdemo.scenario.fixtures import ModelSpec

@@ -7,7 +7,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from pickdemo.grasping.antipodal import AntipodalGrasp, tilted_pick
+from pickdemo.grasping.antipodal import AntipodalGrasp
+from pickdemo.grasping.side_plans import tilted_pick
 from pickdemo.grasping.top_down import GraspParams
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.skills.pick.take import _same_side
