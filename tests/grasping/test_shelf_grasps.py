@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from pickdemo.core.geometry import OrientedBox, Pose, boxes_meet
-from pickdemo.grasping.antipodal import sample_antipodal
+from pickdemo.grasping.antipodal import AntipodalGrasp, by_tilt_in_turns, sample_antipodal
 from pickdemo.grasping.clearance import hand_boxes, near
 from pickdemo.grasping.side_plans import OUT_MARGIN_M, out_direction, way_out
 from pickdemo.grasping.top_down import GraspParams
@@ -96,3 +96,16 @@ def test_under_a_board_high_enough_to_lift_it_the_hand_still_backs_out_before_it
     lift, back = out
     assert back > 0.0
     assert held[1][1] - out_direction(level[0].rotation)[1] * back < 0.5 - OUT_MARGIN_M  # (before the board's edge)
+
+
+def test_among_fixtures_the_grasps_come_the_best_of_each_tilt_in_turn() -> None:
+    def grasp(tilt_deg: float, cost: float) -> AntipodalGrasp:
+        t = np.radians(tilt_deg)
+        z = np.array([np.sin(t), 0.0, -np.cos(t)])
+        y = np.array([0.0, 1.0, 0.0])
+        return AntipodalGrasp(np.zeros(3), np.column_stack([np.cross(y, z), y, z]), 0.05, cost)
+
+    ranked = [(grasp(75.0, 1.0 + 0.01 * k), (0.1, 0.0)) for k in range(30)] + [(grasp(90.0, 2.0), (0.1, 0.0))]
+    turns = by_tilt_in_turns(ranked)
+    assert sorted(id(g) for g, _ in turns) == sorted(id(g) for g, _ in ranked)  # (the same, reordered)
+    assert [round(np.degrees(g.tilt_rad)) for g, _ in turns[:3]] == [75, 90, 75]  # (the level one within 24)
