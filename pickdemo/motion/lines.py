@@ -7,7 +7,7 @@ shelf's bin). Pure: no simulator.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -24,7 +24,14 @@ JOINT_LINE_STEP_M = 0.01
 
 
 def line_in_joints(
-    kin: Kinematics, q_from: np.ndarray, pose: Pose, rng: np.random.Generator, ik: IKParams, *, partial: bool = False
+    kin: Kinematics,
+    q_from: np.ndarray,
+    pose: Pose,
+    rng: np.random.Generator,
+    ik: IKParams,
+    *,
+    partial: bool = False,
+    clear: Callable[[np.ndarray], bool] | None = None,
 ) -> np.ndarray | None:
     """The joints of a straight line of the hand's (a grasp from the side's way in, its descent, its
     lift and way out: the per-tick IK loses tilted lines near the arm's joint limits, as in a shelf's
@@ -33,17 +40,20 @@ def line_in_joints(
     :data:`JOINT_LINE_RAD` of ``pose``'s; or None. One leg to the IK goal on ``q_from``'s branch where
     it keeps so; else the line's joints every :data:`JOINT_LINE_STEP_M` (the IK warm-started from
     the last, as MoveIt's Cartesian paths), joined into as few legs as keep so. ``partial``: where the
-    arm cannot follow the whole line, the path as far along it as it can (None: not a step)."""
+    arm cannot follow the whole line, the path as far along it as it can (None: not a step). ``clear(q)``:
+    whether the arm keeps clear there; the line ends before where it does not (as ``partial``)."""
     a, b = kin.forward(q_from).position, pose.position
     res = kin.solve(pose, q_from, rng, ik)
     if res.success and _keeps_to(kin, q_from, res.q, a, b, pose.rotation):
-        return res.q[None, :]
+        if clear is None or all(clear(q_from + (res.q - q_from) * t) for t in np.linspace(0.0, 1.0, 11)[1:]):
+            return res.q[None, :]
     n = max(2, int(np.ceil(float(np.linalg.norm(b - a)) / JOINT_LINE_STEP_M)))
     qs = [np.asarray(q_from, dtype=float)]
     for k in range(1, n + 1):  # (held to the start's posture; lost as the per-tick IK would lose it)
         res = kin.track(Pose(a + (b - a) * (k / n), pose.rotation), qs[-1], max_iterations=8, posture=qs[0])
-        if not res.success and (res.position_error_m > LOST_M or res.rotation_error_rad > LOST_RAD):
-            if not partial or k == 1:
+        lost = not res.success and (res.position_error_m > LOST_M or res.rotation_error_rad > LOST_RAD)
+        if lost or (clear is not None and not clear(res.q)):
+            if not (partial or clear is not None) or k == 1:
                 return None
             b, n = kin.forward(qs[-1]).position, k - 1  # (the line as far as it was followed)
             break

@@ -85,7 +85,7 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
     else:  # first just off the table, to weigh it before it hangs long at the first grip force
         lift[2] = m.plan.grasp.position[2] + m.p.payload.lift_off_m
         off = Pose(np.array([*m.plan.lift.position[:2], lift[2]]), m.plan.lift.rotation)
-        if side_line(m, off, SIDE_LINE_SCALE):
+        if side_line(m, off, SIDE_LINE_SCALE, checked=True):
             return
     motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
 
@@ -103,7 +103,7 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
             reason = f"fingers at {obs.opening_m * 1e3:.1f} mm, {m.grasp_width_m * 1e3:.1f} mm when it was grasped"
             return m.retry(Stage.LIFT, "turned in the grip", reason)
         m.lifted_off = True
-        if side_line(m, m.plan.lift, SIDE_LINE_SCALE):
+        if side_line(m, m.plan.lift, SIDE_LINE_SCALE, checked=True):
             return None
         m.arm.cartesian()
         lift = m.arm.move.x4(m.plan.lift)
@@ -111,7 +111,7 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
         return None
     if m.plan.withdraw is not None and not m.withdrawing:  # under a shelf's board: back out the way it came in
         m.withdrawing = True
-        if side_line(m, m.plan.withdraw, SIDE_LINE_SCALE, partial=True):
+        if side_line(m, m.plan.withdraw, SIDE_LINE_SCALE, partial=True, checked=True):
             return None
         m.arm.cartesian()
         m.arm.move.to(m.plan.withdraw, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))

@@ -397,22 +397,39 @@ def enter_descend(m: PickMachine, obs: Observation) -> None:
 SIDE_LINE_SCALE = 0.2
 
 
-def side_line(m: PickMachine, pose: Pose, scale: float, *, partial: bool = False) -> bool:
+def side_line(m: PickMachine, pose: Pose, scale: float, *, partial: bool = False, checked: bool = False) -> bool:
     """A grasp from the side's straight line (the last of the way in, the descent, the lift, the way
     out, the retreat from the place) as joint transfers, where they keep to the line (the per-tick IK
     loses tilted lines near the arm's joint limits, as in a shelf's bin); False: the caller's
     Cartesian line. ``partial``: as far along it as the arm can follow it (the way out of a shelf's bin:
-    backing out level brings the wrist near the arm's base; the carry's plan goes on from there)."""
+    backing out level brings the wrist near the arm's base; the carry's plan goes on from there).
+    ``checked``: the arm's links checked against what is in the way, the line ending before what it
+    would meet (a lift under a shelf's board: the hand and the object clear it, the wrist behind them
+    may not)."""
     if not m.p.plan_around or hand_frame(pose.rotation) is None:
         return False
-    waypoints = line_in_joints(m.kin, m.arm.q, pose, m.rng, m.p.goals.ik, partial=partial)
+    clear = _arm_clear(m) if checked else None
+    waypoints = line_in_joints(m.kin, m.arm.q, pose, m.rng, m.p.goals.ik, partial=partial, clear=clear)
     if waypoints is None:
         return False
     short = float(np.linalg.norm(m.kin.forward(waypoints[-1]).position - pose.position))
     if short > 0.005:
-        m.note(f"going only part of the way: {short * 1e3:.0f} mm short, the arm could not follow the line further")
+        further = "further, the arm could not follow the line, or would meet something"
+        m.note(f"going only part of the way: {short * 1e3:.0f} mm short ({further})")
     m.arm.joint_line(waypoints, scale)
     return True
+
+
+def _arm_clear(m: PickMachine) -> Callable[[np.ndarray], bool] | None:
+    """Whether the arm's links (the held object aside: its way out is the grasp plan's own check) keep
+    clear at ``q``, within the margins the arm keeps clear of them now (the normal, or the tight; None:
+    within neither, as at a grasp beside a board)."""
+    fingers = 0.5 * m.grasp_width_m if m.grasp_width_m is not None else m.grip.finger_max_m  # (each finger's)
+    scene = m.router.scene(m.world)
+    for s in (scene, scene.tighter() if scene.tighter is not None else None):
+        if s is not None and s.free(m.arm.q, fingers):
+            return lambda q, s=s: s.free(q, fingers)
+    return None
 
 
 def tick_descend(m: PickMachine, obs: Observation) -> Transition:
