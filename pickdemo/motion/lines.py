@@ -58,10 +58,15 @@ def line_in_joints(
             b, n = kin.forward(qs[-1]).position, k - 1  # (the line as far as it was followed)
             break
         qs.append(res.q)
+
+    def leg_ok(qa: np.ndarray, qb: np.ndarray) -> bool:
+        keeps = _keeps_to(kin, qa, qb, a, b, pose.rotation)
+        return keeps and (clear is None or all(clear(qa + (qb - qa) * t) for t in np.linspace(0.0, 1.0, 11)[1:-1]))
+
     out, i = [], 0
-    while i < n:  # (the farthest point each leg can go to and keep to the line)
-        j = next((j for j in range(n, i + 1, -1) if _keeps_to(kin, qs[i], qs[j], a, b, pose.rotation)), i + 1)
-        if j == i + 1 and not _keeps_to(kin, qs[i], qs[j], a, b, pose.rotation):
+    while i < n:  # (the farthest point each leg can go to and keep to the line, and clear)
+        j = next((j for j in range(n, i + 1, -1) if leg_ok(qs[i], qs[j])), i + 1)
+        if j == i + 1 and not leg_ok(qs[i], qs[j]):
             return None
         out.append(qs[j])
         i = j

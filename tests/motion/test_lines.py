@@ -46,3 +46,14 @@ def test_a_line_that_brings_the_level_hand_to_the_base_cannot_be_followed() -> N
     assert line_in_joints(KIN, q0, _at(0.15), rng, IKParams()) is None
     assert lines_followed(KIN, q0, [_at(0.5), _at(0.45)], rng, IKParams())
     assert not lines_followed(KIN, q0, [_at(0.5), _at(0.15)], rng, IKParams())
+
+
+def test_a_line_checked_against_what_is_in_the_way_ends_before_it() -> None:
+    rng = np.random.default_rng(0)
+    q0 = KIN.solve(_at(0.55), KIN.robot.home_q, rng).q
+    beyond = lambda q: KIN.forward(q).position[1] > 0.47  # noqa: E731 - (something from 47 cm back on)
+    waypoints = line_in_joints(KIN, q0, _at(0.40), rng, IKParams(), clear=beyond)
+    assert waypoints is not None
+    legs = [q0, *waypoints]
+    assert all(beyond(qa + (qb - qa) * t) for qa, qb in zip(legs[:-1], legs[1:], strict=True) for t in (0.5, 1.0))
+    assert KIN.forward(waypoints[-1]).position[1] < 0.49  # (within a step of it)
