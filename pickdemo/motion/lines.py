@@ -7,7 +7,7 @@ shelf's bin). Pure: no simulator.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 
 import numpy as np
 
@@ -90,14 +90,9 @@ def _keeps_to(
     return True
 
 
-def lines_followed(
-    kin: Kinematics, q: np.ndarray, poses: Sequence[Pose], rng: np.random.Generator, ik: IKParams
-) -> bool:
-    """Whether the arm at ``q`` can follow the straight lines through ``poses`` in turn, each as
-    :func:`line_in_joints` (a lift, then the way out of a shelf's bin)."""
-    for pose in poses:
-        waypoints = line_in_joints(kin, q, pose, rng, ik)
-        if waypoints is None:
-            return False
-        q = waypoints[-1]
-    return True
+def rise_followed(kin: Kinematics, q: np.ndarray, lift: Pose, rng: np.random.Generator, ik: IKParams) -> float:
+    """How high (m) the arm at ``q`` can follow the straight lift to ``lift`` (0: not a step; the
+    whole rise where it follows all of it), each step as :func:`line_in_joints`."""
+    z0 = kin.forward(q).position[2]
+    waypoints = line_in_joints(kin, q, lift, rng, ik, partial=True)
+    return 0.0 if waypoints is None else float(kin.forward(waypoints[-1]).position[2] - z0)

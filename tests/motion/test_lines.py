@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from pickdemo.core.geometry import Pose
-from pickdemo.motion.lines import JOINT_LINE_M, JOINT_LINE_RAD, line_in_joints, lines_followed
+from pickdemo.motion.ik_goals import choose_goal, goal_candidates
+from pickdemo.motion.lines import JOINT_LINE_M, JOINT_LINE_RAD, line_in_joints, rise_followed
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import IKParams, kinematics_of
 
@@ -44,8 +45,20 @@ def test_a_line_that_brings_the_level_hand_to_the_base_cannot_be_followed() -> N
     rng = np.random.default_rng(0)
     q0 = KIN.solve(_at(0.55), KIN.robot.home_q, rng).q
     assert line_in_joints(KIN, q0, _at(0.15), rng, IKParams()) is None
-    assert lines_followed(KIN, q0, [_at(0.5), _at(0.45)], rng, IKParams())
-    assert not lines_followed(KIN, q0, [_at(0.5), _at(0.15)], rng, IKParams())
+    assert line_in_joints(KIN, q0, _at(0.45), rng, IKParams()) is not None
+
+
+def test_a_level_hand_rises_only_so_far_55_cm_out_in_front() -> None:
+    """The Panda's level hand reaches 5-20 cm over the table there, each posture near a joint's stop
+    (tests/hand_reach.py): a lift from 8 cm to 40 cm is followed part of the way, and rise_followed says
+    how far; a lift of 4 cm all of it."""
+    rng = np.random.default_rng(0)
+    forward = np.column_stack([np.cross([0.0, 1.0, 0.0], [1.0, 0.0, 0.0]), [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    at = lambda z: Pose(np.array([0.55, 0.0, z]), forward)  # noqa: E731
+    start = choose_goal(goal_candidates(KIN, [at(0.08)], KIN.robot.home_q, rng))
+    assert start is not None
+    assert 0.0 < rise_followed(KIN, start.q, at(0.40), rng, IKParams()) < 0.2
+    assert abs(rise_followed(KIN, start.q, at(0.12), rng, IKParams()) - 0.04) < 1e-3
 
 
 def test_a_line_checked_against_what_is_in_the_way_ends_before_it() -> None:

@@ -111,6 +111,10 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
         return None
     if m.plan.withdraw is not None and not m.withdrawing:  # under a shelf's board: back out the way it came in
         m.withdrawing = True
+        dz = float(m.kin.forward(m.arm.q).position[2] - m.plan.lift.position[2])
+        if dz < -0.001:  # (lifted only as high as the arm followed: out level from there)
+            w = m.plan.withdraw
+            m.plan = dataclasses.replace(m.plan, withdraw=Pose(w.position + np.array([0.0, 0.0, dz]), w.rotation))
         if side_line(m, m.plan.withdraw, SIDE_LINE_SCALE, partial=True, checked=True):
             return None
         m.arm.cartesian()

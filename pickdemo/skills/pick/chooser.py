@@ -13,9 +13,10 @@ from pickdemo.core.geometry import OrientedBox, Pose, wrap_angle
 from pickdemo.core.result import Failure, Stage
 from pickdemo.grasping.clearance import near as boxes_near
 from pickdemo.grasping.selection import GraspRequest, GraspSelector
+from pickdemo.grasping.side_plans import LEAST_LIFT_M
 from pickdemo.grasping.top_down import GraspPlan, GraspPlanningError
 from pickdemo.motion.ik_goals import along_line, goal_candidates, line_reach, line_speed_scale
-from pickdemo.motion.lines import lines_followed
+from pickdemo.motion.lines import rise_followed
 from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import ObjectCloud, TargetModel
 from pickdemo.perception.neighbours import NEIGHBOURHOOD_M, OWN_MARGIN_M
@@ -352,13 +353,17 @@ class GraspChooser:
     def takes_out(self, plan: GraspPlan, q_grasp: np.ndarray) -> bool:
         """Whether the arm, at the grasp as ``q_grasp`` or in another of its postures there, can follow
         the plan's lift from among the fixtures as a straight line (run as a joint path:
-        :func:`~pickdemo.motion.lines.line_in_joints`; the way out after it goes as far as the arm
-        follows it, and the carry's plan from there)."""
-        ways = [plan.lift]
-        if lines_followed(self.kin, q_grasp, ways, self.rng, self.p.goals.ik):
+        :func:`~pickdemo.motion.lines.line_in_joints`) at least :data:`LEAST_LIFT_M`, over a shelf's
+        lip (the lift goes as high as the arm follows it, the way out level from there as far as it
+        follows that, and the carry's plan from there: a Panda's level hand reaches 5-20 cm over the
+        table 55 cm out, `tests/hand_reach.py`)."""
+
+        def lifts(q: np.ndarray) -> bool:
+            return rise_followed(self.kin, q, plan.lift, self.rng, self.p.goals.ik) >= LEAST_LIFT_M - 1e-3
+
+        if lifts(q_grasp):
             return True
-        others = goal_candidates(self.kin, [plan.grasp], q_grasp, self.rng, self.p.goals)
-        return any(lines_followed(self.kin, c.q, ways, self.rng, self.p.goals.ik) for c in others)
+        return any(lifts(c.q) for c in goal_candidates(self.kin, [plan.grasp], q_grasp, self.rng, self.p.goals))
 
     def unreachable(self, plan: GraspPlan, now_s: float) -> str | Failure:
         """Why the arm cannot do this plan's pick and place ("" if it can; a failure to end the episode

@@ -13,8 +13,9 @@ import numpy as np
 from pickdemo.core.geometry import Pose
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Stage
+from pickdemo.grasping.side_plans import LEAST_LIFT_M
 from pickdemo.grasping.top_down import GraspPlan
-from pickdemo.motion.lines import line_in_joints, lines_followed
+from pickdemo.motion.lines import line_in_joints, rise_followed
 from pickdemo.motion.online import hand_frame
 from pickdemo.skills.pick.params import Event, State, Transition
 from pickdemo.skills.pick.plans import half_turn, moved_place, turned_plan
@@ -269,7 +270,7 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
 
 def _taking_out(m: PickMachine, accept: Accept | None) -> Accept | None:
     """``accept`` (a goal of the pregrasp, of the plan or the plan turned half a turn), where the arm
-    can also follow the descent and the lift from there, as the chooser checked the plan."""
+    can also follow the descent and lift over the lip from there, as the chooser checked the plan."""
     if accept is None:
         return None
     assert m.plan is not None
@@ -277,8 +278,12 @@ def _taking_out(m: PickMachine, accept: Accept | None) -> Accept | None:
 
     def taking_out(q: np.ndarray, i: int) -> bool:
         p = plans[i]
-        ways = [p.grasp, p.lift]
-        return accept(q, i) and lines_followed(m.kin, q, ways, m.rng, m.p.goals.ik)
+        if not accept(q, i):
+            return False
+        descent = line_in_joints(m.kin, q, p.grasp, m.rng, m.p.goals.ik)
+        if descent is None:
+            return False
+        return rise_followed(m.kin, descent[-1], p.lift, m.rng, m.p.goals.ik) >= LEAST_LIFT_M - 1e-3
 
     return taking_out
 
