@@ -349,16 +349,17 @@ class ArmDriver:
             more = dataclasses.replace(g, starts=g.starts * MORE_STARTS)
             poses = [pose] if not equivalent else [pose, *(half_turned or (half_turn(pose), half_turn(line_to)))[:1]]
             ends = [line_to] if not equivalent else [line_to, (half_turned or (None, half_turn(line_to)))[1]]
+            extras: list = []
             for i, (p, e) in enumerate(zip(poses, ends, strict=True)):
                 extra = goal_candidates(self.kin, [p], self.q, self.rng, more, lines_to=[e])
                 extra = [dataclasses.replace(c, index=i) for c in extra]
                 clear += [c for c in extra if c.line_ok and accept(c.q, i)]
-                found += extra
+                extras += extra
             goal = choose_goal(clear, g)
             if goal is None and near is not None:
                 # within the tight margins, a goal whose line can be followed (in a shelf's bin, the
                 # hand's way in keeps within a centimetre of the boards), before one whose line cannot
-                goal = choose_goal([c for c in found if c.line_ok and near(c.q, c.index)], g)
+                goal = choose_goal([c for c in found + extras if c.line_ok and near(c.q, c.index)], g)
             goal = goal or choose_goal(found, g)
         if goal is None:
             return None, 0

@@ -212,8 +212,10 @@ class Router:
         self, scene: CollisionScene, ends: Sequence[Pose], fingers_m: float
     ) -> Callable[[np.ndarray, int], bool] | None:
         """:meth:`accepting` within the scene's tight margins (its ``tighter``, made when first asked;
-        None: it has none)."""
-        if scene.tighter is None:
+        None: it has none, or the task has no fixtures: the tight margins are for known geometry, a
+        shelf's boards; among seen objects only, whose margins carry their uncertainty, a goal whose
+        line can be followed is taken as before, and a packed table's rounds cleared fewer objects)."""
+        if scene.tighter is None or not self.solids:
             return None
         make = scene.tighter
         tight: list[CollisionScene] = []
