@@ -7,7 +7,7 @@ shelf's bin). Pure: no simulator.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -96,3 +96,159 @@ def rise_followed(kin: Kinematics, q: np.ndarray, lift: Pose, rng: np.random.Gen
     z0 = kin.forward(q).position[2]
     waypoints = line_in_joints(kin, q, lift, rng, ik, partial=True)
     return 0.0 if waypoints is None else float(kin.forward(waypoints[-1]).position[2] - z0)
+
+
+#: A carry keeps what the hand holds at its attitude: the way down, in the hand's frame, within this
+#: of where it was (rad). Held off its centre from the side, an item turns in the fingers as the
+#: hand tilts under it (a shelf's items carried in joint space turned 7-35 deg, and fell over at the place).
+UPRIGHT_RAD = float(np.radians(3.0))
+#: ... and the TCP within this of the carry's path (m; what it passes is the collision check's to say).
+CARRY_PATH_M = 0.02
+#: A carry's path is solved every this far along it (m) ...
+CARRY_STEP_M = 0.01
+#: ... or, a transfer in joint space, every this far along it (rad, the joint that moves most).
+CARRY_STEP_RAD = 0.02
+
+
+def around_the_base(start: Pose, end: Pose, rise_m: float = 0.0, step_m: float = CARRY_STEP_M) -> list[Pose] | None:
+    """The hand's way from ``start`` to ``end`` about the robot's base (the vertical through the world's
+    origin: the base's frame), keeping its attitude: the bearing, the distance from the base and the
+    height each go evenly (the height ``rise_m`` higher at the middle, a half sine), and the hand turns
+    about the vertical with the bearing, by ``end``'s turn from ``start``. The poses after ``start``, the
+    last ``end``, about ``step_m`` apart; None where ``end`` is not ``start`` turned about the vertical
+    (within the per-tick IK's :data:`~pickdemo.motion.online.LOST_RAD`)."""
+    turn = end.rotation @ start.rotation.T
+    if turn[2, 2] < np.cos(LOST_RAD):
+        return None
+    yaw = float(np.arctan2(turn[1, 0], turn[0, 0]))
+    (x0, y0, z0), (x1, y1, z1) = start.position, end.position
+    r0, r1 = float(np.hypot(x0, y0)), float(np.hypot(x1, y1))
+    b0 = float(np.arctan2(y0, x0))
+    db = float(np.angle(np.exp(1j * (np.arctan2(y1, x1) - b0))))  # (the shorter way round)
+    length = 0.5 * (r0 + r1) * abs(db) + abs(r1 - r0) + abs(z1 - z0) + 2.0 * abs(rise_m)
+    n = max(2, int(np.ceil(length / step_m)))
+    poses = []
+    for t in np.arange(1, n + 1) / n:
+        r, b = r0 + (r1 - r0) * t, b0 + db * t
+        z = z0 + (z1 - z0) * t + rise_m * float(np.sin(np.pi * t))
+        c, s = np.cos(yaw * t), np.sin(yaw * t)
+        rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        poses.append(Pose(np.array([r * np.cos(b), r * np.sin(b), z]), rz @ start.rotation))
+    poses[-1] = end
+    return poses
+
+
+def carry_in_joints(
+    kin: Kinematics,
+    q_from: np.ndarray,
+    poses: list[Pose],
+    clear: Callable[[np.ndarray], bool] | None = None,
+    q_to: np.ndarray | None = None,
+) -> np.ndarray | None:
+    """A carry along ``poses`` (dense, from :func:`around_the_base`) as a joint path: its waypoints
+    (K, dof) after ``q_from``, each leg's straight joint path keeping what the hand holds at its attitude
+    (:data:`UPRIGHT_RAD`), the TCP within :data:`CARRY_PATH_M` of the poses' path, and ``clear``; None
+    where the per-tick IK would lose the path or the arm would not keep clear on it. The joints are
+    solved along it warm-started (as :func:`line_in_joints`), drawn in the arm's free swing from
+    ``q_from``'s posture towards ``q_to``'s (an IK goal at the last pose, from which what follows can be
+    followed: the path then ends there), then joined into as few legs as keep so."""
+    qs = [np.asarray(q_from, dtype=float)]
+    for k, pose in enumerate(poses, start=1):
+        posture = qs[0] if q_to is None else qs[0] + (q_to - qs[0]) * (k / len(poses))
+        res = kin.track(pose, qs[-1], max_iterations=8, posture=posture)
+        if not res.success and (res.position_error_m > LOST_M or res.rotation_error_rad > LOST_RAD):
+            return None
+        if clear is not None and not clear(res.q):
+            return None
+        qs.append(res.q)
+    if q_to is not None:
+        qs.append(np.asarray(q_to, dtype=float))
+    return _upright_legs(kin, qs, clear)
+
+
+def upright_in_joints(
+    kin: Kinematics,
+    q_from: np.ndarray,
+    q_to: np.ndarray,
+    clear: Callable[[np.ndarray], bool] | None = None,
+    via: Sequence[np.ndarray] = (),
+) -> np.ndarray | None:
+    """A transfer in joint space from ``q_from`` to ``q_to`` (the TCP at the same attitude at both, turned
+    about the vertical), through ``via`` (a path planned around what is in the way), keeping what the
+    hand holds at its attitude: the straight joint path, each point every :data:`CARRY_STEP_RAD` moved by
+    the IK to the nearest pose at the attitude (the TCP where the point puts it, the hand turned about
+    the vertical as the point turns it), then joined into as few legs as keep so (as
+    :func:`carry_in_joints`); None where the IK cannot hold the attitude near a point, or the arm would
+    not keep ``clear``. Where the arm must change its posture on the way (a shelf's bin reached with the
+    elbow turned over), a way about the base at one posture cannot."""
+    corners = [np.asarray(q, dtype=float) for q in (q_from, *via, q_to)]
+    start = kin.forward(corners[0]).rotation
+    heading0 = float(np.arctan2(start[1, 2], start[0, 2]))
+    qs = [corners[0]]
+    for a, b in zip(corners[:-1], corners[1:], strict=True):
+        n = max(2, int(np.ceil(float(np.max(np.abs(b - a))) / CARRY_STEP_RAD)))
+        for k in range(1, n + 1):
+            q_t = a + (b - a) * (k / n)
+            if k == n and b is corners[-1]:
+                break  # (the goal is at the attitude)
+            at = kin.forward(q_t)
+            turn = float(np.arctan2(at.rotation[1, 2], at.rotation[0, 2])) - heading0
+            c, s = np.cos(turn), np.sin(turn)
+            held = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ start
+            res = kin.track(Pose(at.position, held), qs[-1], max_iterations=20, posture=q_t)
+            if res.rotation_error_rad > UPRIGHT_RAD / 2.0 or res.position_error_m > CARRY_PATH_M / 4.0:
+                return None
+            if clear is not None and not clear(res.q):
+                return None
+            qs.append(res.q)
+    qs.append(corners[-1])
+    return _upright_legs(kin, qs, clear)
+
+
+def _upright_legs(
+    kin: Kinematics, qs: list[np.ndarray], clear: Callable[[np.ndarray], bool] | None
+) -> np.ndarray | None:
+    """The joints ``qs`` along a carry (the first where the arm is) joined into as few legs as keep what
+    the hand holds at its attitude, the TCP within :data:`CARRY_PATH_M` of their path, and ``clear``:
+    the legs' ends (K, dof) after the first; None where even one step does not."""
+    down = np.array([0.0, 0.0, -1.0])
+    down_in_hand = kin.forward(qs[0]).rotation.T @ down
+    path = np.array([kin.forward(q).position for q in qs])
+    ts = np.linspace(0.0, 1.0, 11)[1:-1]
+
+    def leg_ok(i: int, j: int) -> bool:
+        on_leg = [qs[i] + (qs[j] - qs[i]) * t for t in ts]
+        for q in on_leg:
+            at = kin.forward(q)
+            if float(np.arccos(np.clip((at.rotation.T @ down) @ down_in_hand, -1.0, 1.0))) > UPRIGHT_RAD:
+                return False
+            if _from_polyline(at.position, path[i : j + 1]) > CARRY_PATH_M:
+                return False
+        return clear is None or all(clear(q) for q in on_leg)
+
+    out, i, n = [], 0, len(qs) - 1
+    while i < n:  # (each leg as long as it keeps so: doubled while it does, then halved back)
+        if not leg_ok(i, i + 1):
+            return None
+        good, step = i + 1, 1
+        while good < n:
+            j = min(i + 2 * step, n)
+            if not leg_ok(i, j):
+                bad = j
+                while bad - good > 1:
+                    mid = (good + bad) // 2
+                    good, bad = (mid, bad) if leg_ok(i, mid) else (good, mid)
+                break
+            good, step = j, 2 * step
+        out.append(qs[good])
+        i = good
+    return np.array(out)
+
+
+def _from_polyline(p: np.ndarray, pts: np.ndarray) -> float:
+    """How far (m) ``p`` is from the polyline through ``pts`` (N, 3)."""
+    a, b = pts[:-1], pts[1:]
+    ab = b - a
+    length2 = np.einsum("ij,ij->i", ab, ab)
+    s = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.where(length2 > 0.0, length2, 1.0), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(a + s[:, None] * ab - p, axis=1)))

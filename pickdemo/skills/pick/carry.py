@@ -6,6 +6,7 @@ table the machine dispatches from)."""
 from __future__ import annotations
 
 import dataclasses
+import time
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -13,14 +14,17 @@ import numpy as np
 from pickdemo.core.geometry import Pose
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Failure, Stage
-from pickdemo.motion.ik_goals import along_line, line_trackable
+from pickdemo.motion.ik_goals import along_line, goal_candidates, line_trackable
+from pickdemo.motion.online import hand_frame
 from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.skills.pick.routes import held_box
 from pickdemo.skills.pick.take import SIDE_LINE_SCALE, go_home, side_line, wrist_load
+from pickdemo.skills.pick.upright import upright_carry
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
+    from pickdemo.grasping.top_down import GraspPlan
     from pickdemo.perception import PoseEstimate
     from pickdemo.skills.pick.machine import PickMachine
 
@@ -132,6 +136,9 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     straight = not (p.joint_transfers and p.carry_in_joint_space)
     fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
     scene = m.router.scene(m.world, held=m.held) if p.plan_around else None
+    if scene is not None and p.joint_transfers and hand_frame(m.plan.place.rotation) is not None:
+        if _carried_upright(m, scene, fingers):
+            return
     if straight and (not p.joint_transfers or m.arm.straight_carry_ok(m.plan, m.lift_scale)):
         ends = [m.plan.place_above, m.plan.place]  # (then down onto the place)
         posture = m.arm.motion.posture
@@ -174,6 +181,42 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     m.note(note)
     if note is None:
         m.arm.transfer_to(q, scale)
+
+
+def _carried_upright(m: PickMachine, scene, fingers: float) -> bool:  # noqa: ANN001
+    """An item held from the side carried about the base at the attitude it was lifted at, where the
+    way keeps clear (within the margins the arm keeps now: the normal, or the tight, beside a shelf's
+    bin it came out of) and the lowering from its end is followed and clear (:mod:`~pickdemo.skills.pick.upright`);
+    False: none does, the carry as before."""
+    assert m.plan is not None
+    q = m.arm.q
+    tight = scene.tighter() if scene.tighter is not None else None
+    within = next((s for s in (scene, tight) if s is not None and s.free(q, fingers)), None)
+    if within is None:
+        return False
+
+    def goal(plan: GraspPlan, q_end: np.ndarray) -> np.ndarray | None:  # (the lowering followed and clear)
+        accept = m.router.accepting(within, [plan.place], fingers)
+        if line_trackable(m.kin, q_end, plan.place_above, plan.place, m.p.goals) and accept(q_end, 0):
+            return q_end
+        found = goal_candidates(m.kin, [plan.place_above], q_end, m.rng, m.p.goals, lines_to=[plan.place])
+        ok = [g.q for g in found if g.line_ok and accept(g.q, 0)]
+        return min(ok, key=lambda g: float(np.max(np.abs(g - q_end)))) if ok else None
+
+    t0 = time.perf_counter()
+    carry = upright_carry(m.kin, q, m.plan, lambda q_k: within.free(q_k, fingers), goal)
+    took = (time.perf_counter() - t0) * 1e3
+    if carry is None:
+        m.note(f"no upright carry found ({took:.0f} ms): carried as before")
+        return False
+    m.plan = carry.plan
+    scale = m.p.carry_scale * m.lift_scale * m.scale.carry_share()
+    m.arm.joint_line(carry.waypoints, scale)
+    rise = carry.rise_m
+    way = "in joint space" if rise is None else f"about the base, {rise * 1e2:.0f} cm higher at the middle"
+    m.note(f"carried upright {way}, in {len(carry.waypoints)} leg(s), put down turned "
+           f"{np.degrees(carry.turn_rad):+.0f} deg ({took:.0f} ms)")  # fmt: skip
+    return True
 
 
 #: A carry whose straight line meets something goes this much higher first, if that keeps clear (m).

@@ -30,12 +30,34 @@ def half_turn(pose: Pose, shift: np.ndarray | None = None) -> Pose:
 ABOUT_VERTICAL = np.diag([-1.0, -1.0, 1.0])
 
 
-def turned_about_vertical(pose: Pose, centre_xy: np.ndarray) -> Pose:
-    """A TCP pose turned half a turn about the vertical through ``centre_xy`` (m): a tilted hand holding
-    an object there, turned so, holds it upright still (turned about its approach, it would turn the
-    object over)."""
+def about_vertical(angle_rad: float) -> np.ndarray:
+    """The rotation by ``angle_rad`` about the vertical."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def turned_about_vertical(pose: Pose, centre_xy: np.ndarray, angle_rad: float | None = None) -> Pose:
+    """A TCP pose turned half a turn (or ``angle_rad``) about the vertical through ``centre_xy`` (m): a
+    tilted hand holding an object there, turned so, holds it upright still (turned about its approach, it
+    would turn the object over)."""
     c = np.array([centre_xy[0], centre_xy[1], 0.0])
-    return Pose(c + ABOUT_VERTICAL @ (pose.position - c), ABOUT_VERTICAL @ pose.rotation)
+    rz = ABOUT_VERTICAL if angle_rad is None else about_vertical(angle_rad)
+    return Pose(c + rz @ (pose.position - c), rz @ pose.rotation)
+
+
+def turned_place(plan: GraspPlan, angle_rad: float) -> GraspPlan:
+    """The plan with the held object put down turned ``angle_rad`` about its own vertical (the hand
+    turned with it about the object's centre over the place, which stays where it was)."""
+    ox, oy = plan.place_offset_xy
+    centre = plan.place.position[:2] - np.array([ox, oy])
+    off = about_vertical(angle_rad)[:2, :2] @ np.array([ox, oy])
+    return dataclasses.replace(
+        plan,
+        place_above=turned_about_vertical(plan.place_above, centre, angle_rad),
+        place=turned_about_vertical(plan.place, centre, angle_rad),
+        retreat=turned_about_vertical(plan.retreat, centre, angle_rad),
+        place_offset_xy=(float(off[0]), float(off[1])),
+    )
 
 
 def moved_place(plan: GraspPlan, dxy: tuple[float, float]) -> GraspPlan:
