@@ -10,7 +10,8 @@ goes with the hand (a box in the TCP's frame). MoveIt's planning scene is the sa
 
 Which contacts are allowed is written here once: the links that no joint moves (the base) stand on
 the table, so they are not checked against it; a held object touches the fingers, so it is checked
-against the obstacles only, and not against the table: it is lifted straight off it and lowered
+against the obstacles and the robot's base only (the links that no joint moves: it is carried past
+them), and not against the table: it is lifted straight off it and lowered
 straight onto it at its place (its box, grown by a margin, would meet the table at both), and carried
 above it. Everything else the caller decides by what it passes as obstacles (the
 target is none while the hand goes to it; the place's surface is none at the release).
@@ -114,6 +115,8 @@ class CollisionScene:
                 pin.GeometryObject("held", frame.parentJoint, geometry.tcp_frame, frame.placement * M, shape)
             )
             self.names.append("the held object")
+            for i in geometry.fixed:  # (carried past the base: the arm's own links it is near are the hand's)
+                gm.addCollisionPair(pin.CollisionPair(i, held_id))
         for ob in obstacles:
             M, shape = _placement(ob.box)
             j = gm.addGeometryObject(pin.GeometryObject(ob.name, 0, 0, M, shape))
