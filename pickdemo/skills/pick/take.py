@@ -15,7 +15,7 @@ from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Stage
 from pickdemo.grasping.side_plans import LEAST_LIFT_M
 from pickdemo.grasping.top_down import GraspPlan
-from pickdemo.motion.lines import line_in_joints, rise_followed
+from pickdemo.motion.lines import line_in_joints
 from pickdemo.motion.online import hand_frame
 from pickdemo.skills.pick.params import Event, State, Transition
 from pickdemo.skills.pick.plans import half_turn, moved_place, turned_plan
@@ -235,9 +235,16 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
     grasps = [m.plan.grasp, half_turn(m.plan.grasp)]
     accept = None if scene is None else m.router.accepting(scene, grasps, fingers)
     near = None if scene is None else m.router.accepting_near(scene, grasps, fingers)
+    q, turned = None, 0
     if m.plan.withdraw is not None and accept is not None:  # (and the way out of a shelf's bin followed)
-        accept, near = _taking_out(m, accept), _taking_out(m, near)
-    q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept, near=near)
+        out = _taking_out(m, accept, all_out=True), _taking_out(m, near, all_out=True)
+        q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=out[0], near=out[1])
+        if q is not None and not any(f is not None and f(q, turned) for f in out):  # (none all the way out)
+            q = None
+        if q is None:
+            accept, near = _taking_out(m, accept), _taking_out(m, near)
+    if q is None:
+        q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept, near=near)
     if q is None:
         m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
         return
@@ -268,13 +275,18 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
         m.arm.transfer_to(q, m.p.transfer_scale)
 
 
-def _taking_out(m: PickMachine, accept: Accept | None) -> Accept | None:
+def _taking_out(m: PickMachine, accept: Accept | None, *, all_out: bool = False) -> Accept | None:
     """``accept`` (a goal of the pregrasp, of the plan or the plan turned half a turn), where the arm
-    can also follow the descent and lift over the lip from there, as the chooser checked the plan."""
+    can also follow the descent and lift over the lip from there, as the chooser checked the plan;
+    ``all_out``: and back out of the bin all the way, clear within the tight margins (a way out cut
+    short leaves the hand in the bin, from where no carry was found: `pick_shelf`, 7 of 100)."""
     if accept is None:
         return None
     assert m.plan is not None
     plans = (m.plan, turned_plan(m.plan, pick=True, place=True))
+    scene = m.router.scene(m.world) if all_out else None
+    tight = scene.tighter() if scene is not None and scene.tighter is not None else scene
+    fingers = m.plan.open_m or m.grip.finger_max_m
 
     def taking_out(q: np.ndarray, i: int) -> bool:
         p = plans[i]
@@ -283,7 +295,17 @@ def _taking_out(m: PickMachine, accept: Accept | None) -> Accept | None:
         descent = line_in_joints(m.kin, q, p.grasp, m.rng, m.p.goals.ik)
         if descent is None:
             return False
-        return rise_followed(m.kin, descent[-1], p.lift, m.rng, m.p.goals.ik) >= LEAST_LIFT_M - 1e-3
+        lift = line_in_joints(m.kin, descent[-1], p.lift, m.rng, m.p.goals.ik, partial=True)
+        if lift is None:
+            return False
+        top = m.kin.forward(lift[-1]).position[2]
+        if top - m.kin.forward(descent[-1]).position[2] < LEAST_LIFT_M - 1e-3:
+            return False
+        if tight is None or p.withdraw is None:
+            return True
+        out = Pose(p.withdraw.position + np.array([0.0, 0.0, top - p.lift.position[2]]), p.withdraw.rotation)
+        way = line_in_joints(m.kin, lift[-1], out, m.rng, m.p.goals.ik, clear=lambda q_k: tight.free(q_k, fingers))
+        return way is not None and float(np.linalg.norm(m.kin.forward(way[-1]).position - out.position)) < 0.005
 
     return taking_out
 

@@ -1,10 +1,12 @@
-"""The carry of an item held from the side, kept upright (issue 59): the hand goes about the robot's base
-at its attitude (:func:`~pickdemo.motion.lines.around_the_base`), the hand turning about the vertical
-with its bearing, and the item is put down turned as much about its own vertical.
+"""The carry of an item held from the side, kept upright (issue 59): the way down in the hand's frame
+kept where it was at the lift, in joint space with each point moved to that attitude
+(:func:`~pickdemo.motion.lines.upright_in_joints`), or about the robot's base at the arm's posture
+(:func:`~pickdemo.motion.lines.around_the_base`); the hand turns about the vertical on the way, and the
+item is put down turned as much about its own vertical.
 
 Why: a grasp from the side holds a shelf's item off its centre; carried in joint space, the hand
-tilted under it by up to 45 deg on the way, and the item turned in the fingers by 7 to 35 deg (all 8 of
-the `pick_shelf` place failures traced, seeds 18 to 91), so that it stood tilted at the place and fell
+tilted under it by up to 45 deg on the way, and the item turned in the fingers by 7 to 35 deg (each of the
+9 of `pick_shelf`'s 15 place failures traced, seeds 18 to 91), so that it stood tilted at the place and fell
 over or was dragged by the retreat. Held at the attitude it was lifted at, the pull of its weight about
 the fingers stays what the lift showed the grip holds.
 
