@@ -145,7 +145,7 @@ def _wrap_episode(prof: Profiler, ep: Any) -> None:
     for name in ("track", "solve", "forward", "manipulability", "limit_margin"):
         prof.wrap(m.kin, name, "kinematics")
     router = getattr(m, "router", None)
-    for name in ("scene", "joint", "line_blocked", "accepting"):
+    for name in ("scene", "joint", "line_blocked", "accepting", "upright"):
         prof.wrap(router, name, "planning")
 
 

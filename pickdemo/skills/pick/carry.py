@@ -6,7 +6,6 @@ table the machine dispatches from)."""
 from __future__ import annotations
 
 import dataclasses
-import time
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -21,7 +20,6 @@ from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.skills.pick.routes import held_box
 from pickdemo.skills.pick.take import SIDE_LINE_SCALE, go_home, side_line, wrist_load
-from pickdemo.skills.pick.upright import upright_carry
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
     from pickdemo.grasping.top_down import GraspPlan
@@ -221,9 +219,8 @@ def _carried_upright(m: PickMachine, scene, fingers: float) -> bool:  # noqa: AN
         ok = [g.q for g in found if g.line_ok and accept(g.q, 0)]
         return min(ok, key=lambda g: float(np.max(np.abs(g - q_end)))) if ok else None
 
-    t0 = time.perf_counter()
-    carry = upright_carry(m.kin, q, m.plan, lambda q_k: within.free(q_k, fingers), goal)
-    took = (time.perf_counter() - t0) * 1e3
+    carry = m.router.upright(within, q, m.plan, fingers, goal)
+    took = m.router.seconds[-1] * 1e3
     if carry is None:
         m.note(f"no upright carry found ({took:.0f} ms): carried as before")
         return False

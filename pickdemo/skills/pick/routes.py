@@ -20,10 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from pickdemo.core.geometry import OrientedBox, Pose, top_below
+from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.motion.ik_goals import along_line
 from pickdemo.motion.planner import plan_joint_path
 from pickdemo.robot.collision import TABLE, CollisionScene, Obstacle, robot_geometry
 from pickdemo.robot.kinematics import Kinematics
+from pickdemo.skills.pick.upright import Upright, upright_carry
 from pickdemo.worldmodel import WorldModel
 
 #: An object's box is grown by this every way, beyond two of its standard deviations (m): the arm's
@@ -242,6 +244,24 @@ class Router:
             if not scene.free(q_k, fingers_m):
                 return (k - 1) / n
         return 1.0
+
+    def upright(
+        self,
+        scene: CollisionScene,
+        q: np.ndarray,
+        plan: GraspPlan,
+        fingers_m: float,
+        goal: Callable[[GraspPlan, np.ndarray], np.ndarray | None],
+    ) -> Upright | None:
+        """An item held from the side carried upright, clear in ``scene``
+        (:func:`~pickdemo.skills.pick.upright.upright_carry`): a plan of its own, its time and the
+        states it checked kept with the planner's."""
+        t0, checked = time.perf_counter(), scene.checks
+        carry = upright_carry(self.kin, q, plan, lambda q_k: scene.free(q_k, fingers_m), goal)
+        self.plans += 1
+        self.seconds.append(time.perf_counter() - t0)
+        self.checks.append(scene.checks - checked)
+        return carry
 
     def _tcp_along(self, waypoints: np.ndarray, per_leg: int = 12) -> np.ndarray:
         """The TCP's positions along a joint path (each leg a straight line in joint space)."""
