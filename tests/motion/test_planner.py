@@ -50,6 +50,11 @@ def test_the_robots_own_geometry_meets_what_stands_where_its_links_are() -> None
     assert CollisionScene(geometry, [TABLE_BOX, block]).free(qa, 0.02)
     held = _box((0.0, 0.0, 0.05), (0.04, 0.04, 0.06))  # (in the TCP's frame: z along the approach, down)
     assert CollisionScene(geometry, [TABLE_BOX, block], held).contact(qa, 0.02) == ("the held object", "block")
+    # a held box carried against the robot's own base meets it (the links no joint moves)
+    at_base = kin.forward(qa).inverse() @ Pose(np.array([0.0, 0.0, 0.08]), np.eye(3))
+    by_base = OrientedBox(at_base, -np.full(3, 0.03), np.full(3, 0.03))
+    link, what = CollisionScene(geometry, [TABLE_BOX], by_base).contact(qa, 0.02)
+    assert what == "the held object" and link in {geometry.link_name(i) for i in geometry.fixed}, link
 
 
 @pytest.mark.parametrize("name", ["panda", "ur5_franka_hand"])
