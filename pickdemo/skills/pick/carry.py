@@ -36,31 +36,13 @@ def _weigh(m: PickMachine, obs: Observation) -> bool:
     if weighed is None:
         return False
     payload, force = weighed
-    lever = _lever_m(m, obs)
-    note = f"weighed {payload:.2f} kg at the wrist"
-    if lever > m.kin.robot.gripper.pad_half_height_m and force < m.grip.max_force_n:
-        # held off its centre beyond the pads' own reach (from the side), the carry turns it about the
-        # pads unless squeezed hard: a shelf's items held at 20 N turned 7-35 deg in the carry
-        force = m.grip.max_force_n
-        note += f", its centre {lever * 1e3:.0f} mm off the line between the pads"
     m.weighed_force_n = force
+    note = f"weighed {payload:.2f} kg at the wrist"
     if force > m.grip.force_n:
         m.grip.close(force)
         note += f": gripping with {force:.0f} N"
     m.note(note)
     return True
-
-
-def _lever_m(m: PickMachine, obs: Observation) -> float:
-    """The lever (m) of the held object's weight and inertia about the line between the pads (the
-    closing axis through the TCP): its centre's distance from that line, as the world model's box put
-    it in the hand (0: no box for it). Hanging below the pads it is steady at rest, but the carry's
-    accelerations swing it about them by this lever."""
-    if m.held is None:
-        return 0.0
-    box = m.held
-    centre = box.pose.position + box.pose.rotation @ (0.5 * (np.asarray(box.lo) + np.asarray(box.hi)))
-    return float(np.hypot(centre[0], centre[2]))  # (in the TCP's frame, y the closing axis)
 
 
 def _dropped(m: PickMachine, obs: Observation, stage: Stage, outcome: str) -> Transition:
