@@ -70,22 +70,3 @@ def test_a_cube_seen_off_the_place_is_placed_again() -> None:
         assert any("picking it up again" in p.message for p in r.phases)
         assert r.attempts[-1].number > first_off.number
     at_least(again, len(again) - 1, what="placed within the tolerance at last")
-
-
-def test_the_lever_about_the_pads_is_the_centre_s_distance_from_the_line_between_them() -> None:
-    """Held off its centre beyond the pads (from the side, or hanging below them), the carry turns an
-    object about the pads unless it is squeezed hard (`carry._weigh` grips with the hand's full force
-    past the pads' half height); the lever is measured across the closing axis (the TCP's y) only."""
-    from types import SimpleNamespace
-
-    from pickdemo.core.geometry import OrientedBox, Pose
-    from pickdemo.skills.pick.carry import _lever_m
-
-    def lever(centre: list[float]) -> float:
-        box = OrientedBox(Pose(np.array(centre), np.eye(3)), -np.full(3, 0.03), np.full(3, 0.03))
-        return _lever_m(SimpleNamespace(held=box), None)  # type: ignore[arg-type]
-
-    assert lever([0.0, 0.0, 0.0]) == pytest.approx(0.0)
-    assert lever([0.0, 0.02, 0.0]) == pytest.approx(0.0)  # (along the line between the pads: no lever)
-    assert lever([0.03, 0.01, 0.04]) == pytest.approx(0.05)
-    assert _lever_m(SimpleNamespace(held=None), None) == 0.0  # type: ignore[arg-type]
