@@ -71,13 +71,13 @@ def upright_carry(
     """The first upright carry from the arm at ``q`` to above ``plan``'s place turned by one of
     :data:`TURNS_RAD`, whose path keeps ``clear`` and ends where the lowering can follow (``goal(plan,
     q_near)``: the IK goal above the place nearest ``q_near`` from which the lowering is followed and
-    clear, ``q_near`` itself where it is one; None: none, that turn is not tried). In turn, for each
-    turn: in joint space to the goal nearest the arm (:func:`~pickdemo.motion.lines.upright_in_joints`:
-    a shelf's bin is reached with the elbow turned over, and the arm changes its posture on the way);
-    about the base at the arm's posture, risen by each of :data:`RISES_M` (over what is in the way),
-    drawn at its end to the goal nearest there. None: none (a path planned around what is in the way,
-    each point then moved to the attitude as in joint space, found none that the plain ones did not,
-    on the shelf's seeds where they found none, at a second a carry)."""
+    clear, ``q_near`` itself where it is one; None: none, that turn is not tried). First each turn in
+    joint space to the goal nearest the arm (:func:`~pickdemo.motion.lines.upright_in_joints`: a shelf's
+    bin is reached with the elbow turned over, and the arm changes its posture on the way); then each
+    turn that had a goal about the base at the arm's posture, risen by each of :data:`RISES_M` (over
+    what is in the way), drawn at its end to the goal nearest there. None: none (a path planned around
+    what is in the way, each point then moved to the attitude as in joint space, found none that the
+    plain ones did not, on the shelf's seeds where they found none, at a second a carry)."""
     here = kin.forward(q)
     base = keeping_bearing(kin, q, plan)
     tried: list[tuple[float, GraspPlan, np.ndarray]] = []
