@@ -202,9 +202,8 @@ def _carried_upright(m: PickMachine, scene, fingers: float) -> bool:  # noqa: AN
         return min(ok, key=lambda g: float(np.max(np.abs(g - q_end)))) if ok else None
 
     carry = m.router.upright(within, q, m.plan, fingers, goal)
-    took = m.router.seconds[-1] * 1e3
     if carry is None:
-        m.note(f"no upright carry found ({took:.0f} ms): carried as before")
+        m.note("no upright carry found: carried as before")  # (its wall time is the plans', not a phase's)
         return False
     m.plan = carry.plan
     scale = m.p.carry_scale * m.lift_scale * m.scale.carry_share()
@@ -212,7 +211,7 @@ def _carried_upright(m: PickMachine, scene, fingers: float) -> bool:  # noqa: AN
     rise = carry.rise_m
     way = "in joint space" if rise is None else f"about the base, {rise * 1e2:.0f} cm higher at the middle"
     m.note(f"carried upright {way}, in {len(carry.waypoints)} leg(s), put down turned "
-           f"{np.degrees(carry.turn_rad):+.0f} deg ({took:.0f} ms)")  # fmt: skip
+           f"{np.degrees(carry.turn_rad):+.0f} deg")  # fmt: skip
     return True
 
 
