@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from pickdemo.core.geometry import Pose
-from pickdemo.motion.online import LOST_M, LOST_RAD
+from pickdemo.motion.online import LOST_M, LOST_RAD, about_vertical
 from pickdemo.robot.kinematics import IKParams, Kinematics
 
 #: Each leg keeps the TCP this close to the line (m) ...
@@ -131,9 +131,7 @@ def around_the_base(start: Pose, end: Pose, rise_m: float = 0.0, step_m: float =
     for t in np.arange(1, n + 1) / n:
         r, b = r0 + (r1 - r0) * t, b0 + db * t
         z = z0 + (z1 - z0) * t + rise_m * float(np.sin(np.pi * t))
-        c, s = np.cos(yaw * t), np.sin(yaw * t)
-        rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        poses.append(Pose(np.array([r * np.cos(b), r * np.sin(b), z]), rz @ start.rotation))
+        poses.append(Pose(np.array([r * np.cos(b), r * np.sin(b), z]), about_vertical(yaw * t) @ start.rotation))
     poses[-1] = end
     return poses
 
@@ -193,9 +191,7 @@ def upright_in_joints(
                 break  # (the goal is at the attitude)
             at = kin.forward(q_t)
             turn = float(np.arctan2(at.rotation[1, 2], at.rotation[0, 2])) - heading0
-            c, s = np.cos(turn), np.sin(turn)
-            held = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ start
-            res = kin.track(Pose(at.position, held), qs[-1], max_iterations=20, posture=q_t)
+            res = kin.track(Pose(at.position, about_vertical(turn) @ start), qs[-1], max_iterations=20, posture=q_t)
             if res.rotation_error_rad > UPRIGHT_RAD / 2.0 or res.position_error_m > CARRY_PATH_M / 4.0:
                 return None
             if clear is not None and not clear(res.q):

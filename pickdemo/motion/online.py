@@ -142,7 +142,8 @@ def top_down_se3(x4: np.ndarray) -> pin.SE3:
     return pin.SE3(pin.rpy.rpyToMatrix(np.pi, 0.0, float(x4[3])), np.array(x4[:3], dtype=float))
 
 
-def _rz(yaw: float) -> np.ndarray:
+def about_vertical(yaw: float) -> np.ndarray:
+    """The rotation by ``yaw`` (rad) about the vertical."""
     c, s = np.cos(yaw), np.sin(yaw)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
@@ -154,7 +155,7 @@ def hand_frame(rotation: np.ndarray) -> np.ndarray | None:
     z = rotation[:, 2]
     if -z[2] >= np.cos(TILT_EPS_RAD):
         return None
-    return _rz(-float(np.arctan2(z[1], z[0]))) @ rotation
+    return about_vertical(-float(np.arctan2(z[1], z[0]))) @ rotation
 
 
 def hand_se3(x4: np.ndarray, frame: np.ndarray | None = None) -> pin.SE3:
@@ -162,7 +163,7 @@ def hand_se3(x4: np.ndarray, frame: np.ndarray | None = None) -> pin.SE3:
     (None: pointing straight down, :func:`top_down_se3`)."""
     if frame is None:
         return top_down_se3(x4)
-    return pin.SE3(_rz(float(x4[3])) @ frame, np.array(x4[:3], dtype=float))
+    return pin.SE3(about_vertical(float(x4[3])) @ frame, np.array(x4[:3], dtype=float))
 
 
 def pose_to_x4(pose: Pose | pin.SE3, frame: np.ndarray | None = None) -> np.ndarray:

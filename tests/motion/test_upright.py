@@ -11,9 +11,10 @@ from pickdemo.core.geometry import Pose
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.motion.ik_goals import choose_goal, goal_candidates
 from pickdemo.motion.lines import UPRIGHT_RAD, around_the_base, carry_in_joints, upright_in_joints
+from pickdemo.motion.online import about_vertical
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
-from pickdemo.skills.pick.plans import about_vertical, turned_place
+from pickdemo.skills.pick.plans import turned_place
 from pickdemo.skills.pick.upright import keeping_bearing, upright_carry
 
 KIN = kinematics_of(robot_named())

@@ -11,7 +11,7 @@ import numpy as np
 from pickdemo.core.geometry import Pose
 from pickdemo.grasping.selection import GraspRequest, GraspSelector
 from pickdemo.grasping.top_down import GraspPlan, top_down
-from pickdemo.motion.online import hand_frame
+from pickdemo.motion.online import about_vertical, hand_frame
 
 #: A hand turned half a turn about its own approach axis (z): a parallel gripper's equivalent.
 ABOUT_APPROACH = np.diag([-1.0, -1.0, 1.0])
@@ -28,12 +28,6 @@ def half_turn(pose: Pose, shift: np.ndarray | None = None) -> Pose:
 
 #: A half turn about the vertical.
 ABOUT_VERTICAL = np.diag([-1.0, -1.0, 1.0])
-
-
-def about_vertical(angle_rad: float) -> np.ndarray:
-    """The rotation by ``angle_rad`` about the vertical."""
-    c, s = np.cos(angle_rad), np.sin(angle_rad)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def turned_about_vertical(pose: Pose, centre_xy: np.ndarray, angle_rad: float | None = None) -> Pose:
