@@ -12,8 +12,8 @@ from pickdemo.apps.bench import DEFAULT_MIN_SUCCESS
 
 #: What ``pickdemo --help`` says pickdemo is (the same words as pyproject.toml's description).
 DESCRIPTION = (
-    "A simulated robot arm (Panda, SO-101, UR5 ship) picks an object it has only seen: RGB-D perception to "
-    "Ruckig control, headless and reproducible."
+    "A simulated robot arm (Panda, SO-101, UR5 with a hand or a suction cup ship) picks an object it has only "
+    "seen: RGB-D perception to Ruckig control, headless and reproducible."
 )
 
 PERCEPTION_HELP = (

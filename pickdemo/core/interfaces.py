@@ -1,9 +1,9 @@
 """What crosses between the robot and its controller once per control tick, as frozen dataclasses.
 
 :class:`Observation` is what the robot's own sensors report (encoders, finger openings, finger
-contacts, the wrist's force); :class:`Command` is what the controller sends back (arm joint targets with velocity
-feed-forward, and the gripper's target opening and force). Camera frames travel separately, at
-their own rate (:class:`pickdemo.core.camera.RGBDFrame`).
+contacts, the wrist's force, a suction cup's vacuum); :class:`Command` is what the controller sends
+back (arm joint targets with velocity feed-forward, the gripper's target opening and force, a suction
+cup's valve). Camera frames travel separately, at their own rate (:class:`pickdemo.core.camera.RGBDFrame`).
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ class Observation:
     #: (3,) N: the force the hand (and what it holds) puts on the wrist flange, in the hand's frame,
     #: as a wrist force sensor reads it (the Franka estimates it from its joint torques)
     wrist_force_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: kPa below the ambient at a suction cup, as its vacuum sensor reads it (0: no cup, or the valve off)
+    vacuum_kpa: float = 0.0
 
     @property
     def opening_m(self) -> float:
@@ -41,3 +43,4 @@ class Command:
     arm_dq: np.ndarray  # (7,) rad/s, velocity feed-forward
     finger_opening_m: float  # target of each finger, 0 .. 0.04 m
     finger_force_n: float  # force limit of each finger's motor (N)
+    vacuum: bool = False  # a suction cup's valve: on sucks, off releases (fingers: unused)

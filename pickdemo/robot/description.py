@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pickdemo.robot.suction import Cup
+
 
 @dataclass(frozen=True)
 class RobotFiles:
@@ -54,9 +56,11 @@ class Gripper:
     revolute jaw closing against a fixed one (the opening between them, by the angle, from
     ``jaw_table``; the force at the jaw's pad, ``jaw_lever_m`` from its axis). A jaw moves what it
     holds to the fixed jaw: the TCP is the fixed jaw's face, and a grasp puts it ``jaw_clearance_m``
-    beside the object (:meth:`tcp_offset_m`)."""
+    beside the object (:meth:`tcp_offset_m`). "suction": no fingers; a vacuum cup (:attr:`cup`) on a
+    bellows, whose one prismatic joint is the tool's ``finger_joints`` (the spring holds it extended: it
+    is never commanded) and whose cup is its ``finger_links``; its openings are zero."""
 
-    kind: str  # "parallel" | "jaw"
+    kind: str  # "parallel" | "jaw" | "suction"
     finger_joints: tuple[str, ...]
     finger_links: tuple[str, ...]
     finger_max_m: float  # each finger's travel: the hand opens to twice this
@@ -83,6 +87,11 @@ class Gripper:
     #: the pads' friction coefficient as the simulator takes it (it multiplies the object's): 1.0 for the
     #: Franka's fingers (with 20 N, a 5 cm cube held with about 1 mm of slip)
     pad_friction: float = 1.0
+    cup: Cup | None = None  # a suction tool's cup and vacuum
+
+    @property
+    def suction(self) -> bool:
+        return self.kind == "suction"
 
     @property
     def max_opening_m(self) -> float:
@@ -95,6 +104,8 @@ class Gripper:
 
     def joint_targets(self, finger_m: float) -> list[float]:
         """The finger joints' positions for each finger ``finger_m`` from the middle."""
+        if self.suction:  # (the bellows, extended)
+            return [0.0]
         if self.kind == "parallel":
             return [finger_m] * len(self.finger_joints)
         rad, gap = zip(*self.jaw_table, strict=True)
@@ -104,12 +115,16 @@ class Gripper:
 
     def joint_positions(self, fingers_m: np.ndarray) -> np.ndarray:
         """The finger joints' positions for these openings (each finger's, from the middle)."""
+        if self.suction:
+            return np.zeros(1)
         if self.kind == "parallel":
             return np.asarray(fingers_m, dtype=float)
         return np.array(self.joint_targets(float(np.sum(fingers_m)) / 2.0))
 
     def fingers_of(self, joint_q: list[float]) -> np.ndarray:
         """Each finger's opening from the middle (m) at these finger joints' positions."""
+        if self.suction:
+            return np.zeros(2)
         if self.kind == "parallel":
             return np.array(joint_q)
         rad, gap = zip(*self.jaw_table, strict=True)
@@ -117,25 +132,29 @@ class Gripper:
         return np.array([half, half])
 
     def joint_force(self, force_n: float) -> float:
-        """The finger joints' force (N) or torque (N m) that squeezes with ``force_n``."""
+        """The finger joints' force (N) or torque (N m) that squeezes with ``force_n`` (a bellows: its spring)."""
+        if self.cup is not None:
+            return self.cup.bellows_force_n
         return force_n if self.kind == "parallel" else force_n * self.jaw_lever_m
 
     def joint_speed(self) -> float:
         """The finger joints' top speed (m/s, or rad/s for a jaw)."""
+        if self.suction:
+            return 1.0  # (a bellows springs back at once)
         return self.speed_m_s if self.kind == "parallel" else self.speed_m_s / self.jaw_lever_m
 
     def tcp_offset_m(self, width_m: float) -> float:
         """Where the TCP is from a ``width_m``-wide object's centre along the hand's y (its closing
         axis) as the hand comes down on it: 0 for fingers closing about the middle; for a jaw, the
         fixed jaw's face beside the object (the jaw then presses it there)."""
-        return 0.0 if self.kind == "parallel" else -(width_m / 2.0 + self.jaw_clearance_m)
+        return 0.0 if self.kind != "jaw" else -(width_m / 2.0 + self.jaw_clearance_m)
 
     def held_offset_m(self, width_m: float) -> float:
         """Where the TCP is from a ``width_m``-wide object's centre along the hand's y once the hand
         has closed on it: 0 for fingers closing about the middle; a jaw has pressed it to the fixed
         jaw's face (``so101_pick_cube``: put down 8.8 mm off, median, when this was taken as
         :meth:`tcp_offset_m`, with 10 mm of clearance)."""
-        return 0.0 if self.kind == "parallel" else -width_m / 2.0
+        return 0.0 if self.kind != "jaw" else -width_m / 2.0
 
 
 @dataclass(frozen=True, eq=False)

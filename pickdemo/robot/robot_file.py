@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from pickdemo.robot.description import Gripper, JointLimits, RobotDescription, RobotFiles
 from pickdemo.robot.stl import MESH_SUFFIXES
+from pickdemo.robot.suction import GRAVITY_M_S2, Cup
 from pickdemo.robot.urdf_files import ERD_PREFIX, found_mesh, joined, lean_urdf_path, locate, not_one_of
 
 #: Where the shipped robot files are.
@@ -99,6 +100,25 @@ class _Gripper(_Model):
     pad_friction: Annotated[float, Field(gt=0.0, le=2.0)] = 1.0  # the pads' friction coefficient (the simulator's)
 
 
+class _Suction(_Model):
+    """A vacuum cup on a bellows at the tool's end (``kind = "suction"``)."""
+
+    kind: Literal["suction"]
+    datasheet: str  # the cup its figures are from (maker and type)
+    bellows_joint: str  # the URDF's prismatic joint the bellows compresses along (0: extended)
+    cup_link: str  # the URDF's link of the cup (its lip is the TCP)
+    cup_diameter_m: Annotated[float, Field(gt=0.0, le=0.2)]
+    bellows_stroke_m: Annotated[float, Field(gt=0.0, le=0.05)]
+    bellows_force_n: Positive  # the bellows' spring, fully compressed (N)
+    vacuum_kpa: Annotated[float, Field(gt=0.0, lt=101.3)]  # below the ambient, at a sealed cup
+    lip_friction: Annotated[float, Field(gt=0.0, le=2.0)] = 0.5
+
+
+#: A suction cup's holding force must be this many times the payload's weight (Schmalz's design rule:
+#: "a safety factor of at least 2").
+SUCTION_SAFETY = 2.0
+
+
 class _Hand(_Model):
     """A tool from another URDF joined to the arm's flange by a fixed joint (an arm and a hand, as
     real cells are built)."""
@@ -126,7 +146,7 @@ class _RobotFile(_Model):
     arm: _Arm
     hand: _Hand | None = None
     limits: _Limits
-    gripper: _Gripper
+    gripper: Annotated[_Gripper | _Suction, Field(discriminator="kind")]
     grasp: _Grasp = _Grasp()
 
 
@@ -138,6 +158,7 @@ SECTIONS: dict[str, type[BaseModel]] = {
     "[hand]": _Hand,
     "[limits]": _Limits,
     "[gripper]": _Gripper,
+    '[gripper] kind = "suction"': _Suction,
     "[grasp]": _Grasp,
 }
 
@@ -158,8 +179,11 @@ def load_robot_file(path: str | Path) -> RobotDescription:
     except ValidationError as exc:
         errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")  # (a misspelt key first)
         err = errors[0]
-        key = ".".join(str(p) for p in err["loc"]) or "(top level)"
+        loc = [p for i, p in enumerate(err["loc"]) if not (i == 1 and err["loc"][0] == "gripper" and p in _KINDS)]
+        key = ".".join(str(p) for p in loc) or "(top level)"
         msg = {"extra_forbidden": "unknown key", "missing": "missing"}.get(err["type"], err["msg"])
+        if err["type"] == "union_tag_invalid":  # (the gripper's kind)
+            key, msg = f"{key}.kind", f"{err['ctx']['tag']!r} is not one of {', '.join(_KINDS)}"
         raise RobotFileError(f"{path}: {key}: {msg}") from None
 
     def fail(key: str, msg: str) -> RobotFileError:
@@ -193,7 +217,9 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         tcp_frame=a.tcp_frame,
         hand_frame=a.hand_frame,
         wrist_joint=a.wrist_joint,
-        gripper=Gripper(
+        gripper=_suction(g)
+        if isinstance(g, _Suction)
+        else Gripper(
             kind=g.kind,
             finger_joints=tuple(g.finger_joints),
             finger_links=tuple(g.finger_links),
@@ -234,6 +260,33 @@ def load_robot_file(path: str | Path) -> RobotDescription:
 
     check_model(robot, fail, label)
     return robot if a.home is not None else with_proposed_home(robot, fail)
+
+
+#: The gripper kinds (a discriminated union's tag, left out of a message's key).
+_KINDS = ("parallel", "jaw", "suction")
+
+
+def _suction(g: _Suction) -> Gripper:
+    """A suction tool as the rest of pickdemo knows a gripper: its bellows the one finger joint, its cup
+    the finger link, no opening; the cup and its vacuum in :attr:`Gripper.cup`."""
+    cup = Cup(g.cup_diameter_m, g.bellows_stroke_m, g.bellows_force_n, g.vacuum_kpa, friction=g.lip_friction)
+    r = cup.radius_m
+    return Gripper(
+        kind="suction",
+        finger_joints=(g.bellows_joint,),
+        finger_links=(g.cup_link,),
+        finger_max_m=r,
+        palm_above_tcp_m=g.bellows_stroke_m,
+        open_force_n=g.bellows_force_n,
+        max_force_n=cup.holding_force_n,
+        speed_m_s=1.0,
+        pad_half_height_m=r,
+        pad_half_width_m=r,
+        finger_thickness_m=r,
+        palm_half_length_m=r,
+        palm_half_width_m=r,
+        cup=cup,
+    )
 
 
 def _source(spec: _RobotFile) -> str:
@@ -279,14 +332,19 @@ def _check(spec: _RobotFile, files: RobotFiles, fail, label: str) -> None:  # no
     for i, name in enumerate(a.camera_mounts):
         if name not in links:
             raise fail(f"arm.camera_mounts[{i}]", not_one_of(name, "link", links, label))
-    for i, name in enumerate(g.finger_joints):
-        if name not in joints:
-            raise fail(f"gripper.finger_joints[{i}]", not_one_of(name, "joint", moving, label))
-        if name in a.joints:
-            raise fail(f"gripper.finger_joints[{i}]", f"{name!r} is an arm joint too: it is the arm's or the hand's")
-    for i, name in enumerate(g.finger_links):
-        if name not in links:
-            raise fail(f"gripper.finger_links[{i}]", not_one_of(name, "link", links, label))
+    if isinstance(g, _Suction):
+        _check_suction(g, spec, root, joints, links, fail, label)
+    else:
+        for i, name in enumerate(g.finger_joints):
+            if name not in joints:
+                raise fail(f"gripper.finger_joints[{i}]", not_one_of(name, "joint", moving, label))
+            if name in a.joints:
+                raise fail(
+                    f"gripper.finger_joints[{i}]", f"{name!r} is an arm joint too: it is the arm's or the hand's"
+                )
+        for i, name in enumerate(g.finger_links):
+            if name not in links:
+                raise fail(f"gripper.finger_links[{i}]", not_one_of(name, "link", links, label))
     _check_meshes(root, files, fail)
     n = len(a.joints)
     if a.home is not None and len(a.home) != n:
@@ -299,6 +357,8 @@ def _check(spec: _RobotFile, files: RobotFiles, fail, label: str) -> None:  # no
             raise fail(f"limits.position_min[{i}]", f"{lo} is not below position_max's {hi}")
         if a.home is not None and not lo <= a.home[i] <= hi:
             raise fail(f"arm.home[{i}]", f"{a.home[i]} is outside the joint's limits [{lo}, {hi}]")
+    if isinstance(g, _Suction):
+        return
     if 2.0 * g.finger_max_m < MIN_STROKE_M:
         raise fail("gripper.finger_max_m", f"the hand opens {2e3 * g.finger_max_m:.1f} mm in all: it cannot hold "
                                            f"anything (at least {MIN_STROKE_M * 1e3:.0f} mm)")  # fmt: skip
@@ -315,6 +375,55 @@ def _check(spec: _RobotFile, files: RobotFiles, fail, label: str) -> None:  # no
                 raise fail(f"gripper.finger_joints[{i}]", msg + '; a turning jaw is kind = "jaw"')
     if g.kind == "jaw":
         _check_jaw(g, joints, fail)
+
+
+def _check_suction(
+    g: _Suction, spec: _RobotFile, root: ET.Element, joints: dict, links: list, fail, label: str
+) -> None:  # noqa: ANN001, E501
+    """The bellows' prismatic joint and its stroke, the cup's link and its width, the vacuum against the
+    payload."""
+    if g.bellows_joint not in joints:
+        moving = [n for n, kind in joints.items() if kind == "prismatic"]
+        raise fail("gripper.bellows_joint", not_one_of(g.bellows_joint, "joint", moving, label))
+    if joints[g.bellows_joint] != "prismatic":
+        raise fail("gripper.bellows_joint", f"{g.bellows_joint!r} is {joints[g.bellows_joint]}: a bellows compresses "
+                                            "along a prismatic joint")  # fmt: skip
+    if g.bellows_joint in spec.arm.joints:
+        raise fail("gripper.bellows_joint", f"{g.bellows_joint!r} is an arm joint too")
+    joint = next(j for j in root.findall("joint") if j.get("name") == g.bellows_joint)
+    limit = joint.find("limit")
+    travel = abs(float(limit.get("upper", 0)) - float(limit.get("lower", 0))) if limit is not None else 0.0
+    if g.bellows_stroke_m > travel + 1e-9:
+        msg = f"{g.bellows_stroke_m * 1e3:.1f} mm is more than the bellows joint {g.bellows_joint!r} travels"
+        raise fail("gripper.bellows_stroke_m", f"{msg} in the URDF ({travel * 1e3:.1f} mm)")
+    if g.cup_link not in links:
+        raise fail("gripper.cup_link", not_one_of(g.cup_link, "link", links, label))
+    width = _collision_width(root, g.cup_link)
+    if width is None:
+        raise fail("gripper.cup_link", f"{g.cup_link!r} has no cylinder or box collision geometry (the cup's lip)")
+    if g.cup_diameter_m > width + 1e-4:
+        msg = f"a {g.cup_diameter_m * 1e3:.1f} mm cup is wider than its tool: the link {g.cup_link!r} is"
+        raise fail("gripper.cup_diameter_m", f"{msg} {width * 1e3:.1f} mm across in the URDF")
+    cup = Cup(g.cup_diameter_m, g.bellows_stroke_m, g.bellows_force_n, g.vacuum_kpa)
+    needs = SUCTION_SAFETY * spec.arm.payload_kg * GRAVITY_M_S2
+    if cup.holding_force_n < needs:
+        raise fail("gripper.vacuum_kpa", f"the cup holds {cup.holding_force_n:.1f} N at {g.vacuum_kpa:g} kPa; "
+                                         f"arm.payload_kg {spec.arm.payload_kg:g} asks for {needs:.1f} N "
+                                         f"(its weight times a safety factor of {SUCTION_SAFETY:g})")  # fmt: skip
+
+
+def _collision_width(root: ET.Element, link_name: str) -> float | None:
+    """How wide a link's collision geometry is across its z (a cylinder's diameter, a box's narrower
+    side), the widest of its shapes; None: no cylinder or box."""
+    link = next(lk for lk in root.findall("link") if lk.get("name") == link_name)
+    widths = []
+    for col in link.findall("collision"):
+        for cyl in col.iter("cylinder"):
+            widths.append(2.0 * float(cyl.get("radius", 0)))
+        for box in col.iter("box"):
+            x, y, _ = (float(v) for v in box.get("size", "0 0 0").split())
+            widths.append(min(x, y))
+    return max(widths) if widths else None
 
 
 def _check_meshes(root: ET.Element, files: RobotFiles, fail) -> None:  # noqa: ANN001 - (key, message) -> error

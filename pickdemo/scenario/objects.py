@@ -107,6 +107,9 @@ class ObjectSpec(Model):
     roll_deg: Angle | None = None
     roll_range_deg: tuple[Angle, Angle] | None = None
     static: bool = False  # held where it is placed (no gravity): for tilted objects in perception tests
+    #: air passes through it (foam, fabric, a mesh bag): a suction cup on it never seals (the simulator's
+    #: truth; the robot does not know it)
+    porous: bool = False
     target: bool = False
     #: what a pick order tells the robot of a target it is otherwise told nothing of (a mesh, a cylinder
     #: lying): its height and its footprint's longer and shorter side as it rests (m), the same every

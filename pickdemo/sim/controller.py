@@ -49,6 +49,7 @@ class RobotInterface:
             fingers_m=js.fingers_m,
             finger_contacts=self.scene.finger_contacts(),
             wrist_force_n=self.scene.wrist_force(),
+            vacuum_kpa=0.0 if self.scene.cup is None else self.scene.cup.vacuum_kpa(),
         )
 
     def apply(self, cmd: Command) -> None:
@@ -69,6 +70,8 @@ class RobotInterface:
             positionGains=self._position_gains,
             velocityGains=self._velocity_gains,
         )
+        if s.cup is not None:
+            s.cup.set(bool(cmd.vacuum))
         fingers = (min(max(float(cmd.finger_opening_m), 0.0), self.finger_max_m), float(cmd.finger_force_n))
         if fingers != self._fingers:  # motors keep their last command: send only changes
             force = self.gripper.joint_force(fingers[1])

@@ -27,6 +27,7 @@ from pickdemo.scenario.tray import Tray
 from pickdemo.sim import quiet_c_stdout
 from pickdemo.sim.contacts import ContactLog
 from pickdemo.sim.conveyor import Belt
+from pickdemo.sim.suction import VacuumCup
 
 #: The scene's bodies that are not objects on the table.
 FIXTURES = ("robot", "table", "conveyor", "tray")
@@ -245,6 +246,9 @@ class Scene:
         self.finger_joints = [self.joint_index[n] for n in gripper.finger_joints]
         self.finger_links = [self.link_index[n] for n in gripper.finger_links]
         self.tcp_link = self.link_index[desc.tcp_frame]
+        self.cup = (
+            None if gripper.cup is None else VacuumCup(c, robot, self.tcp_link, self.finger_links[0], gripper.cup)
+        )
         # The wrist's force sensor: the reaction of the flange-to-hand joint, in the hand's frame.
         self.wrist_joint = self.joint_index[desc.wrist_joint]
         c.enableJointForceTorqueSensor(robot, self.wrist_joint, True)
@@ -308,6 +312,8 @@ class Scene:
         )
         rolling = 0.0 if isinstance(shape, Box) else ROLLING_FRICTION_M
         c.changeDynamics(body, -1, lateralFriction=spec.friction, spinningFriction=0.001, rollingFriction=rolling)
+        if spec.porous and self.cup is not None:
+            self.cup.porous.add(body)
         self.bodies[spec.name] = body
 
     def _build_mesh(self, spec: ObjectSpec, shape: Mesh, pose: Pose) -> None:
@@ -327,6 +333,8 @@ class Scene:
         if "friction" in given:
             c.changeDynamics(body, -1, lateralFriction=spec.friction)
         c.changeDynamics(body, -1, spinningFriction=0.001, rollingFriction=ROLLING_FRICTION_M)
+        if spec.porous and self.cup is not None:
+            self.cup.porous.add(body)
         self.bodies[spec.name] = body
 
     # ---------------------------------------------------------------------------------- stepping
@@ -342,6 +350,8 @@ class Scene:
             self.steps += 1
             if self.contact_log is not None:
                 self.contact_log.read(self.sim_time_s)
+            if self.cup is not None:
+                self.cup.after_step(self.sim_time_s)
             if self.gui:  # pace the window for a human; never affects the simulation's outcome
                 time.sleep(self.time_step_s)
 
@@ -406,7 +416,10 @@ class Scene:
         return np.array(self.client.getJointState(self.bodies["robot"], self.wrist_joint)[2][:3])
 
     def finger_contacts(self) -> tuple[int, int]:
-        """Number of contact points on each finger with anything but the robot (a tactile sense)."""
+        """Number of contact points on each finger with anything but the robot (a tactile sense; a
+        suction cup has none: its vacuum sensor says what it holds)."""
+        if self.cup is not None:
+            return 0, 0
         robot = self.bodies["robot"]
         counts = []
         for link in self.finger_links:

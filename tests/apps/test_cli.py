@@ -197,7 +197,7 @@ def test_the_description_names_every_robot_that_ships() -> None:
 
     text = _help()
     assert "Franka Panda picks" not in text
-    shown = {"panda": "Panda", "so101": "SO-101", "ur5_franka_hand": "UR5"}
+    shown = {"panda": "Panda", "so101": "SO-101", "ur5_franka_hand": "UR5", "ur5_suction": "suction cup"}
     assert set(shipped_robots()) == set(shown) and all(name in text for name in shown.values()), text
 
 

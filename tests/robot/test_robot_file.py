@@ -15,6 +15,10 @@ from pickdemo.robot.robot_file import ROBOTS_DIR, RobotFileError, load_robot_fil
 PANDA_FILE = (ROBOTS_DIR / "panda.toml").read_text()
 UR5_FILE = (ROBOTS_DIR / "ur5_franka_hand.toml").read_text()
 SO101_FILE = (ROBOTS_DIR / "so101.toml").read_text()
+#: (its tool's URDF by its absolute path: the bad files are written elsewhere)
+SUCTION_FILE = (
+    (ROBOTS_DIR / "ur5_suction.toml").read_text().replace('urdf = "ur5_suction/', f'urdf = "{ROBOTS_DIR}/ur5_suction/')
+)
 
 
 def test_the_panda_ships_as_a_file_and_is_the_default() -> None:
@@ -45,6 +49,15 @@ def test_the_ur5_is_an_arm_and_a_hand_joined_at_its_flange() -> None:
         assert f'name="{name}"' in text, name
     assert "panda_joint1" not in text  # (only the hand is taken from the Panda's URDF)
     assert "package://" not in text and "package://" not in r.render_urdf().read_text()
+
+
+def test_the_ur5_with_a_suction_cup_is_a_tool_on_its_flange() -> None:
+    r = robot_named("ur5_suction")
+    g = r.gripper
+    assert r.dof == 6 and g.suction and g.cup is not None and not g.coupled and not r.grasps_any_side
+    assert g.cup.holding_force_n == pytest.approx(42.41, abs=0.01)  # 60 kPa on a 30 mm cup
+    assert g.finger_joints == ("suction_bellows",) and g.finger_links == ("suction_cup",)
+    assert list(g.fingers_of([0.004])) == [0.0, 0.0]  # (no fingers: a bellows pressed is no opening)
 
 
 def test_the_so101_has_a_jaw_and_a_tcp_of_its_own() -> None:
@@ -129,8 +142,13 @@ BAD = [
     ),
     (
         "a gripper kind not known",
+        _edit('kind = "parallel"', 'kind = "vacuum"'),
+        "gripper.kind: 'vacuum' is not one of parallel, jaw, suction",
+    ),
+    (
+        "a suction gripper with fingers' keys",
         _edit('kind = "parallel"', 'kind = "suction"'),
-        "gripper.kind: Input should be 'parallel'",
+        "gripper.finger_joints: unknown key",
     ),
     ("a misspelt key", _edit("payload_kg = 3.0", "payload = 3.0"), "arm.payload: unknown key"),
     (
@@ -199,6 +217,26 @@ BAD = [
         "a grasp harder than the gripper can squeeze",
         _edit("grip_force_n = 5.0", "grip_force_n = 50.0", SO101_FILE),
         "gripper.grip_force_n: 50.0 N is more than max_force_n's 40.0 N",
+    ),
+    (
+        "a cup wider than its tool",
+        _edit("cup_diameter_m = 0.03", "cup_diameter_m = 0.05", SUCTION_FILE),
+        "gripper.cup_diameter_m: a 50.0 mm cup is wider than its tool: the link 'suction_cup' is 30.0 mm across",
+    ),
+    (
+        "a vacuum that cannot hold the payload",
+        _edit("payload_kg = 2.0", "payload_kg = 4.0", SUCTION_FILE),
+        "gripper.vacuum_kpa: the cup holds 42.4 N at 60 kPa; arm.payload_kg 4 asks for 78.5 N",
+    ),
+    (
+        "a bellows stroke past its joint's travel",
+        _edit("bellows_stroke_m = 0.008", "bellows_stroke_m = 0.02", SUCTION_FILE),
+        "gripper.bellows_stroke_m: 20.0 mm is more than the bellows joint 'suction_bellows' travels",
+    ),
+    (
+        "a bellows that is not a prismatic joint",
+        _edit('bellows_joint = "suction_bellows"', 'bellows_joint = "wrist_3_joint"', SUCTION_FILE),
+        "gripper.bellows_joint: 'wrist_3_joint' is revolute",
     ),
     (
         "pads without friction",

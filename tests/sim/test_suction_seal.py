@@ -1,0 +1,85 @@
+"""The simulated vacuum cup against its own physics: a cup on a flat face holds what the vacuum's
+force holds and drops what is heavier; a cup across an edge, or on a porous face, leaks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet as p
+import pytest
+from pybullet_utils.bullet_client import BulletClient
+
+from pickdemo.robot.suction import GRAVITY_M_S2, Cup, Seal
+from pickdemo.sim.suction import VacuumCup
+
+TOOL = "pickdemo/robot/robots/ur5_suction/suction_tool.urdf"
+CUP = Cup(diameter_m=0.03, stroke_m=0.008, bellows_force_n=6.0, vacuum_kpa=60.0)
+
+
+def _world(box_half: float, mass_kg: float, cup_xy: tuple[float, float], porous: bool = False):
+    """A box on the ground and the suction tool pointing down with its lip a millimetre over the box's top
+    (the tool's base frame, as PyBullet places it, is its centre of mass: 1 cm into the plate, 35 cm from
+    the lip), moved as a hand moves it: by a stiff constraint to a point."""
+    c = BulletClient(connection_mode=p.DIRECT)
+    c.setGravity(0, 0, -GRAVITY_M_S2)
+    c.setTimeStep(1 / 240)
+    c.createMultiBody(0, c.createCollisionShape(p.GEOM_PLANE))
+    box = c.createMultiBody(mass_kg, c.createCollisionShape(p.GEOM_BOX, halfExtents=[box_half] * 3),
+                            basePosition=[0, 0, box_half])  # fmt: skip
+    down = p.getQuaternionFromEuler([np.pi, 0, 0])
+    z0 = 2 * box_half + 0.35 + 0.001
+    tool = c.loadURDF(TOOL, basePosition=[cup_xy[0], cup_xy[1], z0], baseOrientation=down)
+    hand = c.createConstraint(tool, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [cup_xy[0], cup_xy[1], z0],
+                              childFrameOrientation=down)  # fmt: skip
+    c.changeConstraint(hand, maxForce=5000)
+    joints = [c.getJointInfo(tool, j) for j in range(c.getNumJoints(tool))]
+    links = {info[12].decode(): info[0] for info in joints}
+    bellows = next(info[0] for info in joints if info[2] == p.JOINT_PRISMATIC)
+    c.setJointMotorControl2(tool, bellows, p.POSITION_CONTROL, targetPosition=0.0, force=CUP.bellows_force_n)
+    cup = VacuumCup(c, tool, links["suction_tcp"], links["suction_cup"], CUP)
+    if porous:
+        cup.porous.add(box)
+    return c, (hand, cup_xy), box, cup, z0
+
+
+def _lift(c: BulletClient, tool: tuple, cup: VacuumCup, z0: float, box: int) -> tuple[float, Seal]:
+    """Vacuum on, the cup pressed 3 mm onto the face, then the tool raised 10 cm over a second
+    (smoothly: its acceleration at most 0.9 m/s^2): the box's height at the end, and the seal before
+    the lift."""
+    cup.set(True)
+    hand, xy = tool
+    z0 -= 0.004
+    for _ in range(60):
+        c.changeConstraint(hand, [xy[0], xy[1], z0], maxForce=5000)
+        c.stepSimulation()
+        cup.after_step(0.0)
+    before = cup.state
+    for i in range(300):
+        rise = 0.05 * (1.0 - np.cos(np.pi * min(1.0, i / 240)))
+        c.changeConstraint(hand, [xy[0], xy[1], z0 + rise], maxForce=5000)
+        c.stepSimulation()
+        cup.after_step(i / 240)
+    z = c.getBasePositionAndOrientation(box)[0][2]
+    c.disconnect()
+    return z, before
+
+
+@pytest.mark.parametrize("share, held", [(0.8, True), (1.25, False)])
+def test_a_cup_on_a_flat_face_holds_up_to_its_force_and_drops_above_it(share: float, held: bool) -> None:
+    mass = share * CUP.holding_force_n / GRAVITY_M_S2
+    c, tool, box, cup, z0 = _world(0.04, mass, (0.0, 0.0))
+    z, before = _lift(c, tool, cup, z0, box)
+    assert before is Seal.SEALED
+    assert (z > 0.04 + 0.07) is held
+    assert (cup.state is Seal.SEALED) is held
+
+
+def test_a_cup_across_an_edge_leaks() -> None:
+    c, tool, box, cup, z0 = _world(0.04, 0.2, (0.04, 0.0))  # its centre over the box's edge
+    z, before = _lift(c, tool, cup, z0, box)
+    assert before is Seal.LEAK and z < 0.05
+
+
+def test_a_porous_face_leaks() -> None:
+    c, tool, box, cup, z0 = _world(0.04, 0.2, (0.0, 0.0), porous=True)
+    z, before = _lift(c, tool, cup, z0, box)
+    assert before is Seal.LEAK and z < 0.05
