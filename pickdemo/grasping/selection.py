@@ -24,6 +24,7 @@ from pickdemo.core.shapes import Unknown
 from pickdemo.grasping.antipodal import AnySideGrasps
 from pickdemo.grasping.clearance import plan_meets
 from pickdemo.grasping.cloud import CloudGrasps, hand_hits
+from pickdemo.grasping.suction import SuctionGrasps
 from pickdemo.grasping.top_down import (
     GraspParams,
     GraspPlan,
@@ -205,12 +206,19 @@ def _over(request: GraspRequest) -> tuple[OrientedBox, ...]:
 
 
 def selector_for(
-    model: TargetModel, params: GraspParams, *, any_side: np.random.Generator | None = None
+    model: TargetModel,
+    params: GraspParams,
+    *,
+    any_side: np.random.Generator | None = None,
+    gripper: Gripper | None = None,
 ) -> GraspSelector:
-    """A target's grasps: from its cloud when nobody described it, else across its known faces.
+    """A target's grasps: a suction cup's seals (:class:`~pickdemo.grasping.suction.SuctionGrasps`) for a
+    suction gripper; else from its cloud when nobody described it, else across its known faces.
     ``any_side``: the draw of grasps from any side, where no top-down grasp fits (of the cloud, or
     clear of what stands beside a described target: on its known surface; None: top-down only: an arm
     that cannot tilt its hand every way, a jaw gripper)."""
+    if gripper is not None and gripper.suction:
+        return SuctionGrasps(params)
     if isinstance(model.geometry, Unknown):
         if any_side is not None:
             return TopDownFirst(CloudGrasps(params), AnySideGrasps(any_side, params))

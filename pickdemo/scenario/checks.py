@@ -106,7 +106,7 @@ def _check_mesh_files(sc: Scenario) -> None:
                 raise ScenarioError(f"objects.{obj.name}.urdf: {exc}") from None
         elif not obj.urdf_files:  # urdf_choice: its readable matches (a broken one is left out)
             _no_usable_file(f"objects.{obj.name}.urdf_choice", obj.urdf_choice or "")
-        if obj.name in _picked(sc):
+        if obj.name in _picked(sc) and not robot.gripper.suction:  # (a cup's seal: judged on the faces seen)
             _check_mesh_holdable(obj, f"objects.{obj.name}", robot.gripper.max_opening_m - GRIPPER_CLEARANCE_M, robot)
 
 
@@ -377,7 +377,14 @@ def _check_holdable(obj: ObjectSpec, key: str, robot: RobotDescription) -> float
     the arm carries. Returns that side's width (0 for a mesh)."""
     opening = robot.gripper.max_opening_m
     narrow = 0.0 if obj.shape == "mesh" else obj.largest_shape.grasp_width_m
-    if narrow > opening - GRIPPER_CLEARANCE_M:
+    cup = robot.gripper.cup
+    if cup is not None:  # a suction cup seals on a face at least as wide as it (a box's narrower side)
+        if obj.shape != "mesh" and narrow < cup.diameter_m:
+            raise ScenarioError(
+                f"{key}.size: its narrower side is {narrow * 1e3:.0f} mm; the {robot.label}'s "
+                f"{cup.diameter_m * 1e3:.0f} mm cup seals only on a face at least as wide"
+            )
+    elif narrow > opening - GRIPPER_CLEARANCE_M:
         raise ScenarioError(
             f"{key}.size: its narrower side is {narrow * 1e3:.0f} mm; the gripper opens to {opening * 1e3:.0f} mm "
             f"and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance, so at most "

@@ -145,6 +145,8 @@ class GripParams:
 class Grip:
     """The fingers: a target opening and force, and what the finger sensors say of them."""
 
+    vacuum = False  # (fingers have no valve)
+
     def __init__(self, params: GripParams, dt_s: float, gripper: Gripper) -> None:
         self.p = params
         self.dt_s = dt_s
@@ -195,10 +197,74 @@ class Grip:
     def watch_hold(self) -> None:
         self._no_hold = 0
 
+    def reading(self, obs: Observation) -> str:
+        """What the sensors say of the grip, as a note puts it."""
+        return f"fingers at {obs.opening_m * 1e3:.1f} mm"
+
+    def hold_text(self, obs: Observation) -> str:
+        """A hold as a note puts it."""
+        return f"fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {self.force_n:.0f} N"
+
     def dropped(self, obs: Observation, width_m: float) -> bool:
         """Failed: no hold for ``drop_ticks`` ticks in a row."""
         self._no_hold = 0 if self.holding(obs, width_m) else self._no_hold + 1
         return self._no_hold >= self.p.drop_ticks
+
+
+class Suck(Grip):
+    """A suction cup as the skill's grip: closing opens the vacuum's valve, opening shuts it (and blows
+    the part off); what it holds is what its vacuum sensor says (at least the cup's switch level: a
+    sealed cup), never a finger's contact. A cup that has not sealed ``seal_wait_s`` after its valve
+    opened has stopped on nothing: the close ends there (a leak, or no face under it)."""
+
+    #: a valve open this long without a seal: the close has ended on nothing (s; a vacuum builds in 0.1 s)
+    SEAL_WAIT_S = 0.25
+
+    def __init__(self, params: GripParams, dt_s: float, gripper: Gripper) -> None:
+        super().__init__(params, dt_s, gripper)
+        assert gripper.cup is not None
+        self.switch_kpa = gripper.cup.switch_kpa
+        self.vacuum = False
+        self._open_ticks = 0
+
+    def open(self, force_n: float | None = None, to_m: float | None = None) -> None:
+        super().open(force_n, to_m)
+        self.vacuum = False
+
+    def close(self, force_n: float) -> None:
+        super().close(force_n)
+        self.vacuum = True
+
+    def watch(self) -> None:
+        super().watch()
+        self._open_ticks = 0
+
+    def stopped(self, obs: Observation) -> bool:
+        """Sealed, or the valve open ``SEAL_WAIT_S`` without a seal (shut: the vacuum falls, never stalls)."""
+        if not self.vacuum:
+            return False
+        self._open_ticks += 1
+        return self.holding(obs, 0.0) or self._open_ticks * self.dt_s >= self.SEAL_WAIT_S
+
+    def opened(self, obs: Observation) -> bool:
+        return not self.vacuum and obs.vacuum_kpa < self.switch_kpa
+
+    def holding(self, obs: Observation, width_m: float) -> bool:
+        return obs.vacuum_kpa >= self.switch_kpa
+
+    def too_wide(self, obs: Observation, width_m: float) -> bool:
+        return False  # (a seal is a seal: nothing is held askew between pads)
+
+    def reading(self, obs: Observation) -> str:
+        return f"vacuum at {obs.vacuum_kpa:.0f} kPa"
+
+    def hold_text(self, obs: Observation) -> str:
+        return f"sealed, {self.reading(obs)}"
+
+
+def grip_for(params: GripParams, dt_s: float, gripper: Gripper) -> Grip:
+    """The skill's grip for this robot's gripper: fingers, or a suction cup."""
+    return Suck(params, dt_s, gripper) if gripper.suction else Grip(params, dt_s, gripper)
 
 
 @dataclass(frozen=True)

@@ -32,11 +32,13 @@ from pickdemo.core.shapes import Unknown
 from pickdemo.grasping.antipodal import AnySideGrasps
 from pickdemo.grasping.cloud import CloudGrasps
 from pickdemo.grasping.selection import GraspSelector, TopDownFirst
+from pickdemo.grasping.suction import SuctionGrasps
 from pickdemo.grasping.top_down import GraspParams, GraspPlan
 from pickdemo.motion.online import MotionSample
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.robot.collision import Obstacle
+from pickdemo.robot.description import Gripper
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.robot.self_geometry import robot_body
 from pickdemo.scenario.tray import Tray
@@ -357,7 +359,9 @@ class ClearSequencer:
             q0,
             TargetModel(Unknown(max_extent_m=_extent(seen), size_cue_m=seen.size_m, heap=True), color=None),
             params=dataclasses.replace(self.p, grip_force_n=force),
-            selector=selector_for_round(self.p.grasp, tuple(self._failed_grasps), self.any_side),
+            selector=selector_for_round(
+                self.p.grasp, tuple(self._failed_grasps), self.any_side, gripper=self.kin.robot.gripper
+            ),
             place_xy=self.tray.spot(k),
             place_z_m=self.tray.rim_z + TRAY_DROP_M,
             look_at=seen.centre,
@@ -459,8 +463,12 @@ def _extent(seen: SeenObject) -> float:
     return float(min(Unknown().max_extent_m, EXTENT_MARGIN * max(seen.size_m) + 0.02))
 
 
-def selector_for_round(params: GraspParams, avoid: tuple, any_side: np.random.Generator | None) -> GraspSelector:
+def selector_for_round(
+    params: GraspParams, avoid: tuple, any_side: np.random.Generator | None, *, gripper: Gripper
+) -> GraspSelector:
     """A round's pick's grasps: top-down on its cloud (those that failed before last), and where none fits,
-    from any side (if ``any_side``, the draw, is given)."""
+    from any side (if ``any_side``, the draw, is given); a suction cup's seals (those that failed last)."""
+    if gripper.suction:
+        return SuctionGrasps(params, avoid=avoid)
     top = CloudGrasps(params, avoid=avoid)
     return top if any_side is None else TopDownFirst(top, AnySideGrasps(any_side, params))

@@ -16,6 +16,7 @@ import numpy as np
 from pickdemo.core.geometry import Pose
 from pickdemo.grasping.antipodal import sample_antipodal
 from pickdemo.grasping.cloud import sample_grasps
+from pickdemo.grasping.suction import sample_suction
 from pickdemo.grasping.top_down import GraspParams, top_down
 from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.robot.kinematics import IKParams, Kinematics
@@ -75,20 +76,27 @@ class ObjectChooser:
         reachable grasp from any side (None: no object has one); ``tried``: where picks failed since the
         last that placed an object."""
         best: Choice | None = None
-        params = self.grasp
         for seen in survey.objects:
             was_tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
             # the best few: the first that IK reaches
-            for g in sample_grasps(self._cloud(seen), self._surface(seen), self.kin.robot.gripper, params)[:3]:
+            for g in self._grasps(seen)[:3]:
                 cost = g.cost + (TRIED_PENALTY if was_tried else 0.0)
                 if best is not None and cost >= best.cost:
                     break
-                if self._reachable(g.position, g.hand_yaw_rad):
+                if self._reachable(g.position, getattr(g, "hand_yaw_rad", 0.0)):
                     best = Choice(seen, cost)
                     break
         if best is None and self.any_side is not None:
             best = self._any_side(survey, tried)
         return best
+
+    def _grasps(self, seen: SeenObject) -> list:
+        """An object's top-down grasps, best first: the fingers' (:func:`sample_grasps`) or a suction
+        cup's seals (:func:`~pickdemo.grasping.suction.sample_suction`), as the robot's gripper is."""
+        gripper, cloud = self.kin.robot.gripper, self._cloud(seen)
+        if gripper.cup is not None:
+            return sample_suction(cloud.points, cloud.obstacles, self._surface(seen), gripper.cup)
+        return sample_grasps(cloud, self._surface(seen), gripper, self.grasp)
 
     def _any_side(self, survey: Survey, tried: list[np.ndarray]) -> Choice | None:
         """The object with the best reachable grasp from any side."""
@@ -112,7 +120,11 @@ class ObjectChooser:
         return best
 
     def _reachable(self, position: np.ndarray, hand_yaw: float) -> bool:
-        for yaw in (hand_yaw, hand_yaw + np.pi):
+        # (a round cup: a quarter turn too, its hand's angle is free)
+        yaws = (hand_yaw, hand_yaw + np.pi) + (
+            (hand_yaw + np.pi / 2, hand_yaw - np.pi / 2) if self.kin.robot.gripper.suction else ()
+        )
+        for yaw in yaws:
             for p in (position, position + np.array([0.0, 0.0, self.grasp.pregrasp_height_m])):
                 res = self.kin.solve(top_down(p, yaw), self.kin.robot.home_q, self.rng, self.ik)
                 if not res.success:

@@ -55,7 +55,7 @@ def test_the_ur5_with_a_suction_cup_is_a_tool_on_its_flange() -> None:
     r = robot_named("ur5_suction")
     g = r.gripper
     assert r.dof == 6 and g.suction and g.cup is not None and not g.coupled and not r.grasps_any_side
-    assert g.cup.holding_force_n == pytest.approx(42.41, abs=0.01)  # 60 kPa on a 30 mm cup
+    assert g.cup.holding_force_n == pytest.approx(12.06, abs=0.01)  # 60 kPa on a 16 mm cup
     assert g.finger_joints == ("suction_bellows",) and g.finger_links == ("suction_cup",)
     assert list(g.fingers_of([0.004])) == [0.0, 0.0]  # (no fingers: a bellows pressed is no opening)
 
@@ -220,13 +220,13 @@ BAD = [
     ),
     (
         "a cup wider than its tool",
-        _edit("cup_diameter_m = 0.03", "cup_diameter_m = 0.05", SUCTION_FILE),
-        "gripper.cup_diameter_m: a 50.0 mm cup is wider than its tool: the link 'suction_cup' is 30.0 mm across",
+        _edit("cup_diameter_m = 0.016", "cup_diameter_m = 0.03", SUCTION_FILE),
+        "gripper.cup_diameter_m: a 30.0 mm cup is wider than its tool: the link 'suction_cup' is 16.0 mm across",
     ),
     (
         "a vacuum that cannot hold the payload",
-        _edit("payload_kg = 2.0", "payload_kg = 4.0", SUCTION_FILE),
-        "gripper.vacuum_kpa: the cup holds 42.4 N at 60 kPa; arm.payload_kg 4 asks for 78.5 N",
+        _edit("payload_kg = 0.6", "payload_kg = 1.0", SUCTION_FILE),
+        "gripper.vacuum_kpa: the cup holds 12.1 N at 60 kPa; arm.payload_kg 1 asks for 19.6 N",
     ),
     (
         "a bellows stroke past its joint's travel",

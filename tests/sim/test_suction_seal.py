@@ -8,17 +8,19 @@ import pybullet as p
 import pytest
 from pybullet_utils.bullet_client import BulletClient
 
-from pickdemo.robot.suction import GRAVITY_M_S2, Cup, Seal
+from pickdemo.robot import robot_named
+from pickdemo.robot.suction import GRAVITY_M_S2, Seal
 from pickdemo.sim.suction import VacuumCup
 
 TOOL = "pickdemo/robot/robots/ur5_suction/suction_tool.urdf"
-CUP = Cup(diameter_m=0.03, stroke_m=0.008, bellows_force_n=6.0, vacuum_kpa=60.0)
+CUP = robot_named("ur5_suction").gripper.cup
 
 
 def _world(box_half: float, mass_kg: float, cup_xy: tuple[float, float], porous: bool = False):
-    """A box on the ground and the suction tool pointing down with its lip a millimetre over the box's top
-    (the tool's base frame, as PyBullet places it, is its centre of mass: 1 cm into the plate, 35 cm from
-    the lip), moved as a hand moves it: by a stiff constraint to a point."""
+    """A box on the ground and the suction tool pointing down with its lip a millimetre over the box's top,
+    moved as a hand moves it: by a stiff constraint to a point (on its base's centre of mass, 1 cm into
+    the plate and 35 cm from the lip; PyBullet loads a URDF by its link's frame, and a constraint takes
+    the centre of mass)."""
     c = BulletClient(connection_mode=p.DIRECT)
     c.setGravity(0, 0, -GRAVITY_M_S2)
     c.setTimeStep(1 / 240)
@@ -27,7 +29,7 @@ def _world(box_half: float, mass_kg: float, cup_xy: tuple[float, float], porous:
                             basePosition=[0, 0, box_half])  # fmt: skip
     down = p.getQuaternionFromEuler([np.pi, 0, 0])
     z0 = 2 * box_half + 0.35 + 0.001
-    tool = c.loadURDF(TOOL, basePosition=[cup_xy[0], cup_xy[1], z0], baseOrientation=down)
+    tool = c.loadURDF(TOOL, basePosition=[cup_xy[0], cup_xy[1], z0 + 0.01], baseOrientation=down)
     hand = c.createConstraint(tool, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [cup_xy[0], cup_xy[1], z0],
                               childFrameOrientation=down)  # fmt: skip
     c.changeConstraint(hand, maxForce=5000)
@@ -74,7 +76,7 @@ def test_a_cup_on_a_flat_face_holds_up_to_its_force_and_drops_above_it(share: fl
 
 
 def test_a_cup_across_an_edge_leaks() -> None:
-    c, tool, box, cup, z0 = _world(0.04, 0.2, (0.04, 0.0))  # its centre over the box's edge
+    c, tool, box, cup, z0 = _world(0.04, 1.0, (0.04, 0.0))  # its centre over the box's edge (1 kg: it does not tip)
     z, before = _lift(c, tool, cup, z0, box)
     assert before is Seal.LEAK and z < 0.05
 

@@ -118,7 +118,7 @@ class ArmDriver:
         """The one command builder: joints through the rate limiter (a motion that stopped short of the
         last command, or an IK that settled elsewhere, is not a jump), with the fingers' target."""
         sent, limited = self.limiter(q)
-        return Command(sent, self.limiter.dq.copy() if limited else dq, grip.target_m, grip.force_n)
+        return Command(sent, self.limiter.dq.copy() if limited else dq, grip.target_m, grip.force_n, grip.vacuum)
 
     def hold(self, grip: Grip) -> Command:
         """Hold where the motion is."""

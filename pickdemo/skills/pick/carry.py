@@ -50,7 +50,7 @@ def _dropped(m: PickMachine, obs: Observation, stage: Stage, outcome: str) -> Tr
     assert m.plan is not None
     if not m.grip.dropped(obs, m.plan.object_width_m):
         return None
-    return m.retry(stage, outcome, f"fingers at {obs.opening_m * 1e3:.1f} mm")
+    return m.retry(stage, outcome, m.grip.reading(obs))
 
 
 # ---- LIFT, TRANSPORT, LOWER: carry it, watching the hold.
@@ -125,7 +125,7 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
         m.arm.move.to(m.plan.withdraw, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
         return None
     m.arm.cartesian()  # (a side grasp's lift in joint space: the carry starts at rest where it left the arm)
-    return State.TRANSPORT, f"lifted, fingers at {obs.opening_m * 1e3:.1f} mm"
+    return State.TRANSPORT, f"lifted, {m.grip.reading(obs)}"
 
 
 def enter_transport(m: PickMachine, obs: Observation) -> None:

@@ -31,7 +31,7 @@ from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.perception import PerceptionError, PoseEstimate, TargetModel
 from pickdemo.robot.collision import Obstacle
 from pickdemo.robot.kinematics import Kinematics
-from pickdemo.skills.actions import Grip, Scale
+from pickdemo.skills.actions import Scale, grip_for
 from pickdemo.skills.pick.arm import ArmDriver
 from pickdemo.skills.pick.carry import verify_frame
 from pickdemo.skills.pick.chooser import GraspChooser
@@ -120,7 +120,7 @@ class PickMachine(MachineReadout):
         self.hand_cameras = frozenset(c.name for c in cameras if c.on_hand)
         self.arm_q = np.asarray(q0, dtype=float)  # the joint states last observed (where a hand camera is)
         any_side = grasp_rng if kin.robot.grasps_any_side and p.joint_transfers else None
-        selector = selector or selector_for(model, p.grasp, any_side=any_side)
+        selector = selector or selector_for(model, p.grasp, any_side=any_side, gripper=kin.robot.gripper)
         if place_z_m != 0.0 or p.drop_place:
             selector = PlacedHigher(selector, place_z_m, from_carry=p.drop_place)
         self.selector = selector
@@ -128,7 +128,7 @@ class PickMachine(MachineReadout):
         self.arm = ArmDriver(kin, q0, dt_s, p, rng)
         self.router = Router(kin, cell, plan_rng or np.random.default_rng(0), max_checks=p.plan_max_checks)
         self.held: OrientedBox | None = None  # the held object's box in the TCP's frame (from the close)
-        self.grip = Grip(p.grip, dt_s, kin.robot.gripper)
+        self.grip = grip_for(p.grip, dt_s, kin.robot.gripper)
         self.scale = Scale(p.payload)
         # The wrist's sensor reads in its joint's frame; where that is turned from the TCP's (the SO-101's
         # roll joint: its z is the TCP's -z), the reading is turned with it (None: the TCP's frame).

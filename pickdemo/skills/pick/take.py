@@ -556,8 +556,12 @@ def tick_close(m: PickMachine, obs: Observation) -> Transition:
         m.grasp_width_m = obs.opening_m
         if m.grip.force_n > m.close_force_n:  # (pushed harder to the fixed jaw: held with the grip's force)
             m.grip.close(m.close_force_n)
-        return State.LIFT, f"holding: fingers at {obs.opening_m * 1e3:.1f} mm, contact on both, {m.close_force_n:.0f} N"
-    reason = f"fingers closed to {obs.opening_m * 1e3:.1f} mm (expected {width * 1e3:.0f} mm): nothing held"
+        return State.LIFT, f"holding: {m.grip.hold_text(obs)}"
+    reason = (
+        f"fingers closed to {obs.opening_m * 1e3:.1f} mm (expected {width * 1e3:.0f} mm): nothing held"
+        if not m.grip.vacuum
+        else f"no seal ({m.grip.reading(obs)}): nothing held"
+    )
     return m.retry(Stage.GRASP, "missed", reason)
 
 
