@@ -7,8 +7,8 @@ noise; points lower are another surface, a side past an edge); it seals where th
 the rim all round (in each of 8 sectors, to 0.7 radii at least: seen this sparsely, a farther point is
 seldom there; a rim over an edge leaks) and the plane through it rises across the cup less than 60 %
 of the stroke (the rest: the depth's noise); it holds where the weight, hanging from the cup at the
-cloud's centroid, asks less than the vacuum gives (:func:`pickdemo.robot.suction.hanging_load`), the mass estimated from what was
-seen (its footprint times its height, at :data:`DENSITY_KG_M3`). The cup and its tube must go down
+cloud's centroid, asks less than the vacuum gives (:func:`pickdemo.robot.suction.hanging_load`), the
+mass estimated from what was seen (its footprint times its height, at :data:`DENSITY_KG_M3`). The cup and its tube must go down
 clear: no point of anything else, or of the target itself, within the cup's radius above the lip.
 Ranked by how far the rim is from the centroid (the torque) and how flat the ring is. A described
 target (a known box or cylinder) is sealed on the middle of its top face.
