@@ -1,17 +1,18 @@
 """Suction grasps from what was seen: where a vacuum cup, coming straight down, seals and holds.
 
-Pure: no simulator. Dex-Net 3.0's ring model (Mahler et al. 2018) on the points: a candidate is a point
-of the target's cloud; the face the cup meets there is the cloud's points within 1.1 cup radii of it
-(seen from above) at the height of its top (within 30 % of the bellows' stroke either way: the depth's
-noise; points lower are another surface, a side past an edge); it seals where that face reaches under
-the rim all round (in each of 8 sectors, to 0.7 radii at least: seen this sparsely, a farther point is
-seldom there; a rim over an edge leaks) and the plane through it rises across the cup less than 60 %
-of the stroke (the rest: the depth's noise); it holds where the weight, hanging from the cup at the
-cloud's centroid, asks less than the vacuum gives (:func:`pickdemo.robot.suction.hanging_load`), the
-mass estimated from what was seen (its footprint times its height, at :data:`DENSITY_KG_M3`). The cup and its tube must go down
-clear: no point of anything else, or of the target itself, within the cup's radius above the lip.
-Ranked by how far the rim is from the centroid (the torque) and how flat the ring is. A described
-target (a known box or cylinder) is sealed on the middle of its top face.
+Pure: no simulator. Dex-Net 3.0's ring model (Mahler et al. 2018) on the points. A candidate is a point
+of the target's cloud. The face the cup meets there: the plane through the cloud's points within 1.1
+cup radii of it (seen from above) and within the stroke of their top, and the points within the
+depth's noise of that plane (points lower are another surface: a side, past an edge). It seals where
+that face reaches under the rim all round (in each of 8 sectors, to 0.7 radii at least: seen this
+sparsely, a farther point is seldom there; a rim over an edge leaks) and the plane rises across the
+cup less than 60 % of the stroke (the rest: the depth's noise). It holds where the weight, hanging from
+the cup at the cloud's centroid, asks less than the vacuum gives
+(:func:`pickdemo.robot.suction.hanging_load`), the mass estimated from what was seen (its footprint
+times its height, at :data:`DENSITY_KG_M3`). The cup and its tube must go down clear: no point of
+anything else, or of the target itself, within the cup's radius above the lip. Ranked by how far the
+cup is from the centroid (the torque), how level the face is, and the load. A described target (a
+known box or cylinder) is sealed on the middle of its top face.
 
 The approach is vertical: a face tilted more than the bellows' stroke across the cup is no candidate
 (a cup on a tilted hand, along the face's normal, is not yet planned).
