@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.core.geometry import wrap_angle
+from pickdemo.core.geometry import Pose, wrap_angle
 from pickdemo.core.shapes import Unknown
-from pickdemo.grasping.top_down import GraspParams, GraspPlan, GraspPlanningError, poses_of_pick
+from pickdemo.grasping.top_down import GraspParams, GraspPlan, GraspPlanningError, poses_of_pick, top_down
 from pickdemo.robot.suction import Cup, hanging_load
 
 #: What an object nobody described is taken to weigh per volume seen (kg/m^3): water's, more than most
@@ -35,6 +35,8 @@ from pickdemo.robot.suction import Cup, hanging_load
 DENSITY_KG_M3 = 1000.0
 #: The rim's sectors (seen from above) under each of which the face must reach.
 SECTORS = 8
+#: The best seals offered to the skill (it takes the first the arm reaches).
+BEST_SEALS = 5
 #: A seal this near one that failed is tried after the others (m).
 AVOID_RADIUS_M = 0.02
 #: So many points in the cup's way at least are something there (fewer: a speck of the depth's noise).
@@ -49,23 +51,30 @@ class SuctionParams:
     #: the face seen must reach this share of the cup's radius from its centre in every sector ...
     ring_inner: float = 0.7
     ring_outer: float = 1.1  # ... and is looked for within this share of it
-    #: the ring's heights may spread this share of the stroke (the rest: the depth's noise)
-    stroke_share: float = 0.6
     press_m: float = 0.004  # the cup is pressed this far past the face (into the bellows' stroke)
     noise_m: float = 0.003  # a point this near the face's plane is on it (the depth's noise)
-    #: no point of anything (the target too) this far above the lip within the cup's radius and this margin
-    clear_above_m: float = 0.004
+    #: the cup comes along a face's normal tilted at most this far from the vertical (rad): the arm's
+    #: wrist over a bin's walls, and the held part's weight peeling a tilted cup
+    max_tilt_rad: float = np.radians(45.0)
+    #: below this tilt the cup comes straight down (a top-down pick, as the fingers' are)
+    level_rad: float = np.radians(5.0)
+    #: no point of anything (the target too) within the cup's radius and this margin of its axis, from
+    #: this far above the lip up the tool's length
     clear_margin_m: float = 0.004
-    hand_yaws: int = 8  # the hand's angles offered about the cup's axis (a round cup holds the same)
+    clear_above_m: float = 0.004
+    tool_length_m: float = 0.3
+    hand_yaws: int = 8  # the hand's angles offered about a vertical cup's axis (a round cup holds the same)
 
 
 @dataclass(frozen=True)
 class SuctionGrasp:
-    """A seal on a cloud: the cup's centre on the face (world), and its cost (lower is better)."""
+    """A seal on a cloud: the cup's centre on the face (world), the face's outward normal, its cost
+    (lower is better)."""
 
     position: np.ndarray
+    normal: np.ndarray
     cost: float
-    spread_m: float
+    tilt_rad: float
     load: float  # the worst share of the hold the weight asks
 
 
@@ -76,10 +85,11 @@ def _thin(points: np.ndarray, n: int) -> np.ndarray:
     return points[idx]
 
 
-def _plane(points: np.ndarray) -> np.ndarray:
-    """(gx, gy, z0): the plane z = gx x + gy y + z0 nearest the points (least squares)."""
-    a = np.column_stack([points[:, 0], points[:, 1], np.ones(len(points))])
-    return np.linalg.lstsq(a, points[:, 2], rcond=None)[0]
+def _basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors across ``n`` (a face's plane)."""
+    e1 = np.cross(n, [0.0, 1.0, 0.0] if abs(n[1]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(n, e1)
 
 
 def sample_suction(
@@ -95,50 +105,87 @@ def sample_suction(
     footprint = np.ptp(pts[:, 0]) * np.ptp(pts[:, 1])
     mass = DENSITY_KG_M3 * footprint * max(top - surface_z, 0.005)
     others = np.asarray(obstacles, dtype=float).reshape(-1, 3)
+    everything = np.vstack([pts, others])
     out = []
     for c in _thin(pts[np.argsort(-pts[:, 2], kind="stable")], params.candidates):
-        d = np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1])
-        disc = pts[d <= params.ring_outer * r]
-        if len(disc) < SECTORS:
+        patch = pts[np.linalg.norm(pts - c, axis=1) <= params.ring_outer * r]
+        if len(patch) < SECTORS:
             continue
-        # the face the lip meets: the plane through the points under the cup within the stroke of their
-        # top (a speck of noise above it aside), and the points near that plane (the depth's noise);
-        # points lower are another surface (a side, past an edge)
-        lip = float(np.percentile(disc[:, 2], 95))
-        face = disc[disc[:, 2] >= lip - cup.stroke_m]
-        if len(face) < SECTORS:
+        # the face: the plane through the patch (its least principal axis, facing up), and the points
+        # within the depth's noise of it; a point farther, above it, is a bump in the cup's way
+        mid = patch.mean(axis=0)
+        n = np.linalg.eigh(np.cov((patch - mid).T))[1][:, 0]
+        n = n if n[2] >= 0.0 else -n
+        tilt = float(np.arccos(np.clip(n[2], -1.0, 1.0)))
+        if tilt > params.max_tilt_rad:
             continue
-        for _ in range(2):
-            plane = _plane(face)
-            face = face[np.abs(face[:, 2] - face[:, :2] @ plane[:2] - plane[2]) <= params.noise_m]
-            if len(face) < SECTORS:
-                break
-        if len(face) < SECTORS:
-            continue
-        fd = np.hypot(face[:, 0] - c[0], face[:, 1] - c[1])
-        sector = ((np.arctan2(face[:, 1] - c[1], face[:, 0] - c[0]) + np.pi) / (2 * np.pi) * SECTORS).astype(int)
+        lip = c - n * float((c - mid) @ n)  # the candidate on the plane
+        res = (patch - lip) @ n
+        face = patch[np.abs(res) <= params.noise_m]
+        if np.count_nonzero(res > params.noise_m) >= STRAY_POINTS:
+            continue  # something of the target stands up within the rim
+        e1, e2 = _basis(n)
+        u, v = (face - lip) @ e1, (face - lip) @ e2
+        sector = ((np.arctan2(v, u) + np.pi) / (2 * np.pi) * SECTORS).astype(int) % SECTORS
         reach = np.zeros(SECTORS)
-        np.maximum.at(reach, sector % SECTORS, fd)
+        np.maximum.at(reach, sector, np.hypot(u, v))
         if np.any(reach < params.ring_inner * r):
-            continue  # the face does not reach under the rim all round: over an edge, tilted, or unseen
-        spread = float(np.hypot(*_plane(face)[:2])) * 2.0 * r  # one side of the rim above the other
-        if spread > params.stroke_share * cup.stroke_m:
+            continue  # the face does not reach under the rim all round: over an edge, curved, or unseen
+        # the cup's and the tube's way in along the normal: nothing within the radius of its axis
+        rel = everything - lip
+        along = rel @ n
+        across = np.linalg.norm(rel - np.outer(along, n), axis=1)
+        way = (along > params.clear_above_m) & (along < params.tool_length_m) & (across <= r + params.clear_margin_m)
+        if np.count_nonzero(way) >= STRAY_POINTS:
             continue
-        inside = pts[d <= r + params.clear_margin_m]
-        if np.count_nonzero(inside[:, 2] > lip + params.clear_above_m) >= STRAY_POINTS:
-            continue  # a part of the target itself stands in the cup's way
-        if len(others):
-            near = np.hypot(others[:, 0] - c[0], others[:, 1] - c[1]) <= r + params.clear_margin_m
-            if np.count_nonzero(others[near, 2] > lip - params.press_m) >= STRAY_POINTS:
-                continue  # something else under or beside the cup's way down
-        held = hanging_load(cup, mass, centroid - np.array([c[0], c[1], lip]), np.array([0.0, 0.0, 1.0]))
+        held = hanging_load(cup, mass, centroid - lip, n)
         if not held.holds:
             continue
-        lever = float(np.hypot(*(centroid[:2] - c[:2])))
-        cost = lever / r + spread / cup.stroke_m + 0.5 * held.worst
-        out.append(SuctionGrasp(np.array([c[0], c[1], lip]), cost, spread, held.worst))
+        lever = float(np.linalg.norm(np.cross(centroid - lip, n)))  # the weight's arm about the cup's axis
+        cost = lever / r + tilt / params.max_tilt_rad + 0.5 * held.worst
+        out.append(SuctionGrasp(lip, n, cost, tilt, held.worst))
     out.sort(key=lambda g: g.cost)
     return out
+
+
+def suction_plan(
+    g: SuctionGrasp, centre: np.ndarray, surface_z: float, place_xy: tuple[float, float], params: GraspParams,
+    suction: SuctionParams, hand_yaw: float = 0.0,
+) -> GraspPlan:  # fmt: skip
+    """Every TCP pose of a pick and place on a seal: a level face's from straight above at
+    ``hand_yaw`` (as a top-down pick's); a tilted face's in along its normal, pressed ``press_m`` into it,
+    lifted straight up, and put down with the cup level (the object's ``centre`` over ``place_xy``)."""
+    if g.tilt_rad <= suction.level_rad:
+        z = float(g.position[2]) - surface_z - suction.press_m
+        grasp_p = np.array([g.position[0], g.position[1], surface_z + z])
+        held = grasp_p[:2] - centre[:2]
+        # (no width: nothing closes on it; the estimate may be off by up to the cup's radius)
+        return poses_of_pick(grasp_p, hand_yaw, z, 0.0, place_xy, params, (float(held[0]), float(held[1])))
+    approach = -g.normal
+    x = np.cross([0.0, 0.0, 1.0], approach)  # the hand's x level, across the tilt
+    x /= np.linalg.norm(x)
+    rot = np.column_stack([x, np.cross(approach, x), approach])
+    tcp = g.position + approach * suction.press_m
+    offset = tcp[:2] - centre[:2]
+    place_p = np.array(
+        [place_xy[0] + offset[0], place_xy[1] + offset[1], tcp[2] - surface_z + params.place_clearance_m]
+    )
+    carry_z = tcp[2] + params.transport_height_m
+    pose = lambda p: Pose(np.asarray(p, dtype=float), rot)  # noqa: E731
+    yaw = float(np.arctan2(approach[1], approach[0]))
+    return GraspPlan(
+        pregrasp=pose(tcp - approach * params.pregrasp_height_m),
+        grasp=pose(tcp),
+        lift=pose([tcp[0], tcp[1], carry_z]),
+        # put down with the cup level again (the part turned with it; what it rests on takes it as it
+        # comes): a tilted hand over the place, as it was held, put the UR5's wrist near its singularity
+        place_above=top_down(np.array([place_p[0], place_p[1], max(carry_z, place_p[2] + 0.05)]), yaw),
+        place=top_down(place_p, yaw),
+        retreat=top_down(place_p + np.array([0.0, 0.0, params.retreat_height_m]), yaw),
+        object_width_m=0.0,
+        hand_yaw_rad=float(np.arctan2(approach[1], approach[0])),
+        place_offset_xy=(float(offset[0]), float(offset[1])),
+    )
 
 
 @dataclass
@@ -153,11 +200,10 @@ class SuctionGrasps:
     #: seals tried that held nothing (the TCP's position in the world, the hand's angle): one near them
     #: comes after the others
     avoid: tuple[tuple[np.ndarray, float], ...] = ()
-    _planned: tuple[int, list[tuple[np.ndarray, float]]] | None = field(default=None, repr=False)
+    _planned: tuple[int, list[SuctionGrasp]] | None = field(default=None, repr=False)
 
-    def _local(self, request) -> list[tuple[np.ndarray, float]]:  # noqa: ANN001 - a GraspRequest
-        """The seals in the tracked pose's frame: (xy offset from its centre, the lip's height over the
-        surface), best first."""
+    def _local(self, request) -> list[SuctionGrasp]:  # noqa: ANN001 - a GraspRequest
+        """The seals in the tracked pose's frame (its centre the origin, turned by its yaw), best first."""
         if self._planned is not None and self._planned[0] == request.plan_id:
             return self._planned[1]
         cup = request.gripper.cup
@@ -168,23 +214,25 @@ class SuctionGrasps:
             seen = sample_suction(request.cloud.points, request.cloud.obstacles, request.surface_z, cup, self.suction)
             if not seen:
                 raise GraspPlanningError(
-                    f"no face seen where a {cup.diameter_m * 1e3:.0f} mm cup seals and holds (a flat patch "
-                    "at least as wide as the cup, seen all round, near the object's middle)"
+                    f"no face seen where a {cup.diameter_m * 1e3:.0f} mm cup seals and holds (a face at least as "
+                    f"wide as the cup, seen all round, tilted at most {np.degrees(self.suction.max_tilt_rad):.0f} deg, "
+                    "its way in clear)"
                 )
             if self.avoid:
                 seen.sort(key=lambda g: (self._tried(g.position), g.cost))
-            yaw0 = float(at.rpy[2])
-            c, s = np.cos(-yaw0), np.sin(-yaw0)
-            rot = np.array([[c, -s], [s, c]])
-            local = [(rot @ (g.position[:2] - at.position[:2]), float(g.position[2]) - request.surface_z) for g in seen]
+            turn = _about_z(-float(at.rpy[2]))
+            local = [
+                SuctionGrasp(turn @ (g.position - at.position), turn @ g.normal, g.cost, g.tilt_rad, g.load)
+                for g in seen
+            ]
         else:  # a described shape: the middle of its top face
-            height = request.model.geometry.height_m
-            local = [(np.zeros(2), float(height))]
+            top = np.array([0.0, 0.0, request.surface_z + request.model.geometry.height_m]) - at.position * [0, 0, 1]
+            local = [SuctionGrasp(top, np.array([0.0, 0.0, 1.0]), 0.0, 0.0, 0.0)]
         self._planned = (request.plan_id, local)
         return local
 
-    def _tried(self, xy: np.ndarray) -> bool:
-        return any(np.hypot(*(xy[:2] - p[:2])) < AVOID_RADIUS_M for p, _ in self.avoid)
+    def _tried(self, position: np.ndarray) -> bool:
+        return any(np.hypot(*(position[:2] - p[:2])) < AVOID_RADIUS_M for p, _ in self.avoid)
 
     def hand_yaws(self, request) -> list[float]:  # noqa: ANN001 - a GraspRequest
         """A round cup holds the same at any angle about its axis: a few, evenly round (the skill ranks
@@ -194,14 +242,18 @@ class SuctionGrasps:
         return [float(wrap_angle(-np.pi + 2.0 * np.pi * k / n)) for k in range(n)]
 
     def candidates(self, request) -> Iterator[GraspPlan]:  # noqa: ANN001 - a GraspRequest
-        for offset, lip in self._local(request)[:1]:
-            yaw = float(request.pose.rpy[2])
-            c, s = np.cos(yaw), np.sin(yaw)
-            held = np.array([[c, -s], [s, c]]) @ offset  # the cup from the object's centre
-            xy = request.pose.position[:2] + held
-            z = lip - self.suction.press_m
-            grasp_p = np.array([xy[0], xy[1], request.surface_z + z])
-            for near in request.hand_yaws:
+        at = request.pose
+        turn = _about_z(float(at.rpy[2]))
+        for g in self._local(request)[:BEST_SEALS]:
+            here = SuctionGrasp(at.position + turn @ g.position, turn @ g.normal, g.cost, g.tilt_rad, g.load)
+            level = g.tilt_rad <= self.suction.level_rad
+            for near in request.hand_yaws if level else (None,):
                 hand = 0.0 if near is None else float(near)
-                # (no width: nothing closes on it; the estimate may be off by up to the cup's radius)
-                yield poses_of_pick(grasp_p, hand, z, 0.0, request.place_xy, self.params, (held[0], held[1]))
+                yield suction_plan(
+                    here, at.position, request.surface_z, request.place_xy, self.params, self.suction, hand
+                )
+
+
+def _about_z(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

@@ -16,7 +16,7 @@ import numpy as np
 from pickdemo.core.geometry import Pose
 from pickdemo.grasping.antipodal import sample_antipodal
 from pickdemo.grasping.cloud import sample_grasps
-from pickdemo.grasping.suction import sample_suction
+from pickdemo.grasping.suction import SuctionGrasp, SuctionParams, sample_suction, suction_plan
 from pickdemo.grasping.top_down import GraspParams, top_down
 from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.robot.kinematics import IKParams, Kinematics
@@ -83,7 +83,7 @@ class ObjectChooser:
                 cost = g.cost + (TRIED_PENALTY if was_tried else 0.0)
                 if best is not None and cost >= best.cost:
                     break
-                if self._reachable(g.position, getattr(g, "hand_yaw_rad", 0.0)):
+                if self._reaches(seen, g):
                     best = Choice(seen, cost)
                     break
         if best is None and self.any_side is not None:
@@ -119,12 +119,23 @@ class ObjectChooser:
                     break
         return best
 
+    def _reaches(self, seen: SeenObject, g) -> bool:  # noqa: ANN001 - a CloudGrasp or a SuctionGrasp
+        """Whether the arm reaches a grasp and its pregrasp (a suction cup's: at any of four hand angles
+        about a level cup's axis; a tilted one's as it comes along the face's normal)."""
+        if not isinstance(g, SuctionGrasp):
+            return self._reachable(g.position, g.hand_yaw_rad)
+        for yaw in (0.0, np.pi / 2, np.pi, -np.pi / 2):
+            plan = suction_plan(g, seen.centre, self._surface(seen), (0.0, 0.0), self.grasp, SuctionParams(), yaw)
+            if all(
+                self.kin.solve(p, self.kin.robot.home_q, self.rng, self.ik).success for p in (plan.grasp, plan.pregrasp)
+            ):
+                return True
+            if g.tilt_rad > SuctionParams().level_rad:
+                return False
+        return False
+
     def _reachable(self, position: np.ndarray, hand_yaw: float) -> bool:
-        # (a round cup: a quarter turn too, its hand's angle is free)
-        yaws = (hand_yaw, hand_yaw + np.pi) + (
-            (hand_yaw + np.pi / 2, hand_yaw - np.pi / 2) if self.kin.robot.gripper.suction else ()
-        )
-        for yaw in yaws:
+        for yaw in (hand_yaw, hand_yaw + np.pi):
             for p in (position, position + np.array([0.0, 0.0, self.grasp.pregrasp_height_m])):
                 res = self.kin.solve(top_down(p, yaw), self.kin.robot.home_q, self.rng, self.ik)
                 if not res.success:
