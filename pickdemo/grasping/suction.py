@@ -162,8 +162,10 @@ def suction_plan(
         # (no width: nothing closes on it; the estimate may be off by up to the cup's radius)
         return poses_of_pick(grasp_p, hand_yaw, z, 0.0, place_xy, params, (float(held[0]), float(held[1])))
     approach = -g.normal
-    x = np.cross([0.0, 0.0, 1.0], approach)  # the hand's x level, across the tilt
-    x /= np.linalg.norm(x)
+    level_x = np.cross([0.0, 0.0, 1.0], approach)  # the hand's x level, across the tilt ...
+    level_x /= np.linalg.norm(level_x)
+    # ... turned ``hand_yaw`` about the cup's axis (a round cup seals the same at any turn)
+    x = np.cos(hand_yaw) * level_x + np.sin(hand_yaw) * np.cross(approach, level_x)
     rot = np.column_stack([x, np.cross(approach, x), approach])
     tcp = g.position + approach * suction.press_m
     offset = tcp[:2] - centre[:2]
@@ -172,7 +174,7 @@ def suction_plan(
     )
     carry_z = tcp[2] + params.transport_height_m
     pose = lambda p: Pose(np.asarray(p, dtype=float), rot)  # noqa: E731
-    yaw = float(np.arctan2(approach[1], approach[0]))
+    yaw = float(np.arctan2(x[1], x[0]))  # (top_down's x along the tilted hand's, seen from above)
     return GraspPlan(
         pregrasp=pose(tcp - approach * params.pregrasp_height_m),
         grasp=pose(tcp),
@@ -183,7 +185,7 @@ def suction_plan(
         place=top_down(place_p, yaw),
         retreat=top_down(place_p + np.array([0.0, 0.0, params.retreat_height_m]), yaw),
         object_width_m=0.0,
-        hand_yaw_rad=float(np.arctan2(approach[1], approach[0])),
+        hand_yaw_rad=float(wrap_angle(yaw)),
         place_offset_xy=(float(offset[0]), float(offset[1])),
     )
 
@@ -235,20 +237,27 @@ class SuctionGrasps:
         return any(np.hypot(*(position[:2] - p[:2])) < AVOID_RADIUS_M for p, _ in self.avoid)
 
     def hand_yaws(self, request) -> list[float]:  # noqa: ANN001 - a GraspRequest
-        """A round cup holds the same at any angle about its axis: a few, evenly round (the skill ranks
-        them by the IK)."""
-        self._local(request)
+        """A round cup holds the same at any angle about its axis: a level one's, a few evenly round (the
+        skill ranks them by the IK); a tilted one's, its hand level across the tilt (turned about a tilted
+        axis, the UR5's wrist came near its singularities: 2 of 10 rounds stopped so, measured)."""
+        best = self._local(request)[0]
+        if best.tilt_rad > self.suction.level_rad:
+            n = -(_about_z(float(request.pose.rpy[2])) @ best.normal)
+            x = np.cross([0.0, 0.0, 1.0], n)
+            return [float(np.arctan2(x[1], x[0]))]
         n = self.suction.hand_yaws
         return [float(wrap_angle(-np.pi + 2.0 * np.pi * k / n)) for k in range(n)]
 
     def candidates(self, request) -> Iterator[GraspPlan]:  # noqa: ANN001 - a GraspRequest
         at = request.pose
         turn = _about_z(float(at.rpy[2]))
+        # the best seal at each hand angle asked for (the skill takes one plan an angle), then the next
+        # seals: a round cup seals the same turned any way about its axis
         for g in self._local(request)[:BEST_SEALS]:
             here = SuctionGrasp(at.position + turn @ g.position, turn @ g.normal, g.cost, g.tilt_rad, g.load)
             level = g.tilt_rad <= self.suction.level_rad
-            for near in request.hand_yaws if level else (None,):
-                hand = 0.0 if near is None else float(near)
+            for near in request.hand_yaws:  # (a tilted cup: its hand level across the tilt, whatever asked)
+                hand = 0.0 if near is None or not level else float(near)
                 yield suction_plan(
                     here, at.position, request.surface_z, request.place_xy, self.params, self.suction, hand
                 )
