@@ -20,7 +20,7 @@ The approach is vertical: a face tilted more than the bellows' stroke across the
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,6 +37,9 @@ DENSITY_KG_M3 = 1000.0
 SECTORS = 8
 #: The best seals offered to the skill (it takes the first the arm reaches).
 BEST_SEALS = 5
+#: At most so many of the rim's sectors may be hidden from the camera (and the seal's cost for each).
+UNSEEN_SECTORS = 3
+UNSEEN_COST = 0.5
 #: A seal this near one that failed is tried after the others (m).
 AVOID_RADIUS_M = 0.02
 #: So many points in the cup's way at least are something there (fewer: a speck of the depth's noise).
@@ -93,9 +96,18 @@ def _basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def sample_suction(
-    points: np.ndarray, obstacles: np.ndarray, surface_z: float, cup: Cup, params: SuctionParams = SuctionParams()
+    points: np.ndarray,
+    obstacles: np.ndarray,
+    surface_z: float,
+    cup: Cup,
+    params: SuctionParams = SuctionParams(),
+    unknown: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[SuctionGrasp]:
-    """The cloud's seals that hold, best first (see the module's rule)."""
+    """The cloud's seals that hold, best first (see the module's rule). ``unknown``: which of some world
+    points the camera did not see to be free (:meth:`~pickdemo.perception.model.ObjectCloud.unknown`):
+    where the face is not seen to reach under the rim and the rim's point there is hidden, the face may
+    go on (a side the camera could not see): such a seal is offered, after those seen all round, with
+    at most :data:`UNSEEN_SECTORS` sectors so; where the camera saw past the rim, it leaks."""
     pts = np.asarray(points, dtype=float)
     if len(pts) < 10:
         return []
@@ -129,8 +141,14 @@ def sample_suction(
         sector = ((np.arctan2(v, u) + np.pi) / (2 * np.pi) * SECTORS).astype(int) % SECTORS
         reach = np.zeros(SECTORS)
         np.maximum.at(reach, sector, np.hypot(u, v))
-        if np.any(reach < params.ring_inner * r):
-            continue  # the face does not reach under the rim all round: over an edge, curved, or unseen
+        short = np.flatnonzero(reach < params.ring_inner * r)
+        if len(short):  # the face not seen under the rim there: hidden from the camera, or past an edge
+            if unknown is None or len(short) > UNSEEN_SECTORS:
+                continue
+            angle = (short + 0.5) * (2 * np.pi / SECTORS) - np.pi
+            rim = lip + r * (np.outer(np.cos(angle), e1) + np.outer(np.sin(angle), e2))
+            if not np.all(unknown(rim)):
+                continue  # seen past the rim: over an edge, it leaks
         # the cup's and the tube's way in along the normal: nothing within the radius of its axis
         rel = everything - lip
         along = rel @ n
@@ -142,7 +160,7 @@ def sample_suction(
         if not held.holds:
             continue
         lever = float(np.linalg.norm(np.cross(centroid - lip, n)))  # the weight's arm about the cup's axis
-        cost = lever / r + tilt / params.max_tilt_rad + 0.5 * held.worst
+        cost = lever / r + tilt / params.max_tilt_rad + 0.5 * held.worst + UNSEEN_COST * len(short)
         out.append(SuctionGrasp(lip, n, cost, tilt, held.worst))
     out.sort(key=lambda g: g.cost)
     return out
@@ -213,7 +231,8 @@ class SuctionGrasps:
         if isinstance(request.model.geometry, Unknown) or request.cloud is not None:
             if request.cloud is None:
                 raise GraspPlanningError("no view of the object to plan a suction grasp from")
-            seen = sample_suction(request.cloud.points, request.cloud.obstacles, request.surface_z, cup, self.suction)
+            cloud = request.cloud
+            seen = sample_suction(cloud.points, cloud.obstacles, request.surface_z, cup, self.suction, cloud.unknown)
             if not seen:
                 raise GraspPlanningError(
                     f"no face seen where a {cup.diameter_m * 1e3:.0f} mm cup seals and holds (a face at least as "

@@ -95,7 +95,9 @@ class ObjectChooser:
         cup's seals (:func:`~pickdemo.grasping.suction.sample_suction`), as the robot's gripper is."""
         gripper, cloud = self.kin.robot.gripper, self._cloud(seen)
         if gripper.cup is not None:
-            return sample_suction(cloud.points, cloud.obstacles, self._surface(seen), gripper.cup)
+            return sample_suction(
+                cloud.points, cloud.obstacles, self._surface(seen), gripper.cup, unknown=cloud.unknown
+            )
         return sample_grasps(cloud, self._surface(seen), gripper, self.grasp)
 
     def _any_side(self, survey: Survey, tried: list[np.ndarray]) -> Choice | None:
