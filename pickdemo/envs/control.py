@@ -13,9 +13,10 @@ robot's reflex (:class:`~pickdemo.robot.rate_limit.Reflex`) still checks what is
   gripper. The goal pose is kept from step to step (from the hand's pose at the first step),
   held within ``WORKSPACE``; the joints come from Pinocchio's IK, warm-started from the last goal.
 - The gripper, in both: -1 closed, +1 open (each finger's travel between), squeezing with the
-  robot's grasp force; with ``gripper="opening_force"`` a second number sets the force, -1 none to
-  +1 the hand's most (a Franka Hand's ``grasp(width, speed, force)``; the skill squeezes a small face
-  less and a slipped object harder).
+  robot's grasp force (a suction cup: below 0 its vacuum on, at 0 and above off); with
+  ``gripper="opening_force"`` a second number sets the force, -1 none to +1 the hand's most (a
+  Franka Hand's ``grasp(width, speed, force)``; the skill squeezes a small face less and a slipped
+  object harder).
 
 An action outside the action space, or not finite, is a ``ValueError`` naming the action; the
 simulator never sees it. A part of the environments: numpy and the robot package, no Gymnasium.
@@ -73,6 +74,7 @@ class _Mode:
         self.q_from = np.asarray(q0, dtype=float).copy()
         self.q_goal = self.q_from.copy()
         self.finger_m = kin.robot.gripper.finger_max_m  # open, as the robot starts
+        self.vacuum = False  # (a suction cup's valve: shut, as the robot starts)
         self.tick = ticks  # the held goal is reached: hold it
 
     @property
@@ -99,6 +101,7 @@ class _Mode:
         self.q_from = self.limiter.q.copy()  # from where the joints were last sent
         self.q_goal = q_goal
         self.finger_m = gripper_command(float(g[0]), self.robot)
+        self.vacuum = self.robot.gripper.suction and float(g[0]) < 0.0
         if len(g) > 1:
             self.grip_force_n = float((g[1] + 1.0) / 2.0 * self.robot.gripper.max_force_n)
         self.tick = 0
@@ -107,7 +110,11 @@ class _Mode:
         return -np.ones(self.gripper_size), np.ones(self.gripper_size)
 
     def _gripper_of(self, cmd: Command) -> list[float]:
-        g = [gripper_action(cmd.finger_opening_m, self.robot)]
+        g = [
+            (-1.0 if cmd.vacuum else 1.0)
+            if self.robot.gripper.suction
+            else gripper_action(cmd.finger_opening_m, self.robot)
+        ]
         if self.gripper_size > 1:
             g.append(float(np.clip(2.0 * cmd.finger_force_n / self.robot.gripper.max_force_n - 1.0, -1.0, 1.0)))
         return g
@@ -129,7 +136,7 @@ class _Mode:
         s = self.tick / self.ticks
         q = self.q_goal if s >= 1.0 else self.q_from + s * (self.q_goal - self.q_from)
         sent, _ = self.limiter(self._braked(q))
-        return Command(sent, self.limiter.dq.copy(), self.finger_m, self.grip_force_n)
+        return Command(sent, self.limiter.dq.copy(), self.finger_m, self.grip_force_n, self.vacuum)
 
 
 class JointPos(_Mode):

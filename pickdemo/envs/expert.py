@@ -27,6 +27,7 @@ def observation_of(obs: dict[str, np.ndarray]) -> Observation:
         fingers_m=np.asarray(obs["fingers"], dtype=float),
         finger_contacts=(int(obs["finger_contacts"][0]), int(obs["finger_contacts"][1])),
         wrist_force_n=np.asarray(obs["wrist_force"], dtype=float),
+        vacuum_kpa=float(obs["vacuum"][0]) if "vacuum" in obs else 0.0,
     )
 
 

@@ -149,6 +149,8 @@ class PickEnv(gym.Env):
             "target_cov": _box((4, 4)),
             "target_tracked": _box((1,), 0.0, 1.0),
         }
+        if self.robot.gripper.suction:  # its vacuum sensor (kPa below the ambient)
+            d["vacuum"] = _box((1,), 0.0, 101.325)
         if self.obs_mode == "rgbd":
             for name, (w, h) in self._camera_sizes().items():
                 d[f"{name}_rgb"] = spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
@@ -242,7 +244,8 @@ class PickEnv(gym.Env):
     def _task_done(self) -> bool:
         """The referee's success now (truth, for the reward and the end only), the hand let go of it."""
         obs = self.episode.observation
-        if obs is None or any(obs.finger_contacts):
+        cup = self.robot.gripper.cup
+        if obs is None or any(obs.finger_contacts) or (cup is not None and obs.vacuum_kpa >= cup.switch_kpa):
             return False
         try:
             self.episode.referee.score()
@@ -296,6 +299,7 @@ class PickEnv(gym.Env):
             "fingers": np.array(o.fingers_m, dtype=float),
             "finger_contacts": np.array(o.finger_contacts, dtype=float),
             "wrist_force": np.array(o.wrist_force_n, dtype=float),
+            **({"vacuum": np.array([o.vacuum_kpa])} if self.robot.gripper.suction else {}),
             "time": np.array([o.time_s]),
             "tcp_pose": np.concatenate([tcp.position, tcp.quaternion_xyzw]),
             "place": np.array(place, dtype=float),

@@ -33,7 +33,8 @@ def state_names(env: PickEnv) -> list[str]:
     names = [f"joint_pos.{i}" for i in range(n)] + [f"joint_vel.{i}" for i in range(n)]
     names += ["finger.0", "finger.1", "contacts.0", "contacts.1", "wrist_force.x", "wrist_force.y", "wrist_force.z"]
     names += ["tcp.x", "tcp.y", "tcp.z", "tcp.qx", "tcp.qy", "tcp.qz", "tcp.qw", "place.x", "place.y"]
-    return names + ["target.x", "target.y", "target.z", "target.yaw", "target.tracked"]
+    names += ["target.x", "target.y", "target.z", "target.yaw", "target.tracked"]
+    return names + (["vacuum_kpa"] if env.robot.gripper.suction else [])
 
 
 def action_names(env: PickEnv) -> list[str]:
@@ -43,8 +44,9 @@ def action_names(env: PickEnv) -> list[str]:
 
 
 def state_vector(obs: dict[str, np.ndarray]) -> np.ndarray:
-    """An environment's state observation as a dataset's ``observation.state`` (:data:`STATE_KEYS`, in order)."""
-    return np.concatenate([np.ravel(obs[k]) for k in STATE_KEYS])
+    """An environment's state observation as a dataset's ``observation.state`` (:data:`STATE_KEYS`, in order;
+    a suction cup's vacuum last)."""
+    return np.concatenate([np.ravel(obs[k]) for k in (*STATE_KEYS, "vacuum") if k in obs])
 
 
 @dataclass

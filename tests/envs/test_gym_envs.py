@@ -154,3 +154,31 @@ def test_the_async_vector_env_steps() -> None:
         obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample())
     assert obs["time"].shape == (2, 1) and np.all(obs["time"] > 0)
     envs.close()
+
+
+@pytest.mark.slow
+def test_a_suction_robot_in_the_env_sucks_and_reads_its_vacuum() -> None:
+    """The UR5 with a suction cup: Gymnasium's checker, its vacuum in the observation and in the
+    dataset's state, the gripper's number its valve, and the expert's picks through the env."""
+    from pickdemo.envs.record import state_names, state_vector
+
+    env = gym.make("pickdemo/Pick-v0", scenario="suction_pick_box", agent_rate_hz=None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(env.unwrapped)
+    expert = ExpertPolicy(env)
+    outcomes, sucked = [], []
+    for seed in range(2):
+        obs, info = env.reset(seed=seed)
+        assert obs["vacuum"].shape == (1,) and len(state_vector(obs)) == len(state_names(env.unwrapped))
+        while True:
+            action = expert(obs)
+            obs, reward, terminated, truncated, info = env.step(action)
+            sucked.append((action[-1] < 0.0, float(obs["vacuum"][0])))
+            if terminated or truncated:
+                break
+        outcomes.append(info["is_success"])
+    env.close()
+    assert sum(outcomes) >= 1, outcomes
+    assert any(on and kpa > 30.0 for on, kpa in sucked)  # sealed while the valve was on
+    assert all(kpa == 0.0 for on, kpa in sucked if not on)  # (the valve shut: no vacuum)
