@@ -175,8 +175,9 @@ CLOSED_STEP_M = 0.005
 
 
 def _check_not_enclosed(sc: Scenario) -> None:
-    """A target that fixtures enclose on every side a hand can come from (above, and the four sides),
-    wherever its range puts it, cannot be picked: refused before it runs."""
+    """A target that fixtures enclose on every side a hand can come from (above, and the four sides;
+    a hand that grasps only from above, as a jaw's or a suction cup's: above), wherever its range puts
+    it, cannot be picked: refused before it runs."""
     boxes = [b for f in sc.fixtures for b in f.boxes()]
     target = next((o for o in sc.objects if o.target), None)
     if not boxes or target is None:
@@ -189,12 +190,20 @@ def _check_not_enclosed(sc: Scenario) -> None:
         (x0, x1), (y0, y1) = rng
         spots = [(x0, y0), (x0, y1), (x1, y0), (x1, y1), ((x0 + x1) / 2.0, (y0 + y1) / 2.0)]
     steps = np.arange(CLOSED_STEP_M, CLOSED_WITHIN_M, CLOSED_STEP_M)[:, None]
+    robot = sc.robot_description
+    ways = APPROACHES if robot.grasps_any_side else APPROACHES[:1]
     for x, y in spots:
         z = (target.level_m or 0.0) + 0.02  # (about its middle, on what it stands on)
         at = np.array([x, y, z])
-        if not all(any(b.contains(at + steps * np.array(d)).any() for b in boxes) for d in APPROACHES):
+        if not all(any(b.contains(at + steps * np.array(d)).any() for b in boxes) for d in ways):
             return
     x, y = spots[-1]
+    if len(ways) == 1:
+        hand = "a suction cup" if robot.gripper.suction else "its hand"
+        raise ScenarioError(
+            f"objects.{target.name}: at ({x:.3f}, {y:.3f}) m a fixture stands over it, and the {robot.label} takes "
+            f"a part only from above ({hand}: no grasp from the side)"
+        )
     raise ScenarioError(
         f"objects.{target.name}: at ({x:.3f}, {y:.3f}) m the fixtures enclose it on every side a hand can "
         "come from (above and the four sides across the table): no approach can reach it"

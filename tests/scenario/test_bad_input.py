@@ -545,6 +545,19 @@ FILE_CASES: list[tuple[str, str, str]] = [
         "objects.cube: at (0.555, 0.000) m the fixtures enclose it on every side a hand can come from",
     ),
     (
+        "suction: a target under a board, a cup only from above",
+        _edit('description = "a good scenario"', 'description = "a good scenario"\nrobot = "ur5_suction"')
+        + _model(f'position = [0.5, 0.0, 0.0]\nfile = "{FIXTURES / "cubby.urdf"}"', name="cubby"),
+        "takes a part only from above (a suction cup: no grasp from the side)",
+    ),
+    (
+        "suction: a box narrower than the cup",
+        _edit("size = [0.05, 0.05, 0.05]", "size = [0.012, 0.05, 0.05]").replace(
+            'description = "a good scenario"', 'description = "a good scenario"\nrobot = "ur5_suction"'
+        ),
+        "objects.cube.size: its narrower side is 12 mm; the UR5 with a suction cup's 16 mm cup seals only on a face",
+    ),
+    (
         "object: on no fixture's top",
         _edit("target = true", "target = true\nlevel_m = 0.1"),
         "objects.cube.level_m: at (0.450, -0.050) m its footprint (35 mm radius) is not wholly on one top",
