@@ -4,8 +4,8 @@ Pure: no simulator. Dex-Net 3.0's ring model (Mahler et al. 2018) on the points.
 of the target's cloud. The face the cup meets there: the plane through the cloud's points within 1.1
 cup radii of it (seen from above) and within the stroke of their top, and the points within the
 depth's noise of that plane (points lower are another surface: a side, past an edge). It seals where
-that face reaches under the rim all round (in each of 8 sectors, to 0.7 radii at least: seen this
-sparsely, a farther point is seldom there; a rim over an edge leaks) and the plane rises across the
+that face reaches under the rim all round (in each of 8 sectors, to the radius less 1.5 mm: the last
+point seen short of an edge; a rim over an edge leaks) and the plane rises across the
 cup less than 60 % of the stroke (the rest: the depth's noise). It holds where the weight, hanging from
 the cup at the cloud's centroid, asks less than the vacuum gives
 (:func:`pickdemo.robot.suction.hanging_load`), the mass estimated from what was seen (its footprint
@@ -51,9 +51,10 @@ class SuctionParams:
     """How suction grasps are sampled and judged; SI units."""
 
     candidates: int = 300  # cloud points tried, spread evenly over the cloud
-    #: the face seen must reach this share of the cup's radius from its centre in every sector ...
-    ring_inner: float = 0.7
-    ring_outer: float = 1.1  # ... and is looked for within this share of it
+    #: the face seen must reach the cup's radius less this from its centre in every sector (the last
+    #: point seen short of a face's edge: about one point's spacing) ...
+    rim_slack_m: float = 0.0015
+    ring_outer: float = 1.1  # ... and is looked for within this share of the radius
     press_m: float = 0.004  # the cup is pressed this far past the face (into the bellows' stroke)
     noise_m: float = 0.003  # a point this near the face's plane is on it (the depth's noise)
     #: the cup comes along a face's normal tilted at most this far from the vertical (rad): the arm's
@@ -141,7 +142,7 @@ def sample_suction(
         sector = ((np.arctan2(v, u) + np.pi) / (2 * np.pi) * SECTORS).astype(int) % SECTORS
         reach = np.zeros(SECTORS)
         np.maximum.at(reach, sector, np.hypot(u, v))
-        short = np.flatnonzero(reach < params.ring_inner * r)
+        short = np.flatnonzero(reach < r - params.rim_slack_m)
         if len(short):  # the face not seen under the rim there: hidden from the camera, or past an edge
             if unknown is None or len(short) > UNSEEN_SECTORS:
                 continue
