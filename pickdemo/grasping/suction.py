@@ -258,31 +258,54 @@ class SuctionGrasps:
     def _tried(self, position: np.ndarray) -> bool:
         return any(np.hypot(*(position[:2] - p[:2])) < AVOID_RADIUS_M for p, _ in self.avoid)
 
-    def hand_yaws(self, request) -> list[float]:  # noqa: ANN001 - a GraspRequest
-        """A round cup holds the same at any angle about its axis: a level one's, a few evenly round (the
-        skill ranks them by the IK); a tilted one's, its hand level across the tilt (turned about a tilted
-        axis, the UR5's wrist came near its singularities: 2 of 10 rounds stopped so, measured)."""
-        best = self._local(request)[0]
-        if best.tilt_rad > self.suction.level_rad:
-            n = -(_about_z(float(request.pose.rpy[2])) @ best.normal)
-            x = np.cross([0.0, 0.0, 1.0], n)
-            return [float(np.arctan2(x[1], x[0]))]
-        n = self.suction.hand_yaws
-        return [float(wrap_angle(-np.pi + 2.0 * np.pi * k / n)) for k in range(n)]
-
-    def candidates(self, request) -> Iterator[GraspPlan]:  # noqa: ANN001 - a GraspRequest
+    def _world(self, request) -> list[SuctionGrasp]:  # noqa: ANN001 - a GraspRequest
+        """The best seals where the tracked pose has the target now."""
         at = request.pose
         turn = _about_z(float(at.rpy[2]))
-        # the best seal at each hand angle asked for (the skill takes one plan an angle), then the next
-        # seals: a round cup seals the same turned any way about its axis
-        for g in self._local(request)[:BEST_SEALS]:
-            here = SuctionGrasp(at.position + turn @ g.position, turn @ g.normal, g.cost, g.tilt_rad, g.load)
-            level = g.tilt_rad <= self.suction.level_rad
-            for near in request.hand_yaws:  # (a tilted cup: its hand level across the tilt, whatever asked)
-                hand = 0.0 if near is None or not level else float(near)
-                yield suction_plan(
-                    here, at.position, request.surface_z, request.place_xy, self.params, self.suction, hand
-                )
+        return [
+            SuctionGrasp(at.position + turn @ g.position, turn @ g.normal, g.cost, g.tilt_rad, g.load)
+            for g in self._local(request)[:BEST_SEALS]
+        ]
+
+    def _level(self, g: SuctionGrasp) -> bool:
+        return g.tilt_rad <= self.suction.level_rad
+
+    def hand_yaws(self, request) -> list[float]:  # noqa: ANN001 - a GraspRequest
+        """The hand's angles the best seals are taken at (the skill ranks them by the IK, and so takes
+        the best seal the arm reaches): a level cup holds the same at any angle about its axis, a few
+        evenly round; a tilted one comes with its hand level across the tilt (turned about a tilted
+        axis, the UR5's wrist came near its singularities: 2 of 10 rounds stopped so, measured), one
+        angle a seal."""
+        yaws: list[float] = []
+        for g in self._world(request):
+            if self._level(g):
+                n = self.suction.hand_yaws
+                even = [float(wrap_angle(-np.pi + 2.0 * np.pi * k / n)) for k in range(n)]
+                yaws += [y for y in even if y not in yaws]
+            else:
+                yaws.append(_tilted_yaw(g))
+        return yaws
+
+    def candidates(self, request) -> Iterator[GraspPlan]:  # noqa: ANN001 - a GraspRequest
+        """One plan for each hand angle asked: the tilted seal taken at that angle, else the best level
+        seal turned to it, else the best seal."""
+        seals = self._world(request)
+        level = next((g for g in seals if self._level(g)), None)
+        for near in request.hand_yaws:
+            tilted = None if near is None else next(
+                (g for g in seals if not self._level(g) and abs(wrap_angle(_tilted_yaw(g) - near)) < 1e-6), None
+            )  # fmt: skip
+            g = tilted or level or seals[0]
+            hand = float(near) if g is level and near is not None else 0.0
+            yield suction_plan(
+                g, request.pose.position, request.surface_z, request.place_xy, self.params, self.suction, hand
+            )
+
+
+def _tilted_yaw(g: SuctionGrasp) -> float:
+    """The hand's angle of a tilted seal's plan (its x level, across the tilt)."""
+    x = np.cross([0.0, 0.0, 1.0], -g.normal)
+    return float(np.arctan2(x[1], x[0]))
 
 
 def _about_z(angle: float) -> np.ndarray:
