@@ -75,29 +75,37 @@ class ObjectChooser:
         """The object with the best reachable top-down grasp, else (none has one) with the best
         reachable grasp from any side (None: no object has one); ``tried``: where picks failed since the
         last that placed an object."""
+        best = self._best(survey, tried)
+        if best is None and self.kin.robot.gripper.suction:
+            best = self._best(survey, tried, glimpsed=True)
+        if best is None and self.any_side is not None:
+            best = self._any_side(survey, tried)
+        return best
+
+    def _best(self, survey: Survey, tried: list[np.ndarray], *, glimpsed: bool = False) -> Choice | None:
+        """The object with the best reachable top-down grasp (None: none has one). ``glimpsed``: a
+        suction cup's seal judged leniently, as the survey's sparse points allow (any of the rim's
+        sectors short of the face counted as unseen): the pick looks closer and judges again."""
         best: Choice | None = None
         for seen in survey.objects:
             was_tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
             # the best few: the first that IK reaches
-            for g in self._grasps(seen)[:3]:
+            for g in self._grasps(seen, glimpsed)[:3]:
                 cost = g.cost + (TRIED_PENALTY if was_tried else 0.0)
                 if best is not None and cost >= best.cost:
                     break
                 if self._reaches(seen, g):
                     best = Choice(seen, cost)
                     break
-        if best is None and self.any_side is not None:
-            best = self._any_side(survey, tried)
         return best
 
-    def _grasps(self, seen: SeenObject) -> list:
+    def _grasps(self, seen: SeenObject, glimpsed: bool = False) -> list:
         """An object's top-down grasps, best first: the fingers' (:func:`sample_grasps`) or a suction
         cup's seals (:func:`~pickdemo.grasping.suction.sample_suction`), as the robot's gripper is."""
         gripper, cloud = self.kin.robot.gripper, self._cloud(seen)
         if gripper.cup is not None:
-            return sample_suction(
-                cloud.points, cloud.obstacles, self._surface(seen), gripper.cup, unknown=cloud.unknown
-            )
+            unknown = (lambda p: np.ones(len(p), dtype=bool)) if glimpsed else cloud.unknown
+            return sample_suction(cloud.points, cloud.obstacles, self._surface(seen), gripper.cup, unknown=unknown)
         return sample_grasps(cloud, self._surface(seen), gripper, self.grasp)
 
     def _any_side(self, survey: Survey, tried: list[np.ndarray]) -> Choice | None:
