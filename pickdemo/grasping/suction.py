@@ -259,12 +259,15 @@ class SuctionGrasps:
         return any(np.hypot(*(position[:2] - p[:2])) < AVOID_RADIUS_M for p, _ in self.avoid)
 
     def _world(self, request) -> list[SuctionGrasp]:  # noqa: ANN001 - a GraspRequest
-        """The best seals where the tracked pose has the target now."""
+        """The best seals where the tracked pose has the target now; after a miss (a leak), the next
+        ones first: tried elsewhere."""
         at = request.pose
         turn = _about_z(float(at.rpy[2]))
+        local = self._local(request)
+        skip = min(request.misses, len(local) - 1)
         return [
             SuctionGrasp(at.position + turn @ g.position, turn @ g.normal, g.cost, g.tilt_rad, g.load)
-            for g in self._local(request)[:BEST_SEALS]
+            for g in (local[skip:] + local[:skip])[:BEST_SEALS]
         ]
 
     def _level(self, g: SuctionGrasp) -> bool:
