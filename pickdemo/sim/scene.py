@@ -149,9 +149,8 @@ class Scene:
         self.fixture_bodies: dict[str, list[int]] = {}  # a bin's parts (not objects on the table)
         self.still_boxes: list[StillBox] = []  # in the order they were built
         self.belt = None
-        self.contact_log: ContactLog | None = (
-            None  # (the truth, for scoring: :func:`~pickdemo.sim.contacts.log_contacts`)
-        )
+        #: the truth, for scoring: :func:`~pickdemo.sim.contacts.log_contacts`
+        self.contact_log: ContactLog | None = None
         if scenario.conveyor is not None:  # before the table: TinyRenderer then shades only the belt where both are
             self.belt = Belt(self.client, scenario.conveyor)
             self.bodies["conveyor"] = self.belt.body
@@ -170,6 +169,8 @@ class Scene:
                 xy = (float(placement.pose.position[0]), float(placement.pose.position[1]))
                 spec = ObjectSpec(name=placement.name, shape="mesh", urdf=placement.geometry.urdf, position=xy)
             self._build_object(spec, placement)
+        if self.cup is not None:  # (what air passes through: a cup on it never seals)
+            self.cup.porous = {self.bodies[o.name] for o in scenario.objects if o.porous and o.name in self.bodies}
 
     # ----------------------------------------------------------------------------------- building
     def _build_table(self) -> None:
@@ -312,8 +313,6 @@ class Scene:
         )
         rolling = 0.0 if isinstance(shape, Box) else ROLLING_FRICTION_M
         c.changeDynamics(body, -1, lateralFriction=spec.friction, spinningFriction=0.001, rollingFriction=rolling)
-        if spec.porous and self.cup is not None:
-            self.cup.porous.add(body)
         self.bodies[spec.name] = body
 
     def _build_mesh(self, spec: ObjectSpec, shape: Mesh, pose: Pose) -> None:
@@ -333,8 +332,6 @@ class Scene:
         if "friction" in given:
             c.changeDynamics(body, -1, lateralFriction=spec.friction)
         c.changeDynamics(body, -1, spinningFriction=0.001, rollingFriction=ROLLING_FRICTION_M)
-        if spec.porous and self.cup is not None:
-            self.cup.porous.add(body)
         self.bodies[spec.name] = body
 
     # ---------------------------------------------------------------------------------- stepping
