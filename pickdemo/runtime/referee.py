@@ -231,6 +231,9 @@ class Referee(_WorldScoring):
         truth, for scoring a refusal only."""
         shape = self.world.placement(self.target).geometry
         width = shape.min_width_m if isinstance(shape, Mesh) else shape.grasp_width_m
+        cup = self.world.robot.gripper.cup
+        if cup is not None:  # a suction cup: a face at least as wide as it (a mesh's faces not judged here)
+            return isinstance(shape, Mesh) or width >= cup.diameter_m
         return width <= self.world.robot.gripper.max_opening_m - GraspParams().width_margin_m
 
     def judge(self, failure: Failure | None) -> None:
@@ -247,6 +250,8 @@ class Referee(_WorldScoring):
             true_box(self.world.true_pose(p.name), p.geometry) for p in self.world.layout if p.name != self.target
         ]
         others += list(seen_boxes(self.scenario.fixtures))
+        if self.world.robot.gripper.cup is not None:  # (the fingers' geometry is no cup's: by the face alone)
+            return self.fits_hand()
         found = grasp_exists(self._truth(), placement.geometry, others, self.world.robot.gripper)
         return self.fits_hand() if found is None else found
 

@@ -4,12 +4,13 @@ constraint while it holds, and the vacuum sensor a real cell reads.
 Each physics step with the vacuum on, the rim's points are cast along the cup's axis (a ray each, from
 inside the cup to the bellows' stroke past its lip): touching one body all round within the stroke,
 the cup seals, and the body is held by a fixed constraint where it is (the bellows' pull, rigid); a
-rim over an edge, across two bodies or a step deeper than the stroke leaks. While sealed, the
-wrench the cup gives the body (from the body's motion, its weight and what touches it), in the cup's
-frame, is the seal's load: above what the vacuum holds
-(pull, shear, peel or twist) for :data:`BREAK_STEPS` steps in a row, the seal breaks and the body
-drops. An object marked porous never seals (air passes through it). The robot reads only the vacuum
-sensor (:meth:`VacuumCup.vacuum_kpa`); the seal itself is the simulator's truth.
+rim over an edge, across two bodies or a step deeper than the stroke leaks. While sealed and the body
+hangs free (touching nothing but the robot), the wrench the cup must give it for the motion it makes
+(its weight and its smoothed accelerations), in the cup's frame, is the seal's load: above what the
+vacuum holds (pull, shear, peel or twist) for :data:`BREAK_STEPS` steps in a row, the seal breaks, the
+body drops, and the cup leaks until its valve is shut again. An object marked porous never seals (air
+passes through it). The robot reads only the vacuum sensor (:meth:`VacuumCup.vacuum_kpa`); the seal
+itself is the simulator's truth.
 """
 
 from __future__ import annotations
@@ -44,7 +45,6 @@ class VacuumCup:
         self._over = 0
         self.last_load = 0.0  # the worst share of the hold the last step asked (for tests and the log)
         self._dt = float(client.getPhysicsEngineParameters()["fixedTimeStep"])
-        self._mass = 0.0
         self._last_v: tuple[np.ndarray, np.ndarray] | None = None
         self._acc = (np.zeros(3), np.zeros(3))
         self.broke_at_s: float | None = None
@@ -60,10 +60,11 @@ class VacuumCup:
         if not on:
             self._release()
             self.state = Seal.OPEN
+            self.broke_at_s = None
 
     # -------------------------------------------------------------------------------- stepped
     def after_step(self, time_s: float) -> None:
-        if not self.on:
+        if not self.on or self.broke_at_s is not None:  # (broken: it leaks until the valve is shut again)
             return
         if self._constraint is not None:
             self._hold(time_s)
@@ -114,7 +115,6 @@ class VacuumCup:
         # (a contact and the constraint would fight over the same millimetre)
         self.c.setCollisionFilterPair(self.robot, body, self.cup_link, -1, 0)
         self.held, self._over, self._last_v = body, 0, None
-        self._mass = float(self.c.getDynamicsInfo(body, -1)[0])
 
     def _hold(self, time_s: float) -> None:
         """The seal's load this step; broken after :data:`BREAK_STEPS` over what it holds.
@@ -140,7 +140,8 @@ class VacuumCup:
         if any(pt[2] != self.robot for pt in c.getContactPoints(bodyA=body)):
             self._over = 0  # (resting on, or pressed against, something: that carries it; not a load)
             return
-        need = self._mass * (a - np.array([0.0, 0.0, -GRAVITY_M_S2]))  # what acts on it, in all
+        mass = float(c.getDynamicsInfo(body, -1)[0])
+        need = mass * (a - np.array([0.0, 0.0, -GRAVITY_M_S2]))  # what acts on it, in all
         moment = np.cross(com - origin, need) + self._inertia(body) @ alpha
         # the cup gives ``need`` to the body: the body pulls the cup with -need (along the cup's +z: a pull)
         share = load(self.cup, rot.T @ -need, rot.T @ -moment)
