@@ -1,21 +1,22 @@
-"""Suction grasps from what was seen: where a vacuum cup, coming straight down, seals and holds.
+"""Suction grasps from what was seen: where a vacuum cup, coming along a face's normal, seals and holds.
 
 Pure: no simulator. Dex-Net 3.0's ring model (Mahler et al. 2018) on the points. A candidate is a point
 of the target's cloud. The face the cup meets there: the plane through the cloud's points within 1.1
-cup radii of it (seen from above) and within the stroke of their top, and the points within the
-depth's noise of that plane (points lower are another surface: a side, past an edge). It seals where
-that face reaches under the rim all round (in each of 8 sectors, to the radius less 1.5 mm: the last
-point seen short of an edge; a rim over an edge leaks) and the plane rises across the
-cup less than 60 % of the stroke (the rest: the depth's noise). It holds where the weight, hanging from
-the cup at the cloud's centroid, asks less than the vacuum gives
+cup radii of it (its least principal axis, facing up), tilted at most 45 deg, and the points within
+the depth's noise of that plane; a few points above it are a bump in the cup's way. It seals where
+that face reaches under the rim all round: in each of 8 sectors, to the cup's radius less 1.5 mm (the
+last point seen short of an edge). As a sector's farthest point may lie off its middle, a 16 mm cup may
+still overhang a straight edge by up to 3.4 mm (r - (r - 1.5 mm) cos 45 deg): the simulator's rim, 1 mm
+inside the cup's edge, then leaks, and the pick tries elsewhere. A sector short of it is an edge (it leaks) where the camera saw
+past the rim's point there, and may be a face the camera could not see where it did not: up to 3
+such sectors are offered, after the seals seen all round. It holds where the weight, hanging from the
+cup at the cloud's centroid, asks less than the vacuum gives
 (:func:`pickdemo.robot.suction.hanging_load`), the mass estimated from what was seen (its footprint
-times its height, at :data:`DENSITY_KG_M3`). The cup and its tube must go down clear: no point of
-anything else, or of the target itself, within the cup's radius above the lip. Ranked by how far the
-cup is from the centroid (the torque), how level the face is, and the load. A described target (a
-known box or cylinder) is sealed on the middle of its top face.
-
-The approach is vertical: a face tilted more than the bellows' stroke across the cup is no candidate
-(a cup on a tilted hand, along the face's normal, is not yet planned).
+times its height, at :data:`DENSITY_KG_M3`). The cup and its tube must go in clear: no point of
+anything else, or of the target itself, within the cup's radius of its axis up the tool's length.
+Ranked by the weight's arm about the cup's axis, the tilt, and the load. A described target (a known
+box or can) is sealed on the middle of its top face. A level seal is taken from straight above at any
+hand angle; a tilted one along its normal, the hand level across the tilt, and put down level.
 """
 
 from __future__ import annotations
@@ -259,15 +260,19 @@ class SuctionGrasps:
         return any(np.hypot(*(position[:2] - p[:2])) < AVOID_RADIUS_M for p, _ in self.avoid)
 
     def _world(self, request) -> list[SuctionGrasp]:  # noqa: ANN001 - a GraspRequest
-        """The best seals where the tracked pose has the target now; after a miss (a leak), the next
-        ones first: tried elsewhere."""
+        """The best seals where the tracked pose has the target now; after a miss (a leak), the seals a
+        cup's radius away from those tried first: tried elsewhere."""
         at = request.pose
         turn = _about_z(float(at.rpy[2]))
-        local = self._local(request)
-        skip = min(request.misses, len(local) - 1)
+        local = list(self._local(request))
+        r = request.gripper.cup.radius_m
+        for _ in range(min(request.misses, len(local) - 1)):  # each miss: the best seal, and those near it, last
+            tried = local[0].position
+            far = [g for g in local if np.linalg.norm(g.position - tried) > r]
+            local = far + [g for g in local if np.linalg.norm(g.position - tried) <= r]
         return [
             SuctionGrasp(at.position + turn @ g.position, turn @ g.normal, g.cost, g.tilt_rad, g.load)
-            for g in (local[skip:] + local[:skip])[:BEST_SEALS]
+            for g in local[:BEST_SEALS]
         ]
 
     def _level(self, g: SuctionGrasp) -> bool:
