@@ -7,7 +7,8 @@ reflex, the cameras' frames and perception's estimates at their own rate and lat
 The loop's controller is a :class:`~pickdemo.envs.pilot.Pilot` carrying the action.
 
 - Observations (``obs_mode``): ``state`` is what the robot's controller has: joint positions and
-  velocities, each finger's opening and contacts, the wrist's force, the clock, the place it is told,
+  velocities, each finger's opening and contacts, the wrist's force (a suction robot: its vacuum too),
+  the clock, the place it is told,
   and the target's pose (x, y, z, yaw) and covariance as pickdemo's perception tracks it. ``rgbd``
   adds each camera's RGB and depth (metres, 0 where the sensor has no return). ``privileged`` adds the
   target's true pose (position and quaternion x, y, z, w): for baselines, named so.

@@ -6,7 +6,8 @@ one the arm can reach; :class:`TopDownFaceGrasps` (a top-down parallel-jaw grasp
 narrower pair of faces of a known box or cylinder) is one implementation,
 :class:`~pickdemo.grasping.cloud.CloudGrasps` (grasps sampled on the point cloud of an object nobody
 described) another, and :class:`TopDownFirst` those or, where none fits, grasps from any side
-(:class:`~pickdemo.grasping.antipodal.AnySideGrasps`); :func:`selector_for` gives each target its own.
+(:class:`~pickdemo.grasping.antipodal.AnySideGrasps`); a suction cup's seals are
+:class:`~pickdemo.grasping.suction.SuctionGrasps`; :func:`selector_for` gives each target its own.
 """
 
 from __future__ import annotations

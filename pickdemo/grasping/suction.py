@@ -1,22 +1,22 @@
 """Suction grasps from what was seen: where a vacuum cup, coming along a face's normal, seals and holds.
 
 Pure: no simulator. Dex-Net 3.0's ring model (Mahler et al. 2018) on the points. A candidate is a point
-of the target's cloud. The face the cup meets there: the plane through the cloud's points within 1.1
-cup radii of it (its least principal axis, facing up), tilted at most 45 deg, and the points within
-the depth's noise of that plane; a few points above it are a bump in the cup's way. It seals where
-that face reaches under the rim all round: in each of 8 sectors, to the cup's radius less 1.5 mm (the
-last point seen short of an edge). As a sector's farthest point may lie off its middle, a 16 mm cup may
-still overhang a straight edge by up to 3.4 mm (r - (r - 1.5 mm) cos 45 deg): the simulator's rim, 1 mm
-inside the cup's edge, then leaks, and the pick tries elsewhere. A sector short of it is an edge (it leaks) where the camera saw
-past the rim's point there, and may be a face the camera could not see where it did not: up to 3
-such sectors are offered, after the seals seen all round. It holds where the weight, hanging from the
-cup at the cloud's centroid, asks less than the vacuum gives
+of the target's cloud. The face the cup meets there: the plane through the cloud's points within 1.1 cup
+radii of it (its least principal axis, facing up), tilted at most 45 deg, and the points within the
+depth's noise of that plane; a few points above it are a bump in the cup's way. It seals where that face
+reaches under the rim all round: in each of 8 sectors, to the cup's radius less 1.5 mm (the last point
+seen short of an edge). As a sector's farthest point may lie off its middle, a 16 mm cup may still
+overhang a straight edge by up to 3.4 mm (r - (r - 1.5 mm) cos 45 deg): the simulator's rim, 1 mm inside
+the cup's edge, then leaks, and the pick tries elsewhere. A sector short of it is an edge (it leaks)
+where the camera saw past the rim's point there, and may be a face the camera could not see where it did
+not: up to 3 such sectors are offered, after the seals seen all round. It holds where the weight,
+hanging from the cup at the cloud's centroid, asks less than the vacuum gives
 (:func:`pickdemo.robot.suction.hanging_load`), the mass estimated from what was seen (its footprint
-times its height, at :data:`DENSITY_KG_M3`). The cup and its tube must go in clear: no point of
-anything else, or of the target itself, within the cup's radius of its axis up the tool's length.
-Ranked by the weight's arm about the cup's axis, the tilt, and the load. A described target (a known
-box or can) is sealed on the middle of its top face. A level seal is taken from straight above at any
-hand angle; a tilted one along its normal, the hand level across the tilt, and put down level.
+times its height, at :data:`DENSITY_KG_M3`). The cup and its tube must go in clear: no point of anything
+else, or of the target itself, within the cup's radius of its axis up the tool's length. Ranked by the
+weight's arm about the cup's axis, the tilt, and the load. A described target (a known box or can) is
+sealed on the middle of its top face. A level seal is taken from straight above at any hand angle; a
+tilted one along its normal, the hand level across the tilt, and put down level.
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 Non-blocking: :meth:`RobotInterface.observe` and :meth:`RobotInterface.apply` each do one thing for
 one tick and return; the episode's control loop is the only place that advances simulated time.
 The arm is position-controlled with velocity feed-forward; both finger joints are driven (PyBullet
-ignores ``<mimic>``; the scene couples them with a gear constraint).
+ignores ``<mimic>``; the scene couples them with a gear constraint); a suction cup's valve is opened
+and shut as the command says, and its vacuum sensor read.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""The simulated world: one PyBullet client owning the Panda, the table and the scenario's objects.
+"""The simulated world: one PyBullet client owning the robot (its fingers, or a suction cup:
+:mod:`pickdemo.sim.suction`), the table and the scenario's objects.
 
 The :class:`Scene` is the only owner of the physics client; the renderer and the controller are
 handed it. Bodies, joints and links are looked up by name. The true poses it can report are for the

@@ -5,7 +5,8 @@ Pure: no simulator. :class:`Move` drives the online Ruckig motion of the TCP (x,
 for a target that moves, meets it where it will be; which way round the hand turns to a new angle is
 the one whose end the IK reaches with the joints clear of their limits
 (:func:`pickdemo.motion.ik_goals.way_round`). :class:`Grip` commands the Franka Hand's opening and force
-and reads its fingers: stopped, holding, dropped. :class:`Scale` weighs what the hand holds with the
+and reads its fingers: stopped, holding, dropped; :class:`Suck` is the same for a suction cup (its
+valve, its vacuum sensor), and :func:`grip_for` gives a robot its own. :class:`Scale` weighs what the hand holds with the
 wrist's force sensor.
 """
 
@@ -214,7 +215,7 @@ class Grip:
 class Suck(Grip):
     """A suction cup as the skill's grip: closing opens the vacuum's valve, opening shuts it (and blows
     the part off); what it holds is what its vacuum sensor says (at least the cup's switch level: a
-    sealed cup), never a finger's contact. A cup that has not sealed ``seal_wait_s`` after its valve
+    sealed cup), never a finger's contact. A cup that has not sealed :attr:`SEAL_WAIT_S` after its valve
     opened has stopped on nothing: the close ends there (a leak, or no face under it)."""
 
     #: a valve open this long without a seal: the close has ended on nothing (s; a vacuum builds in 0.1 s)
@@ -240,7 +241,8 @@ class Suck(Grip):
         self._open_ticks = 0
 
     def stopped(self, obs: Observation) -> bool:
-        """Sealed, or the valve open ``SEAL_WAIT_S`` without a seal (shut: the vacuum falls, never stalls)."""
+        """Sealed, or the valve open ``SEAL_WAIT_S`` without a seal (the valve shut, letting go: the vacuum
+        falls, it never stalls)."""
         if not self.vacuum:
             return False
         self._open_ticks += 1

@@ -1,8 +1,11 @@
 """Which object a clear round picks next: of every object a survey found, the one with the best
-reachable top-down grasp (its cloud's, clear of the others' points and of the cell's fixtures:
-:func:`~pickdemo.grasping.cloud.sample_grasps`), an object a pick failed on since the last that placed one
-after the others; where no object has one, the best reachable grasp from any side
-(:func:`~pickdemo.grasping.antipodal.sample_antipodal`), if the robot's hand takes them. A part of
+reachable grasp from above (its cloud's, clear of the others' points and of the cell's fixtures: the
+fingers' top-down grasps, :func:`~pickdemo.grasping.cloud.sample_grasps`, or a suction cup's seals along
+a face's normal, :func:`~pickdemo.grasping.suction.sample_suction`), an object a pick failed on since
+the last that placed one after the others; for a suction cup where none has a seal seen all round, the
+best glimpsed one (the survey's sparse points: its rim's short sectors counted unseen); where no object
+has one, the best reachable grasp from any side (:func:`~pickdemo.grasping.antipodal.sample_antipodal`),
+if the robot's hand takes them. A part of
 :class:`~pickdemo.skills.clear.ClearSequencer`: it returns a choice, never writes the round's state."""
 
 from __future__ import annotations
@@ -72,9 +75,9 @@ class ObjectChooser:
         return dataclasses.replace(seen.cloud, obstacles=np.vstack([seen.cloud.obstacles, near]))
 
     def choose(self, survey: Survey, tried: list[np.ndarray]) -> Choice | None:
-        """The object with the best reachable top-down grasp, else (none has one) with the best
-        reachable grasp from any side (None: no object has one); ``tried``: where picks failed since the
-        last that placed an object."""
+        """The object with the best reachable grasp from above (a suction cup's: then the best glimpsed
+        seal), else (none has one) with the best reachable grasp from any side (None: no object has one);
+        ``tried``: where picks failed since the last that placed an object."""
         best = self._best(survey, tried)
         if best is None and self.kin.robot.gripper.suction:
             best = self._best(survey, tried, glimpsed=True)
@@ -83,7 +86,7 @@ class ObjectChooser:
         return best
 
     def _best(self, survey: Survey, tried: list[np.ndarray], *, glimpsed: bool = False) -> Choice | None:
-        """The object with the best reachable top-down grasp (None: none has one). ``glimpsed``: a
+        """The object with the best reachable grasp from above (None: none has one). ``glimpsed``: a
         suction cup's seal judged leniently, as the survey's sparse points allow (any of the rim's
         sectors short of the face counted as unseen): the pick looks closer and judges again."""
         best: Choice | None = None
@@ -100,8 +103,8 @@ class ObjectChooser:
         return best
 
     def _grasps(self, seen: SeenObject, glimpsed: bool = False) -> list:
-        """An object's top-down grasps, best first: the fingers' (:func:`sample_grasps`) or a suction
-        cup's seals (:func:`~pickdemo.grasping.suction.sample_suction`), as the robot's gripper is."""
+        """An object's grasps from above, best first: the fingers' top-down ones (:func:`sample_grasps`) or
+        a suction cup's seals (:func:`~pickdemo.grasping.suction.sample_suction`), as the robot's gripper is."""
         gripper, cloud = self.kin.robot.gripper, self._cloud(seen)
         if gripper.cup is not None:
             unknown = (lambda p: np.ones(len(p), dtype=bool)) if glimpsed else cloud.unknown
