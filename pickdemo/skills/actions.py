@@ -6,8 +6,8 @@ for a target that moves, meets it where it will be; which way round the hand tur
 the one whose end the IK reaches with the joints clear of their limits
 (:func:`pickdemo.motion.ik_goals.way_round`). :class:`Grip` commands the Franka Hand's opening and
 force and reads its fingers: stopped, holding, dropped; :class:`Suck` is the same for a suction cup
-(its valve, its vacuum sensor), and :func:`grip_for` gives a robot its own. :class:`Scale` weighs what the hand holds with the
-wrist's force sensor.
+(its valve, its vacuum sensor), and :func:`grip_for` gives a robot its own. :class:`Scale` weighs
+what the hand holds with the wrist's force sensor.
 """
 
 from __future__ import annotations
