@@ -79,6 +79,12 @@ class Pose:
         }
 
 
+def about_vertical(yaw: float) -> np.ndarray:
+    """The rotation by ``yaw`` (rad) about the vertical."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def wrap_angle(angle_rad: float | np.ndarray, period_rad: float = 2.0 * np.pi) -> float | np.ndarray:
     """Wrap an angle into [-period/2, period/2)."""
     return (np.asarray(angle_rad) + period_rad / 2.0) % period_rad - period_rad / 2.0

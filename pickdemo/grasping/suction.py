@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose, wrap_angle
+from pickdemo.core.geometry import Pose, about_vertical, wrap_angle
 from pickdemo.core.shapes import Unknown
 from pickdemo.grasping.top_down import GraspParams, GraspPlan, GraspPlanningError, poses_of_pick, top_down
 from pickdemo.robot.suction import Cup, hanging_load
@@ -245,7 +245,7 @@ class SuctionGrasps:
                 )
             if self.avoid:
                 seen.sort(key=lambda g: (self._tried(g.position), g.cost))
-            turn = _about_z(-float(at.rpy[2]))
+            turn = about_vertical(-float(at.rpy[2]))
             local = [
                 SuctionGrasp(turn @ (g.position - at.position), turn @ g.normal, g.cost, g.tilt_rad, g.load)
                 for g in seen
@@ -263,7 +263,7 @@ class SuctionGrasps:
         """The best seals where the tracked pose has the target now; after a miss (a leak), the seals a
         cup's radius away from those tried first: tried elsewhere."""
         at = request.pose
-        turn = _about_z(float(at.rpy[2]))
+        turn = about_vertical(float(at.rpy[2]))
         local = list(self._local(request))
         r = request.gripper.cup.radius_m
         for _ in range(min(request.misses, len(local) - 1)):  # each miss: the best seal, and those near it, last
@@ -314,8 +314,3 @@ def _tilted_yaw(g: SuctionGrasp) -> float:
     """The hand's angle of a tilted seal's plan (its x level, across the tilt)."""
     x = np.cross([0.0, 0.0, 1.0], -g.normal)
     return float(np.arctan2(x[1], x[0]))
-
-
-def _about_z(angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

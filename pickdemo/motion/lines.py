@@ -11,8 +11,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose
-from pickdemo.motion.online import LOST_M, LOST_RAD, about_vertical
+from pickdemo.core.geometry import Pose, about_vertical
+from pickdemo.motion.online import LOST_M, LOST_RAD
 from pickdemo.robot.kinematics import IKParams, Kinematics
 
 #: Each leg keeps the TCP this close to the line (m) ...

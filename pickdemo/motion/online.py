@@ -38,7 +38,7 @@ from ruckig import (
     Trajectory,
 )
 
-from pickdemo.core.geometry import Pose
+from pickdemo.core.geometry import Pose, about_vertical
 from pickdemo.robot.kinematics import Kinematics
 
 #: A target closer than this to the current one is not written (Ruckig would recompute for nothing).
@@ -140,12 +140,6 @@ def top_down_pose(x4: np.ndarray) -> Pose:
 def top_down_se3(x4: np.ndarray) -> pin.SE3:
     """:func:`top_down_pose` as a ``pin.SE3``, without a :class:`Pose` (the IK's target every tick)."""
     return pin.SE3(pin.rpy.rpyToMatrix(np.pi, 0.0, float(x4[3])), np.array(x4[:3], dtype=float))
-
-
-def about_vertical(yaw: float) -> np.ndarray:
-    """The rotation by ``yaw`` (rad) about the vertical."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def hand_frame(rotation: np.ndarray) -> np.ndarray | None:

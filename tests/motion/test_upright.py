@@ -7,11 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose
+from pickdemo.core.geometry import Pose, about_vertical
 from pickdemo.grasping.top_down import GraspPlan
 from pickdemo.motion.ik_goals import choose_goal, goal_candidates
 from pickdemo.motion.lines import UPRIGHT_RAD, around_the_base, carry_in_joints, upright_in_joints
-from pickdemo.motion.online import about_vertical
 from pickdemo.robot import robot_named
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.skills.pick.plans import turned_place

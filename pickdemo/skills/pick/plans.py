@@ -8,10 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose
+from pickdemo.core.geometry import Pose, about_vertical
 from pickdemo.grasping.selection import GraspRequest, GraspSelector
 from pickdemo.grasping.top_down import GraspPlan, top_down
-from pickdemo.motion.online import about_vertical, hand_frame
+from pickdemo.motion.online import hand_frame
 
 #: A hand turned half a turn about its own approach axis (z): a parallel gripper's equivalent.
 ABOUT_APPROACH = np.diag([-1.0, -1.0, 1.0])
