@@ -378,16 +378,16 @@ def _check_holdable(obj: ObjectSpec, key: str, robot: RobotDescription) -> float
     opening = robot.gripper.max_opening_m
     narrow = 0.0 if obj.shape == "mesh" else obj.largest_shape.grasp_width_m
     cup = robot.gripper.cup
-    if cup is not None:  # a suction cup seals on a face at least as wide as it (a box's narrower side) ...
-        smallest = obj.size or (None if obj.size_range is None else tuple(lo for lo, _ in obj.size_range))
-        if smallest is not None and obj.shape != "mesh":  # ... at its smallest
-            narrow = obj.shape_of_size(tuple(smallest)).grasp_width_m
-        if obj.shape != "mesh" and narrow < cup.diameter_m:
+    smallest = obj.size or (None if obj.size_range is None else tuple(lo for lo, _ in obj.size_range))
+    if cup is not None and obj.shape != "mesh" and smallest is not None:
+        # a suction cup seals on a face at least as wide as it: a box's narrower side, at its smallest
+        face = obj.shape_of_size(tuple(smallest)).grasp_width_m
+        if face < cup.diameter_m:
             raise ScenarioError(
-                f"{key}.size: its narrower side is {narrow * 1e3:.0f} mm; the {robot.label}'s "
+                f"{key}.size: its narrower side is {face * 1e3:.0f} mm; the {robot.label}'s "
                 f"{cup.diameter_m * 1e3:.0f} mm cup seals only on a face at least as wide"
             )
-    elif narrow > opening - GRIPPER_CLEARANCE_M:
+    if cup is None and narrow > opening - GRIPPER_CLEARANCE_M:
         raise ScenarioError(
             f"{key}.size: its narrower side is {narrow * 1e3:.0f} mm; the gripper opens to {opening * 1e3:.0f} mm "
             f"and needs {GRIPPER_CLEARANCE_M * 1e3:.0f} mm of clearance, so at most "
