@@ -30,6 +30,8 @@ BREAK_STEPS = 3
 SMOOTH_S = 0.02
 #: The rim's rays start this far inside the cup (m): Bullet's ray ignores the shape it starts in.
 RAY_BEHIND_M = 0.005
+#: Each rim ray's first hits looked at (the robot's own shapes among them are passed over)
+RAY_HITS = 3
 
 
 class VacuumCup:
@@ -83,12 +85,9 @@ class VacuumCup:
         points = origin + self._rim @ rot.T
         start = points - axis * RAY_BEHIND_M
         reach = RAY_BEHIND_M + self.cup.stroke_m + 0.002
-        hits = self.c.rayTestBatch(start.tolist(), (start + axis * reach).tolist())
-        bodies = np.array([h[0] for h in hits])
-        gaps = np.array([h[2] * reach - RAY_BEHIND_M if h[0] >= 0 else np.nan for h in hits])
-        mine = bodies == self.robot
-        gaps[mine] = np.nan  # (the robot's own links are no surface to seal on)
-        found = bodies[(bodies >= 0) & ~mine]
+        bodies, fractions = self._first_hits(start, start + axis * reach)
+        gaps = np.where(bodies >= 0, fractions * reach - RAY_BEHIND_M, np.nan)
+        found = bodies[bodies >= 0]
         if found.size == 0:
             return Seal.OPEN, None
         body = int(np.bincount(found).argmax())
@@ -96,6 +95,20 @@ class VacuumCup:
         if state is Seal.SEALED and body in self.porous:
             state = Seal.LEAK
         return state, body
+
+    def _first_hits(self, start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each ray's nearest hit on anything but the robot (its body, -1 for none, and its fraction of
+        the way). The robot's own links are no surface to seal on, and a ray starting inside the cup's
+        shape at times meets it at once (measured: one rim ray of 16 in 5 of 7 leaks in ``suction_clear_bin``
+        seeds 0-9, each sealing 1 mm away): Bullet is asked for each ray's first :data:`RAY_HITS` hits."""
+        bodies = np.full(len(start), -1)
+        fractions = np.ones(len(start))
+        for k in range(RAY_HITS):
+            hits = self.c.rayTestBatch(start.tolist(), end.tolist(), reportHitNumber=k)
+            for i, h in enumerate(hits):
+                if h[0] >= 0 and h[0] != self.robot and h[2] < fractions[i]:
+                    bodies[i], fractions[i] = h[0], h[2]
+        return bodies, fractions
 
     def _grip(self, body: int) -> None:
         """Held where it is: a fixed constraint from the cup's lip to the body."""
