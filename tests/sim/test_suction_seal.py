@@ -100,3 +100,23 @@ def test_a_broken_seal_stays_broken_until_the_valve_is_shut() -> None:
         cup.after_step(1.0)
     assert cup.held is None and cup.state is Seal.LEAK and cup.vacuum_kpa() < CUP.switch_kpa
     c.disconnect()
+
+
+
+def test_a_tilted_cup_seals_at_any_turn_about_the_vertical() -> None:
+    """The tool tilted 10 deg about its hand over a light box, pressed onto it and turned in 10 deg steps:
+    it seals at each turn. A rim ray starts inside the cup's own shape, and Bullet's ray at times met that
+    shape at once: 10 of the 36 turns leaked so before the rays passed over the robot."""
+    leaked = []
+    for yaw in range(0, 360, 10):
+        c, (hand, _), _, cup, z0 = _world(0.04, 0.1, (0.0, 0.0))
+        tilted = p.getQuaternionFromEuler([np.pi + np.radians(10), 0, np.radians(yaw)])
+        c.changeConstraint(hand, [0.0, 0.0, z0 - 0.004], tilted, maxForce=5000)
+        cup.set(True)
+        for _ in range(120):
+            c.stepSimulation()
+            cup.after_step(0.0)
+        if cup.state is not Seal.SEALED:
+            leaked.append(yaw)
+        c.disconnect()
+    assert not leaked
