@@ -102,7 +102,6 @@ def test_a_broken_seal_stays_broken_until_the_valve_is_shut() -> None:
     c.disconnect()
 
 
-
 def test_a_tilted_cup_seals_at_any_turn_about_the_vertical() -> None:
     """The tool tilted 10 deg about its hand over a light box, pressed onto it and turned in 10 deg steps:
     it seals at each turn. A rim ray starts inside the cup's own shape, and Bullet's ray at times met that
