@@ -15,8 +15,6 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-
 from pickdemo.apps import datasets
 from pickdemo.apps.bench import parse_seeds
 from pickdemo.apps.datasets import STAGING, DatasetError
@@ -126,9 +124,9 @@ def run_replay(out: Path, episode: int, env=None) -> dict:  # noqa: ANN001 - a P
     """Replay episode ``episode`` of the dataset in ``out`` from its states and from its actions (in
     ``env``, made blind for replays by :func:`replay_env`, or one made here)."""
     meta = replay_meta(out)
-    attrs, ticks, states = datasets.read_episode(meta["format"], out, episode)
+    attrs, ticks, counts, states = datasets.read_episode(meta["format"], out, episode)
     stride = int(meta["stride"])
-    actions = [row for row in ticks.reshape(-1, len(meta["action_names"])) if not np.isnan(row).any()]
+    actions = datasets.acted_ticks(ticks, counts, len(meta["action_names"]))
     own = env is None
     env = replay_env(out) if own else env
     try:

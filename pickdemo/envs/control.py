@@ -36,6 +36,9 @@ from pickdemo.robot.rate_limit import RateLimiter
 
 #: The joints are stopped this far inside their limits (rad).
 POSITION_MARGIN_RAD = 0.01
+#: An action this far outside a bound, relative to it (at least 1), is still within it: float32's rounding
+#: (a relative 6e-8), with room for a policy's arithmetic; what is past the bound by so little is clipped.
+BOUND_SLACK = 1e-6
 #: Where ``ee_delta`` keeps the hand's goal (m, in the world: x, y, z low and high).
 WORKSPACE = (np.array([-0.9, -0.9, 0.0]), np.array([0.9, 0.9, 0.9]))
 
@@ -88,11 +91,15 @@ class _Mode:
             raise ValueError(f"{self.name} action of shape {a.shape}: expected {b.low.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"{self.name} action is not finite: {a.tolist()}")
-        out = np.flatnonzero((a < b.low - 1e-9) | (a > b.high + 1e-9))
+        # a bound as float32 holds it (policies and datasets are float32): 2.8973 is 2.8973000049591064 then
+        slack = BOUND_SLACK * np.maximum(1.0, np.maximum(np.abs(b.low), np.abs(b.high)))
+        out = np.flatnonzero((a < b.low - slack) | (a > b.high + slack))
         if out.size:
             i = int(out[0])
             raise ValueError(
-                f"{self.name} action[{i}] = {a[i]:.6g} is outside the action space [{b.low[i]:.6g}, {b.high[i]:.6g}]"
+                f"{self.name} action[{i}] = {float(a[i])!r} is outside the action space "
+                f"[{float(b.low[i])!r}, {float(b.high[i])!r}] "
+                f"(by more than float32 rounds it: {slack[i]:.1e})"
             )
         return np.clip(a, b.low, b.high)
 

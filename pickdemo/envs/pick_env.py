@@ -132,8 +132,9 @@ class PickEnv(gym.Env):
         g = GRIPPERS.index(self.gripper) + 1
         if self.control_mode == "joint_pos":
             low, high = np.append(lim.min_position_rad, -np.ones(g)), np.append(lim.max_position_rad, np.ones(g))
-            return spaces.Box(low, high, dtype=np.float64)
-        return spaces.Box(-1.0, 1.0, (4 + g,), dtype=np.float64)
+            return spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
+        # (float32, as Gymnasium and Stable-Baselines3 recommend: policies and datasets are float32)
+        return spaces.Box(-1.0, 1.0, (4 + g,), dtype=np.float32)
 
     def _observation_space(self) -> spaces.Dict:
         n = self.robot.dof

@@ -60,6 +60,37 @@ def test_the_lerobot_dataset_has_v3s_layout_as_its_loader_reads_it(lerobot_dir: 
     assert np.shape(stats["observation.images.camera"]["mean"]) == (3, 1, 1)
 
 
+@pytest.mark.slow
+def test_the_lerobot_dataset_is_as_lerobots_tools_and_policies_take_it(lerobot_dir: Path) -> None:
+    """No NaN anywhere (LeRobot's merge turns one into a null no frame then loads); only what a policy
+    takes or gives under ``observation.*`` and ``action*`` (LeRobot's inputs and outputs); the simulator's
+    state float64 beside them; a ``next.reward``; each episode's statistics in its row of the episodes'
+    table, as LeRobot's writer keeps them (its split and delete remake the dataset's from those), and the
+    dataset's made of them."""
+    info = json.loads((lerobot_dir / "meta" / "info.json").read_text())
+    features = info["features"]
+    inputs = sorted(k for k in features if k.startswith(("observation.", "action")))
+    assert inputs == ["action", "observation.images.camera", "observation.state"]
+    assert features["pickdemo.sim_state"]["dtype"] == "float64" and features["next.reward"]["dtype"] == "float32"
+    table = pq.read_table(lerobot_dir / "data")
+    assert table.schema.field("pickdemo.sim_state").type.value_type == pa.float64()
+    for name in table.column_names:
+        values = table.column(name).to_numpy(zero_copy_only=False)
+        values = np.stack(values) if values.dtype == object else values
+        assert not np.isnan(values.astype(np.float64)).any(), name
+    reward = table.column("next.reward").to_numpy()
+    assert reward.sum() == 2 and set(reward) == {0.0, 1.0}  # the last frame of each of the two successes
+    episodes = pq.read_table(lerobot_dir / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    stats = json.loads((lerobot_dir / "meta" / "stats.json").read_text())
+    for name in [k for k in features if features[k]["dtype"] != "video"] + ["observation.images.camera"]:
+        for stat in ("min", "max", "mean", "std", "count", "q01", "q50", "q99"):
+            assert f"stats/{name}/{stat}" in episodes[0], (name, stat)
+    state = np.stack(table.column("observation.state").to_numpy(zero_copy_only=False)).astype(np.float64)
+    assert np.allclose(stats["observation.state"]["mean"], state.mean(0), atol=1e-5)
+    assert np.allclose(stats["observation.state"]["std"], state.std(0), atol=1e-5)
+    assert stats["index"]["max"] == [table.num_rows - 1]
+
+
 def test_an_episode_replays_from_its_states_and_bit_for_bit_from_its_actions(
     lerobot_dir: Path, capsys: pytest.CaptureFixture
 ) -> None:

@@ -106,12 +106,27 @@ def test_bad_actions_are_refused_in_words_and_the_env_goes_on() -> None:
     env.reset(seed=0)
     with pytest.raises(ValueError, match="not finite"):
         env.step(np.array([0.0, np.nan, 0.0, 0.0, 0.0]))
-    with pytest.raises(ValueError, match=r"action\[2\] = 3 is outside the action space \[-1, 1\]"):
+    with pytest.raises(ValueError, match=r"action\[2\] = 3.0 is outside the action space \[-1.0, 1.0\]"):
         env.step(np.array([0.0, 0.0, 3.0, 0.0, 0.0]))
     with pytest.raises(ValueError, match="shape"):
         env.step(np.zeros(7))
     obs, *_ = env.step(np.zeros(5))
     assert obs["time"][0] > 0
+    env.close()
+
+
+def test_a_float32_action_at_its_bound_is_taken() -> None:
+    """Policies and datasets are float32: the joint limit 2.8973 comes as 2.8973000049591064, and is the
+    limit; the action space is float32 (as Gymnasium and Stable-Baselines3 recommend)."""
+    env = gym.make("pickdemo/Pick-v0", control_mode="joint_pos")
+    env.reset(seed=0)
+    assert env.action_space.dtype == np.float32
+    high = env.action_space.high.astype(np.float32)
+    assert env.action_space.contains(high)
+    assert high[0] > env.unwrapped.robot.limits.max_position_rad[0]  # (float32 rounds it up)
+    obs, *_ = env.step(high)  # taken, clipped to the limit
+    with pytest.raises(ValueError, match=r"action\[0\] = 2.9\d* is outside the action space"):
+        env.step(np.append(2.9, high[1:]))
     env.close()
 
 
