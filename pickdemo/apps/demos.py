@@ -20,6 +20,7 @@ from pickdemo.apps.bench import parse_seeds
 from pickdemo.apps.datasets import STAGING, DatasetError
 from pickdemo.apps.files import write_atomic
 from pickdemo.envs.record import action_names, make_env, record_episode, replay_episode, state_names, stride_for
+from pickdemo.scenario.instruction import instruction
 from pickdemo.scenario.load import list_scenarios, resolve_scenario_path
 
 
@@ -35,8 +36,10 @@ def run_demos(
     progress: bool,
     robot: str | None = None,
     image_width: int = 224,
+    task: str | None = None,
 ) -> dict:
-    """Record the seeds not staged yet and make the dataset; the run's figures."""
+    """Record the seeds not staged yet and make the dataset; the run's figures. ``task``: the episodes'
+    task string (None: the scenario's instruction)."""
     from tqdm import tqdm
 
     if fmt == "lerobot" and fps != int(fps):
@@ -55,7 +58,7 @@ def run_demos(
         "state_names": state_names(env),
         "action_names": action_names(env),
         "cameras": {name: list(size) for name, size in env._camera_sizes().items()},
-        "task": env.scenario.description or f"pick and place ({env.scenario.name})",
+        "task": task or instruction(env.scenario),
         "env_id": "pickdemo/Clear-v0" if env.scenario.task == "clear" else "pickdemo/Pick-v0",
     }
     meta_path = out / STAGING / "meta.json"

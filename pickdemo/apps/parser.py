@@ -161,6 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--image-width", type=int, default=224, help="the cameras' images' width in pixels (default 224; same view)"
     )
     demos.add_argument("--robot", help="another robot than the scenario's (a shipped robot's name or a robot file)")
+    demos.add_argument(
+        "--task", help="the episodes' task string (default: the scenario's instruction, or one made from its target)"
+    )
     demos.add_argument("--only-success", action="store_true", help="keep only the episodes that succeed")
     demos.add_argument("--resume", action="store_true", help="go on with a recording in DIR that was stopped")
     demos.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -149,6 +149,9 @@ class Scenario(Model):
 
     name: Name
     description: Annotated[str, Field(max_length=300)] = ""
+    #: the task as an instruction to a language-conditioned policy (a dataset's task string); "": made
+    #: from the target and the place (:func:`pickdemo.scenario.instruction.instruction`)
+    instruction: Annotated[str, Field(max_length=300)] = ""
     tags: tuple[Name, ...] = ()  # e.g. "suite": run by `pickdemo bench` when no scenario is named
     #: "perceive": for `pickdemo perceive` only (any number of targets); "clear": every object into the tray
     task: Literal["pick", "perceive", "clear"] = "pick"

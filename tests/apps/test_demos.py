@@ -55,6 +55,7 @@ def test_the_lerobot_dataset_has_v3s_layout_as_its_loader_reads_it(lerobot_dir: 
     assert episodes[0]["videos/observation.images.camera/from_timestamp"] == 0.0
     tasks = pq.read_table(lerobot_dir / "meta" / "tasks.parquet")
     assert json.loads(tasks.schema.metadata[b"pandas"])["index_columns"] == ["task"]  # the task strings, as an index
+    assert tasks.column("task").to_pylist() == ["pick up the red 5 cm cube and put it at x 0.45 m, y 0.30 m"]
     stats = json.loads((lerobot_dir / "meta" / "stats.json").read_text())
     assert len(stats["observation.state"]["mean"]) == features["observation.state"]["shape"][0]
     assert np.shape(stats["observation.images.camera"]["mean"]) == (3, 1, 1)
