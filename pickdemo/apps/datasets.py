@@ -36,6 +36,10 @@ from pickdemo.apps.files import write_atomic
 from pickdemo.envs.record import Recorded, Row
 
 STAGING = ".staging"
+#: robomimic's ``EnvType.GYM_TYPE`` (``robomimic/envs/env_base.py``): an HDF5's ``env_args["type"]``
+ROBOMIMIC_GYM_TYPE = 2
+#: a camera's far plane where the recording does not say it (m): depth is kept as a share of it
+DEPTH_FAR_M = 3.0
 FORMATS = ("lerobot", "hdf5")
 
 
@@ -80,13 +84,14 @@ def acted_ticks(ticks: np.ndarray, counts: np.ndarray | None, width: int) -> lis
 class Hdf5Episode:
     """One episode's rows into ``.staging/seed-N.h5`` (renamed from a temporary name by :meth:`close`)."""
 
-    def __init__(self, out: Path, seed: int, stride: int) -> None:
+    def __init__(self, out: Path, seed: int, stride: int, far_m: dict[str, float] | None = None) -> None:
         import h5py  # the demos extra
 
         self.path = out / STAGING / f"seed-{seed}.h5"
         self.tmp = self.path.with_suffix(".h5.tmp")
         self.file = h5py.File(self.tmp, "w")
         self.stride = stride
+        self.far_m = far_m or {}  # each camera's far plane: its depth is kept as a share of it
         self.n = 0
 
     def _append(self, name: str, value: np.ndarray, **kw: Any) -> None:
@@ -109,7 +114,9 @@ class Hdf5Episode:
         self._append("timestamps", np.array(row.time_s))
         for cam, (rgb, depth) in row.images.items():
             self._append(f"obs/{cam}_rgb", rgb, compression="lzf")
-            self._append(f"obs/{cam}_depth", depth, compression="lzf")
+            far = self.far_m.get(cam, DEPTH_FAR_M)
+            self._append(f"obs/{cam}_depth", (np.asarray(depth, dtype=np.float32) / far)[..., None], compression="lzf")
+            self.file[f"obs/{cam}_depth"].attrs["scale_m"] = far
         self.n += 1
 
     def close(self, keep: bool, success: bool = False) -> None:
@@ -124,17 +131,29 @@ class Hdf5Episode:
 
 
 def finalize_hdf5(out: Path, records: dict[int, dict], meta: dict, *, only_success: bool) -> int:
-    """``out/demos.hdf5`` from the staged episodes (rewritten whole); how many episodes it holds."""
+    """``out/demos.hdf5`` from the staged episodes (rewritten whole); how many episodes it holds.
+
+    As robomimic reads it: ``env_args`` that rebuild the environment the actions act in (robomimic's Gym
+    type, the frames' rate, the images, each action in [-1, 1]: ``unit_actions``); ``actions`` in
+    [-1, 1] on the bounds in ``data.attrs["action_bounds"]`` (the joints' limits: the native actions stay
+    in ``action_ticks``); depth (N, H, W, 1) as a share of the camera's far plane (robomimic clips a frame
+    to [0, 1]; ``obs/<camera>_depth`` attrs ``scale_m``: metres = value x scale); ``next_obs/<key>`` the
+    next frame's (the last its own), as virtual datasets on ``obs/``."""
     import h5py
 
     kept = [r for _, r in sorted(records.items()) if r["kept"] and (r["success"] or not only_success)]
+    low, high = (np.asarray(b, dtype=np.float64) for b in meta["action_bounds"])
     tmp = out / "demos.hdf5.tmp"
     with h5py.File(tmp, "w") as f:
         data = f.create_group("data")
-        env_name = meta["env_id"]
-        env_kwargs = {"scenario": meta["scenario"], "robot": meta["robot"], "obs_mode": "state",
-                      "control_mode": "joint_pos", "agent_rate_hz": None, "gripper": "opening_force"}  # fmt: skip
-        data.attrs["env_args"] = json.dumps({"env_name": env_name, "type": "pickdemo", "env_kwargs": env_kwargs})
+        env_kwargs = {"scenario": meta["scenario"], "robot": meta["robot"],
+                      "obs_mode": "rgbd" if meta["cameras"] else "state", "control_mode": "joint_pos",
+                      "agent_rate_hz": meta["fps"], "gripper": "opening_force", "image_width": meta["image_width"],
+                      "unit_actions": True}  # fmt: skip
+        data.attrs["env_args"] = json.dumps(
+            {"env_name": meta["env_id"], "type": ROBOMIMIC_GYM_TYPE, "env_kwargs": env_kwargs}
+        )
+        data.attrs["action_bounds"] = json.dumps({"low": low.tolist(), "high": high.tolist()})
         data.attrs["pickdemo"] = json.dumps(meta)
         total = 0
         for k, r in enumerate(kept):
@@ -142,6 +161,14 @@ def finalize_hdf5(out: Path, records: dict[int, dict], meta: dict, *, only_succe
                 g = data.create_group(f"demo_{k}")
                 for name in src:
                     src.copy(src[name], g, name=name)
+            g["actions"][...] = np.clip(2.0 * (g["actions"][...] - low) / (high - low) - 1.0, -1.0, 1.0)
+            for key, obs in g["obs"].items():  # the next frame's, without copying it
+                n = obs.shape[0]
+                layout = h5py.VirtualLayout(shape=obs.shape, dtype=obs.dtype)
+                source = h5py.VirtualSource(obs)
+                layout[: n - 1] = source[1:]
+                layout[n - 1] = source[n - 1]
+                g.create_virtual_dataset(f"next_obs/{key}", layout)
             g.attrs.update(seed=r["seed"], success=r["success"], failure=r["failure"] or "", num_samples=r["frames"])
             total += r["frames"]
         data.attrs["total"] = total
@@ -488,7 +515,7 @@ def read_lerobot(out: Path, episode: int) -> tuple[dict, np.ndarray, np.ndarray 
 # ================================================================================ by format
 def open_episode(fmt: str, out: Path, seed: int, stride: int, meta: dict) -> Hdf5Episode | LeRobotEpisode:
     if fmt == "hdf5":
-        return Hdf5Episode(out, seed, stride)
+        return Hdf5Episode(out, seed, stride, meta.get("far_m"))
     return LeRobotEpisode(out, seed, stride, meta["fps"])
 
 

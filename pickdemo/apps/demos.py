@@ -19,7 +19,15 @@ from pickdemo.apps import datasets
 from pickdemo.apps.bench import parse_seeds
 from pickdemo.apps.datasets import STAGING, DatasetError
 from pickdemo.apps.files import write_atomic
-from pickdemo.envs.record import action_names, make_env, record_episode, replay_episode, state_names, stride_for
+from pickdemo.envs.record import (
+    action_bounds,
+    action_names,
+    make_env,
+    record_episode,
+    replay_episode,
+    state_names,
+    stride_for,
+)
 from pickdemo.scenario.instruction import instruction
 from pickdemo.scenario.load import list_scenarios, resolve_scenario_path
 
@@ -57,7 +65,10 @@ def run_demos(
         "stride": stride,
         "state_names": state_names(env),
         "action_names": action_names(env),
+        "action_bounds": list(action_bounds(env)),
+        "image_width": image_width,
         "cameras": {name: list(size) for name, size in env._camera_sizes().items()},
+        "far_m": {name: float(spec.far_m) for name, spec in env.camera_specs().items()},
         "task": task or instruction(env.scenario),
         "env_id": "pickdemo/Clear-v0" if env.scenario.task == "clear" else "pickdemo/Pick-v0",
     }

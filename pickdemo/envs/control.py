@@ -62,6 +62,21 @@ def gripper_action(finger_m: float, robot: RobotDescription) -> float:
 GRIPPERS = ("opening", "opening_force")
 
 
+def from_unit(action: np.ndarray, bounds: Bounds, name: str) -> np.ndarray:
+    """An action in [-1, 1] each (an environment's ``unit_actions``) on ``bounds``, linearly; one outside
+    [-1, 1] (by more than float32 rounds it), of another shape, or not finite raises ``ValueError``."""
+    a = np.asarray(action, dtype=float)
+    if a.shape != bounds.low.shape:
+        raise ValueError(f"{name} action of shape {a.shape}: expected {bounds.low.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} action is not finite: {a.tolist()}")
+    out = np.flatnonzero(np.abs(a) > 1.0 + BOUND_SLACK)
+    if out.size:
+        i = int(out[0])
+        raise ValueError(f"{name} action[{i}] = {float(a[i])!r} is outside the unit action space [-1.0, 1.0]")
+    return bounds.low + (np.clip(a, -1.0, 1.0) + 1.0) / 2.0 * (bounds.high - bounds.low)
+
+
 class _Mode:
     """What both modes share: the held joint goal, its line over the step's ticks, the limiter; the
     gripper's one number (its opening) or two (its opening and force)."""

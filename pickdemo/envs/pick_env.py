@@ -34,7 +34,7 @@ from gymnasium import spaces
 
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import EpisodeFailure, EpisodeResult, Stage
-from pickdemo.envs.control import GRIPPERS, MODES, EeDelta, JointPos
+from pickdemo.envs.control import GRIPPERS, MODES, EeDelta, JointPos, from_unit
 from pickdemo.envs.pilot import Pilot, Watcher
 from pickdemo.runtime.episode import THIRD_PERSON_K, THIRD_PERSON_POSE, Episode, EpisodeOptions
 from pickdemo.runtime.world import FIXED_CAMERA, WRIST_CAMERA
@@ -73,6 +73,7 @@ class PickEnv(gym.Env):
         image_width: int | None = None,
         gripper: str = "opening",
         perception: bool = True,
+        unit_actions: bool = False,
     ) -> None:
         """``scenario``: a shipped scenario's name, a file, or a loaded one; ``robot``: another robot than
         its own (a shipped one's name or a robot file); ``agent_rate_hz`` None: every control tick;
@@ -80,7 +81,8 @@ class PickEnv(gym.Env):
         ``rgbd`` images' width in pixels (the same field of view, both sides rounded to even; default: each
         camera's own); ``gripper``: ``"opening"`` (one number) or ``"opening_force"`` (and the force);
         ``perception`` False: no camera frames and no estimates in the loop (``target_pose`` stays zeros;
-        faster: a replay, an agent on ``privileged`` observations)."""
+        faster: a replay, an agent on ``privileged`` observations); ``unit_actions``: each action in [-1, 1],
+        mapped linearly onto the control mode's own bounds (robomimic's policies act so)."""
         for what, value, allowed in (
             ("obs_mode", obs_mode, OBS_MODES),
             ("control_mode", control_mode, tuple(MODES)),
@@ -98,6 +100,7 @@ class PickEnv(gym.Env):
         self.reward_mode, self.terminate_on_failure = reward_mode, terminate_on_failure
         self.gripper = gripper
         self.perception = perception
+        self.unit_actions = unit_actions
         self.robot = sc.robot_description
         if image_width is not None and not 16 <= image_width <= 4096:
             raise ValueError(f"image_width={image_width}: 16 to 4096 pixels")
@@ -123,7 +126,9 @@ class PickEnv(gym.Env):
         self._result: EpisodeResult | None = None
         self._succeeded = False
         self._closed = False
-        self.action_space = self._action_space()
+        self.native_action_space = self._action_space()
+        n = self.native_action_space.shape
+        self.action_space = spaces.Box(-1.0, 1.0, n, dtype=np.float32) if unit_actions else self.native_action_space
         self.observation_space = self._observation_space()
 
     # ================================================================================== spaces
@@ -166,13 +171,17 @@ class PickEnv(gym.Env):
         clear = self.scenario.clear
         return len(self.scenario.objects) + (clear.count if clear is not None else 0)
 
-    def _camera_sizes(self) -> dict[str, tuple[int, int]]:
-        """Each camera's images' (width, height) in the observation."""
+    def camera_specs(self) -> dict:
+        """Each camera's scenario spec, by its name in the observation."""
         specs = {FIXED_CAMERA: self.scenario.camera}
         if self.scenario.wrist_camera is not None:
             specs[WRIST_CAMERA] = self.scenario.wrist_camera
+        return specs
+
+    def _camera_sizes(self) -> dict[str, tuple[int, int]]:
+        """Each camera's images' (width, height) in the observation."""
         sizes = {}
-        for name, spec in specs.items():  # (even: a video's chroma is half the size)
+        for name, spec in self.camera_specs().items():  # (even: a video's chroma is half the size)
             w = 2 * max(1, (self.image_width or spec.width) // 2)
             sizes[name] = (w, 2 * max(1, round(w * spec.height / spec.width / 2)))
         return sizes
@@ -225,6 +234,8 @@ class PickEnv(gym.Env):
             raise RuntimeError("step() on a closed environment: reset() first")
         if self.episode.done:
             raise RuntimeError("step() after the episode ended: reset() first")
+        if self.unit_actions:  # onto the mode's own bounds (float64: the float32 space rounds them)
+            action = from_unit(action, self.mode.bounds, self.mode.name)
         self.mode.set(action)
         ep = self.episode
         for _ in range(self.ticks):

@@ -43,6 +43,16 @@ def action_names(env: PickEnv) -> list[str]:
     ]
 
 
+def action_bounds(env: PickEnv) -> tuple[list[float], list[float]]:
+    """The recorded actions' bounds (``joint_pos``: the joints' limits, the gripper's numbers in [-1, 1]), in
+    float64: what an action in [-1, 1] is scaled onto (``unit_actions``)."""
+    lim = env.robot.limits
+    g = env.action_space.shape[0] - env.robot.dof
+    low = np.concatenate([lim.min_position_rad, -np.ones(g)])
+    high = np.concatenate([lim.max_position_rad, np.ones(g)])
+    return low.tolist(), high.tolist()
+
+
 def state_vector(obs: dict[str, np.ndarray]) -> np.ndarray:
     """An environment's state observation as a dataset's ``observation.state`` (:data:`STATE_KEYS`, in order;
     a suction cup's vacuum last)."""

@@ -123,6 +123,39 @@ def test_a_stopped_run_resumes_without_an_episode_lost_or_doubled(
     assert main(["replay", str(out), "--episode", "1"]) == 0
 
 
+@pytest.mark.slow
+def test_the_hdf5_is_as_robomimic_reads_it_and_its_env_args_rebuild_the_environment(tmp_path: Path) -> None:
+    """robomimic's Gym type; actions in [-1, 1] on the bounds the file keeps; depth (N, H, W, 1) as a share
+    of the far plane; ``next_obs``; and the environment its ``env_args`` make, stepped with demo 0's
+    actions from its seed, succeeds as the demonstration did."""
+    import gymnasium as gym
+
+    import pickdemo.envs  # noqa: F401 - (registers the ids)
+
+    out = tmp_path / "h5"
+    assert main(["demos", "pick_cube", "--seeds", "0", "--out", str(out), "--format", "hdf5", "--no-progress"]) == 0
+    with h5py.File(out / "demos.hdf5") as f:
+        env_args = json.loads(f["data"].attrs["env_args"])
+        g = f["data"]["demo_0"]
+        actions = g["actions"][:]
+        n = actions.shape[0]
+        assert env_args["type"] == 2 and np.all(np.abs(actions) <= 1.0)
+        assert g["obs/camera_depth"].shape == (n, 168, 224, 1) and g["obs/camera_depth"].attrs["scale_m"] == 3.0
+        assert np.array_equal(g["next_obs/state"][: n - 1], g["obs/state"][1:])
+        assert np.array_equal(g["next_obs/camera_rgb"][n - 1], g["obs/camera_rgb"][n - 1])
+        seed = int(g.attrs["seed"])
+    env = gym.make(env_args["env_name"], **env_args["env_kwargs"])
+    env.reset(seed=seed)
+    steps = 0
+    for a in actions:
+        _, _, terminated, truncated, info = env.step(a.astype(np.float32))
+        steps += 1
+        if terminated or truncated:
+            break
+    env.close()
+    assert info["is_success"] and steps == n
+
+
 def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["replay", str(tmp_path)]) == 2
     assert "not a pickdemo demos dataset" in capsys.readouterr().err
