@@ -156,7 +156,10 @@ def build_parser() -> argparse.ArgumentParser:
     demos.add_argument("--seeds", default="0-9", help="seeds, e.g. 0-99 (default 0-9)")
     demos.add_argument("--out", type=Path, metavar="DIR", required=True, help="the dataset's directory")
     demos.add_argument("--format", choices=("lerobot", "hdf5"), default="lerobot", help="default: lerobot")
-    demos.add_argument("--fps", type=float, default=10.0, help="dataset frames per second (default 10)")
+    demos.add_argument(
+        "--fps", type=float, default=30.0,
+        help="dataset frames per second (default 30: LeRobot's own recordings', whose datasets a merge must match)",
+    )  # fmt: skip
     demos.add_argument(
         "--image-width", type=int, default=224, help="the cameras' images' width in pixels (default 224; same view)"
     )
