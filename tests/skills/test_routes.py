@@ -9,7 +9,7 @@ from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.robot import robot_named
 from pickdemo.robot.collision import TABLE, Obstacle
 from pickdemo.robot.kinematics import kinematics_of
-from pickdemo.skills.pick.routes import STRAIGHT, Router, held_box, nearest_turn
+from pickdemo.skills.pick.routes import MARGIN_M, STRAIGHT, Router, held_box, nearest_turn, rise_over
 from pickdemo.worldmodel import WorldModel
 from pickdemo.worldmodel.objects import TrackedObject
 
@@ -176,3 +176,15 @@ def test_a_goal_none_keeps_clear_of_by_the_margin_is_one_clear_within_the_tight_
 
     q, _ = arm.goal(above, grasp, accept=lambda q, i: False, near=near)
     assert len(seen) >= 3 and q is not None and np.array_equal(q, seen[2])
+
+
+def test_a_part_taken_from_a_bin_rises_over_its_walls_and_one_on_the_table_not_over_a_wall_beside_it() -> None:
+    """A part held 3 cm from a tote's 12 cm wall (its floor 1 cm thick) must rise until its bottom clears
+    the wall's top; the same part on the table beside a wall is the routes' to take around (no rise)."""
+    floor = Obstacle("fixtures.tote", _box((0.5, 0.0, 0.005), (0.3, 0.3, 0.01)))
+    tote = [floor, Obstacle("fixtures.tote", _box((0.5, 0.155, 0.06), (0.3, 0.01, 0.12)))]  # a wall, its top 0.12
+    held = _box((0.5, 0.1, 0.03), (0.04, 0.04, 0.04))  # its bottom at 0.01, on the floor
+    assert abs(rise_over(held, [TABLE_BOX, *tote], 0.05) - (0.12 + MARGIN_M - 0.01)) < 1e-9
+    wall = Obstacle("fixtures.wall", _box((0.5, 0.155, 0.1), (0.3, 0.01, 0.2)))
+    on_table = _box((0.5, 0.1, 0.02), (0.04, 0.04, 0.04))
+    assert rise_over(on_table, [TABLE_BOX, wall], 0.05) == 0.0

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pickdemo.core.geometry import Pose
+from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Failure, Stage
 from pickdemo.motion.ik_goals import along_line, goal_candidates, line_trackable
@@ -18,7 +18,7 @@ from pickdemo.motion.online import hand_frame
 from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
-from pickdemo.skills.pick.routes import held_box
+from pickdemo.skills.pick.routes import held_box, rise_over
 from pickdemo.skills.pick.take import SIDE_LINE_SCALE, go_home, side_line, wrist_load
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
@@ -59,7 +59,17 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
     m.grip.watch_hold()
     m.arm.cartesian()  # (a side grasp's descent in joint space: the lift is a Cartesian line)
     # (its box where it stood, as the hand holds it now)
-    m.held = held_box(m.world, m.kin.forward(obs.arm_q), m.router.solids)
+    tcp = m.kin.forward(obs.arm_q)
+    m.held = held_box(m.world, tcp, m.router.solids)
+    if m.held is not None and m.plan.withdraw is None:  # (a shelf's way out is its own)
+        # high enough that what it holds clears the walls of the bin it was taken from before it is carried off
+        rise = rise_over(OrientedBox(tcp @ m.held.pose, m.held.lo, m.held.hi), m.router.named, RISE_REACH_M)
+        low = m.plan.lift.position[2] - m.plan.grasp.position[2]
+        if rise > low:
+            m.note(f"lifting {rise * 1e3:.0f} mm, not {low * 1e3:.0f}: what it holds clears the walls beside it")
+            m.plan = dataclasses.replace(
+                m.plan, lift=Pose(m.plan.lift.position + [0.0, 0.0, rise - low], m.plan.lift.rotation)
+            )
     lower = m.arm.lift_in_reach(m.plan)
     if lower is not m.plan:
         high = (lower.lift.position[2] - m.plan.grasp.position[2]) * 1e3
@@ -217,6 +227,9 @@ def _carried_upright(m: PickMachine, scene, fingers: float) -> bool:  # noqa: AN
 
 #: A carry whose straight line meets something goes this much higher first, if that keeps clear (m).
 CARRY_HIGHER_M = (0.05, 0.1, 0.15)
+#: The fixtures this near the held object across (m) are what its lift must clear before the carry
+#: (it sets off sideways from the top of the lift)
+RISE_REACH_M = 0.05
 
 
 def _carried_higher(m: PickMachine, scene, fingers: float, limits, hit: tuple[str, str]) -> bool:  # noqa: ANN001

@@ -36,6 +36,9 @@ MARGIN_M = 0.01
 TIGHT_MARGIN_M = 0.003
 #: The held object's box is grown by this every way (m): it may turn a little in the fingers.
 HELD_MARGIN_M = 0.01
+#: A held object's box stood on a fixture whose top is this near its bottom (m): its box is grown by
+#: :data:`HELD_MARGIN_M`, and a world model's box stands a little in or above what it rests on
+FLOOR_M = 0.02
 #: A straight Cartesian motion is checked every this far along it (m).
 LINE_STEP_M = 0.02
 #: A straight joint transfer is checked every this much of its largest joint's travel (rad).
@@ -94,6 +97,25 @@ def held_box(world: WorldModel, tcp: Pose, solids: Sequence[OrientedBox] = ()) -
     return OrientedBox(tcp.inverse() @ box.pose, box.lo, box.hi)
 
 
+def rise_over(held: OrientedBox, fixtures: Sequence[Obstacle], reach_m: float) -> float:
+    """How far the held object's box ``held`` (in the world, as it is now) must rise for its bottom to clear,
+    by :data:`MARGIN_M`, the fixture it was taken from: the walls within ``reach_m`` of it across of the
+    fixture whose box it stood on (a bin's or a tote's floor: carried off lower, a part was dragged
+    across a wall's top and knocked off). 0 if it stood on none (a wall beside a part on the table is
+    the routes' to go around) or none stands above its bottom there."""
+    c = held.corners()
+    lo, hi, bottom = c[:, :2].min(0) - reach_m, c[:, :2].max(0) + reach_m, float(c[:, 2].min())
+    x, y = (float(v) for v in held.pose.position[:2])
+    under = [o for o in fixtures if o.name != TABLE and top_below([o.box], x, y, bottom + FLOOR_M) is not None]
+    names = {o.name for o in under if top_below([o.box], x, y, bottom + FLOOR_M) >= bottom - FLOOR_M}
+    need = 0.0
+    for o in fixtures:
+        b = o.box.corners()
+        if o.name in names and np.all(b[:, :2].max(0) >= lo) and np.all(b[:, :2].min(0) <= hi):
+            need = max(need, float(b[:, 2].max()) + MARGIN_M - bottom)
+    return need
+
+
 class Router:
     """The collision scenes and routes of one pick (see the module docstring)."""
 
@@ -103,6 +125,7 @@ class Router:
         self.kin = kin
         #: the fixtures' solid parts as they are (what a held object stood on: :func:`held_box`)
         self.solids = tuple(o.box for o in fixtures if o.name != TABLE)
+        self.named = tuple(fixtures)  # (each box by its fixture's name: a bin's floor and walls are one)
         # (the fixtures grown by the margin: the arm follows its commands to within millimetres)
         self.fixtures = tuple(o if o.name == TABLE else Obstacle(o.name, grown(o.box, MARGIN_M)) for o in fixtures)
         self.rng = rng  # the planner's seeds, one per plan
