@@ -150,7 +150,10 @@ class PickEnv(gym.Env):
             "finger_contacts": _box((2,), 0.0),
             "wrist_force": _box((3,)),
             "time": _box((1,), 0.0),
-            "tcp_pose": _box((7,)),
+            # (the position unbounded, the unit quaternion within [-1, 1]: bounds where a quantity has them)
+            "tcp_pose": spaces.Box(
+                np.r_[np.full(3, -np.inf), -np.ones(4)], np.r_[np.full(3, np.inf), np.ones(4)], dtype=np.float64
+            ),
             "place": _box((2,)),
             "target_pose": _box((4,)),
             "target_cov": _box((4, 4)),
