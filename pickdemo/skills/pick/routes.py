@@ -106,8 +106,11 @@ def rise_over(held: OrientedBox, fixtures: Sequence[Obstacle], reach_m: float) -
     c = held.corners()
     lo, hi, bottom = c[:, :2].min(0) - reach_m, c[:, :2].max(0) + reach_m, float(c[:, 2].min())
     x, y = (float(v) for v in held.pose.position[:2])
-    under = [o for o in fixtures if o.name != TABLE and top_below([o.box], x, y, bottom + FLOOR_M) is not None]
-    names = {o.name for o in under if top_below([o.box], x, y, bottom + FLOOR_M) >= bottom - FLOOR_M}
+    names = set()  # the fixtures it stood on: one of their boxes' tops just under its bottom
+    for o in fixtures:
+        top = None if o.name == TABLE else top_below([o.box], x, y, bottom + FLOOR_M)
+        if top is not None and top >= bottom - FLOOR_M:
+            names.add(o.name)
     need = 0.0
     for o in fixtures:
         b = o.box.corners()
