@@ -265,6 +265,10 @@ class Referee(_WorldScoring):
 IN_TRAY_ABOVE_RIM_M = 0.03
 #: ... and has come to rest there below this speed (m/s).
 RESTING_SPEED_M_S = 0.02
+#: A round is scored with its objects at rest, the arm holding where it ended: a part let go over the
+#: tray as the round ended is judged where it lands, not in the air (it falls and bounces for up to
+#: 0.4 s, measured). At most this much simulated time (s), which is not the round's.
+SCORE_SETTLE_S = 2.0
 
 
 @dataclass
@@ -291,6 +295,7 @@ class ClearReferee(_WorldScoring):
     wrong_estimates_accepted = 0
     wrong_estimates_self_rejected = 0
     off_table: bool | None = None
+    end_s: float | None = None  # when the round ended (before its objects were let come to rest)
 
     def _on_table(self, name: str) -> bool:
         x, y, z = self.world.true_pose(name).position
@@ -396,8 +401,16 @@ class ClearReferee(_WorldScoring):
         """(A clear round moves every object: its failures say which were left.)"""
         return failure
 
+    def _at_rest(self) -> None:
+        """The round is over: its objects let come to rest before they are judged (once)."""
+        if self.end_s is None:
+            self.end_s = self.world.sim_time_s
+            scene = self.world.scene
+            scene.settle(round(SCORE_SETTLE_S / scene.time_step_s))
+
     def ended(self) -> None:
         if self.in_round is not None:
+            self._at_rest()
             self.off_table = any(not self._on_table(n) and not self.in_tray(n) for n in self.in_round)
 
     def left(self) -> list[str]:
@@ -406,6 +419,7 @@ class ClearReferee(_WorldScoring):
 
     def score(self) -> None:
         """Success: every object of the round in the tray (raises the failure)."""
+        self._at_rest()
         left = self.left()
         if left:
             names = ", ".join(left)
@@ -414,7 +428,7 @@ class ClearReferee(_WorldScoring):
     def clear_score(self, picks, attempts) -> dict:  # noqa: ANN001 - PickRecords, AttemptRecords
         """``result.json``'s ``clear``: each object's fate, the round's figures."""
         assert self.in_round is not None and self.entered is not None and self.tried is not None
-        end = self.world.sim_time_s
+        end = self.world.sim_time_s if self.end_s is None else self.end_s
         credit = self._credit()
         objects = []
         for p in self.world.layout:

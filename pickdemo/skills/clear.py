@@ -55,10 +55,6 @@ STILL_SPEED_SIGMA_M_S = 0.002
 STILL_YAW_RATE_SIGMA_RAD_S = 0.01
 #: A hold lost this long (s) is a drop (a moment's loss of one finger's contact is not)
 HEAP_DROP_S = 0.1
-#: The table is looked at again no sooner than this after the last part was let go over the tray (s):
-#: it has fallen and come to rest there (a suction cup lets go at once; a round that ended on the
-#: survey right after had the part scored in mid-air, 1 of 3 placed parts in 10 rounds, measured)
-LANDED_S = 0.4
 #: The regions a pick looks at are this much larger than the object seen (and 2 cm)
 EXTENT_MARGIN = 1.5
 #: The arm's links' boxes, padded by this (m), must project clear of what is on the table for the camera to
@@ -169,7 +165,6 @@ class ClearSequencer:
         self._surveying = True
         self._survey_asked = False
         self._survey_asked_s = 0.0
-        self._landed_s = 0.0  # the part the last pick let go from above has landed by then (s)
         self._seen_events = 0
         self._choice: Choice | None = None
         self._counted: list[Counters] = []  # the finished picks' counters
@@ -258,7 +253,7 @@ class ClearSequencer:
         if self._done:
             return []
         if self._surveying:
-            if self._survey_asked or not (self.current.entered and self.current.arm.finished) or now_s < self._landed_s:
+            if self._survey_asked or not (self.current.entered and self.current.arm.finished):
                 return []
             self._survey_asked = True  # (asked only when a frame is due: the episode takes it now)
             self._survey_asked_s = now_s
@@ -431,8 +426,6 @@ class ClearSequencer:
             last = rec.reason or "failed"
             self._fail(stage, f"{self.consecutive_failures} failed attempts in a row; the last: {last}")
             return
-        if rec.released_s is not None:
-            self._landed_s = rec.released_s + LANDED_S
         q0 = self.current.commanded_q
         self._homed = self._arm_hides(q0)
         if self._homed:  # home first (a machine that only takes the arm home), then look
