@@ -21,8 +21,13 @@ class MachineReadout:
 
     @property
     def at_rest(self) -> bool:
-        """Finished, and the arm at rest (with ``end_at_rest`` a failure brakes it first)."""
-        return self.state is State.DONE or (self.state is State.FAILED and (self.arm.braked or not self.p.end_at_rest))
+        """Finished, and the arm at rest (with ``end_at_rest`` a failure brakes it first): the joint commands
+        sent have caught up with where the motion ended (a line the rate limiter held back goes on being
+        sent after it; the next controller starts from rest where they stopped)."""
+        caught_up = not np.any(self.arm.limiter.dq)
+        if self.state is State.DONE:
+            return caught_up
+        return self.state is State.FAILED and (self.arm.braked or (not self.p.end_at_rest and caught_up))
 
     @property
     def tracker(self) -> TargetTracker:
