@@ -179,6 +179,9 @@ class RobotDescription:
     #: the heights of a pick where the robot's own differ from the skill's (m, by the names of
     #: :class:`~pickdemo.grasping.top_down.GraspParams`: pregrasp, transport, retreat, the TCP's lowest)
     grasp_heights: tuple[tuple[str, float], ...] = ()
+    #: a pick's speeds where the robot file sets its own (``[speeds]``: near_m_s, free_m_s, transfer_scale,
+    #: carry_scale)
+    speeds: tuple[tuple[str, float], ...] = ()
     home_proposed: bool = False  # its file gave no home: ``home_q`` is :mod:`pickdemo.robot.model_check`'s proposal
 
     @property

@@ -140,6 +140,17 @@ class _Grasp(_Model):
     min_tcp_height_m: Annotated[float, Field(gt=0.0, le=0.1)] | None = None  # the TCP's lowest: the tips off the table
 
 
+class _Speeds(_Model):
+    """A pick's speeds where the robot and its tool allow others than the skill's: the Cartesian
+    velocities (their accelerations and jerks scaled alike) and the joint transfers' shares of
+    ``[limits]``."""
+
+    near_m_s: Annotated[float, Field(gt=0.0, le=1.0)] | None = None  # the descent onto a part, the lift
+    free_m_s: Annotated[float, Field(gt=0.0, le=2.0)] | None = None  # straight lines away from the parts
+    transfer_scale: Annotated[float, Field(gt=0.0, le=1.0)] | None = None  # joint transfers, the hand empty
+    carry_scale: Annotated[float, Field(gt=0.0, le=1.0)] | None = None  # ... holding a part
+
+
 class _RobotFile(_Model):
     name: str = Field(pattern=r"^[A-Za-z0-9_.+-]+$")
     label: str
@@ -148,6 +159,7 @@ class _RobotFile(_Model):
     limits: _Limits
     gripper: Annotated[_Gripper | _Suction, Field(discriminator="kind")]
     grasp: _Grasp = _Grasp()
+    speeds: _Speeds = _Speeds()
 
 
 #: The file's sections as docs/robot-file.md documents them, each with the model that reads it.
@@ -160,6 +172,7 @@ SECTIONS: dict[str, type[BaseModel]] = {
     "[gripper]": _Gripper,
     '[gripper] kind = "suction"': _Suction,
     "[grasp]": _Grasp,
+    "[speeds]": _Speeds,
 }
 
 
@@ -255,6 +268,7 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         locate=lambda: files,
         render_urdf=functools.partial(lean_urdf_path, files, spec.name, meshes, renders),
         grasp_heights=tuple((k, v) for k, v in spec.grasp.model_dump().items() if v is not None),
+        speeds=tuple((k, v) for k, v in spec.speeds.model_dump().items() if v is not None),
     )
     from pickdemo.robot.model_check import check_model, with_proposed_home  # (pinocchio: only once a file is read)
 

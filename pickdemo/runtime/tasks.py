@@ -88,6 +88,7 @@ def machine_params(sc: Scenario, params: MachineParams) -> MachineParams:
     robot = sc.robot_description
     if robot.grasp_heights:  # (a small arm reaches only so high with its hand pointing down)
         params = dataclasses.replace(params, grasp=dataclasses.replace(params.grasp, **dict(robot.grasp_heights)))
+    params = robot_speeds(params, dict(robot.speeds))
     if robot.gripper.grip_force_n is not None:
         params = dataclasses.replace(params, grip_force_n=robot.gripper.grip_force_n)
     if sc.conveyor is not None:  # the cell has a belt: targets may move, at an unknown speed
@@ -97,6 +98,21 @@ def machine_params(sc: Scenario, params: MachineParams) -> MachineParams:
     if scales != (1.0, 1.0, 1.0):
         params = dataclasses.replace(params, near=params.near.scaled_by(*scales), free=params.free.scaled_by(*scales))
     return dataclasses.replace(params, joint_transfers=m.transfers == "joint")
+
+
+def robot_speeds(params: MachineParams, speeds: dict[str, float]) -> MachineParams:
+    """The skill's speeds with those a robot file sets (``[speeds]``): a Cartesian velocity scales its
+    limits' accelerations and jerks by the same factor (the near one, the side grasps' lines near the
+    object too, up to the joints' limits); the transfers' shares replace the skill's."""
+    changes: dict = {k: speeds[k] for k in ("transfer_scale", "carry_scale") if k in speeds}
+    for key, name in (("near_m_s", "near"), ("free_m_s", "free")):
+        if key in speeds:
+            limits = getattr(params, name)
+            f = speeds[key] / limits.velocity
+            changes[name] = limits.scaled_by(f, f, f)
+            if name == "near":
+                changes["side_line_scale"] = min(1.0, params.side_line_scale * f)
+    return dataclasses.replace(params, **changes) if changes else params
 
 
 def cell_obstacles(scenario: Scenario) -> tuple[Obstacle, ...]:

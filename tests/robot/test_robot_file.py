@@ -239,6 +239,11 @@ BAD = [
         "gripper.bellows_joint: 'wrist_3_joint' is revolute",
     ),
     (
+        "a tool speed past the bound",
+        _edit("free_m_s = 0.6", "free_m_s = 3.0", SUCTION_FILE),
+        "speeds.free_m_s",
+    ),
+    (
         "pads without friction",
         _edit("pad_friction = 0.5", "pad_friction = 0.0", SO101_FILE),
         "gripper.pad_friction",

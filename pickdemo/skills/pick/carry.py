@@ -19,7 +19,7 @@ from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.skills.pick.routes import held_box, rise_over
-from pickdemo.skills.pick.take import SIDE_LINE_SCALE, go_home, side_line, wrist_load
+from pickdemo.skills.pick.take import go_home, side_line, wrist_load
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
     from pickdemo.grasping.top_down import GraspPlan
@@ -97,7 +97,7 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
     else:  # first just off the table, to weigh it before it hangs long at the first grip force
         lift[2] = m.plan.grasp.position[2] + m.p.payload.lift_off_m
         off = Pose(np.array([*m.plan.lift.position[:2], lift[2]]), m.plan.lift.rotation)
-        if m.plan.withdraw is not None and side_line(m, off, SIDE_LINE_SCALE, checked=True):
+        if m.plan.withdraw is not None and side_line(m, off, m.p.side_line_scale, checked=True):
             return
     motion.set_target(lift, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
 
@@ -117,7 +117,7 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
         m.lifted_off = True
         # (under a board, as a joint path; elsewhere the Cartesian line, which keeps to it within a
         # millimetre: a joint path's 3 mm scraped a held cube along the carton flush beside it)
-        if m.plan.withdraw is not None and side_line(m, m.plan.lift, SIDE_LINE_SCALE, checked=True):
+        if m.plan.withdraw is not None and side_line(m, m.plan.lift, m.p.side_line_scale, checked=True):
             return None
         m.arm.cartesian()
         lift = m.arm.move.x4(m.plan.lift)
@@ -129,7 +129,7 @@ def tick_lift(m: PickMachine, obs: Observation) -> Transition:
         if dz < -0.001:  # (lifted only as high as the arm followed: out level from there)
             w = m.plan.withdraw
             m.plan = dataclasses.replace(m.plan, withdraw=Pose(w.position + np.array([0.0, 0.0, dz]), w.rotation))
-        if side_line(m, m.plan.withdraw, SIDE_LINE_SCALE, partial=True, checked=True):
+        if side_line(m, m.plan.withdraw, m.p.side_line_scale, partial=True, checked=True):
             return None
         m.arm.cartesian()
         m.arm.move.to(m.plan.withdraw, limits=m.intercept.near_limits(m.now_s).scaled(m.lift_scale))
@@ -346,7 +346,7 @@ def tick_release(m: PickMachine, obs: Observation) -> Transition:
 
 def enter_retreat(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
-    if side_line(m, m.plan.retreat, SIDE_LINE_SCALE, partial=True):  # (then home, planned, from there)
+    if side_line(m, m.plan.retreat, m.p.side_line_scale, partial=True):  # (then home, planned, from there)
         return
     m.arm.move.to(m.plan.retreat, limits=m.arm.line_limits(m.plan.retreat))
 

@@ -130,6 +130,9 @@ class MachineParams:
     goals: GoalParams = GoalParams()  # how a transfer's IK goal is chosen
     transfer_scale: float = 0.5  # transfers in joint space, the hand empty: this share of the datasheet's limits
     carry_scale: float = 0.25  # ... carrying the target (a retry after a drop slows it further)
+    #: a grasp from the side's straight lines near the object (descent, lift, way out, retreat), run as
+    #: joint transfers: at this share of the joints' limits
+    side_line_scale: float = 0.2
     #: a motion whose straight way meets something is planned around it (issue 59); off: straight, as before
     plan_around: bool = True
     plan_max_checks: int = 20000  # states a plan checks before it gives up (:mod:`pickdemo.motion.planner`)

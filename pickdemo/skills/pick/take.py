@@ -414,14 +414,10 @@ def enter_descend(m: PickMachine, obs: Observation) -> None:
     m.descent_plan = m.plan
     v = m.intercept.velocity(m.now_s)
     m.descent_ref = (m.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, m.planned_at_s)
-    if side_line(m, m.plan.grasp, SIDE_LINE_SCALE):
+    if side_line(m, m.plan.grasp, m.p.side_line_scale):
         return
     m.arm.cartesian()
     m.go_to(m.plan.grasp, limits=m.intercept.near_limits(m.now_s))
-
-
-#: A grasp from the side's descent, run as a joint transfer, at this share of the joints' limits.
-SIDE_LINE_SCALE = 0.2
 
 
 def side_line(m: PickMachine, pose: Pose, scale: float, *, partial: bool = False, checked: bool = False) -> bool:
