@@ -110,8 +110,13 @@ def robot_speeds(params: MachineParams, speeds: dict[str, float]) -> MachinePara
             limits = getattr(params, name)
             f = speeds[key] / limits.velocity
             changes[name] = limits.scaled_by(f, f, f)
-            if name == "near":
+            if name == "near":  # (the lines near the object are checked at the speed they run at; the
+                # slowest share still taken stays the same speed in m/s)
                 changes["side_line_scale"] = min(1.0, params.side_line_scale * f)
+                g = params.goals
+                changes["goals"] = dataclasses.replace(
+                    g, line_speed_m_s=g.line_speed_m_s * f, min_line_speed_scale=min(1.0, g.min_line_speed_scale / f)
+                )
     return dataclasses.replace(params, **changes) if changes else params
 
 

@@ -154,6 +154,7 @@ class ClearSequencer:
             surface_z=surface_z,
             fixture_points=box_surface_points(fixtures) if fixtures else None,
             any_side=self.any_side,
+            goals=self.p.goals,
         )  # which object next; fmt: skip
         self.events: list[Event] = []
         self.picks: list[PickRecord] = []

@@ -21,6 +21,7 @@ from pickdemo.grasping.antipodal import sample_antipodal
 from pickdemo.grasping.cloud import sample_grasps
 from pickdemo.grasping.suction import SuctionGrasp, SuctionParams, sample_suction, suction_plan
 from pickdemo.grasping.top_down import GraspParams, top_down
+from pickdemo.motion.ik_goals import GoalParams, line_speed_scale
 from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.robot.kinematics import IKParams, Kinematics
 
@@ -30,6 +31,8 @@ TRIED_RADIUS_M = 0.03
 TRIED_PENALTY = 10.0
 #: A fixture's points this near an object (m, horizontally) are obstacles to its grasps
 FIXTURES_NEAR_M = 0.2
+#: An object's best grasps tried for reach, best first, before it is passed over
+REACH_TRIES = 3
 
 
 @dataclass(frozen=True)
@@ -53,12 +56,14 @@ class ObjectChooser:
         surface_z: Callable[[float, float], float] | None = None,
         fixture_points: np.ndarray | None = None,
         any_side: np.random.Generator | None = None,
+        goals: GoalParams | None = None,
     ) -> None:
         """``rng``: the IK's restarts; ``grasp``: the pick's heights; ``ik``: the solver's settings;
         ``surface_z(x, y)``: what an object there rests on (None: the table); ``fixture_points``: points
         on the fixtures' faces, obstacles to every grasp; ``any_side``: the draw of grasps from any side
-        (None: top-down only)."""
-        self.kin, self.rng, self.grasp, self.ik = kin, rng, grasp, ik
+        (None: top-down only); ``goals``: a suction cup's descent must be followed as the pick will
+        follow it (its straight line, at the near speed; None: not checked)."""
+        self.kin, self.rng, self.grasp, self.ik, self.goals = kin, rng, grasp, ik, goals
         self.surface_z, self.fixture_points, self.any_side = surface_z, fixture_points, any_side
 
     def _surface(self, seen: SeenObject) -> float:
@@ -92,8 +97,8 @@ class ObjectChooser:
         best: Choice | None = None
         for seen in survey.objects:
             was_tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
-            # the best few: the first that IK reaches
-            for g in self._grasps(seen, glimpsed)[:3]:
+            # the best few: the first the arm reaches
+            for g in self._grasps(seen, glimpsed)[:REACH_TRIES]:
                 cost = g.cost + (TRIED_PENALTY if was_tried else 0.0)
                 if best is not None and cost >= best.cost:
                     break
@@ -139,13 +144,19 @@ class ObjectChooser:
             return self._reachable(g.position, g.hand_yaw_rad)
         for yaw in (0.0, np.pi / 2, np.pi, -np.pi / 2):
             plan = suction_plan(g, seen.centre, self._surface(seen), (0.0, 0.0), self.grasp, SuctionParams(), yaw)
-            if all(
-                self.kin.solve(p, self.kin.robot.home_q, self.rng, self.ik).success for p in (plan.grasp, plan.pregrasp)
-            ):
+            home = self.kin.robot.home_q
+            at, above = (self.kin.solve(p, home, self.rng, self.ik) for p in (plan.grasp, plan.pregrasp))
+            if at.success and above.success and self._descent_followed(at.q, plan):
                 return True
             if g.tilt_rad > SuctionParams().level_rad:
                 return False
         return False
+
+    def _descent_followed(self, q_grasp: np.ndarray, plan) -> bool:  # noqa: ANN001 - a GraspPlan
+        """Whether the per-tick IK follows the straight line between the pregrasp and the grasp fast enough
+        (the pick's own test, :meth:`~pickdemo.skills.pick.chooser.GraspChooser.unreachable`)."""
+        g = self.goals
+        return g is None or line_speed_scale(self.kin, q_grasp, plan.grasp, plan.pregrasp, g) >= g.min_line_speed_scale
 
     def _reachable(self, position: np.ndarray, hand_yaw: float) -> bool:
         for yaw in (hand_yaw, hand_yaw + np.pi):

@@ -21,6 +21,10 @@ def test_the_suction_robot_sets_its_own_speeds() -> None:
     assert p.near.acceleration == pytest.approx(skill.near.acceleration * f)
     assert p.near.jerk == pytest.approx(skill.near.jerk * f)
     assert p.side_line_scale == pytest.approx(min(1.0, skill.side_line_scale * f))
+    # the lines near the object are checked at the speed they run at; the slowest taken is the same in m/s
+    assert p.goals.line_speed_m_s == pytest.approx(speeds["near_m_s"])
+    slowest = p.goals.line_speed_m_s * p.goals.min_line_speed_scale
+    assert slowest == pytest.approx(skill.goals.line_speed_m_s * skill.goals.min_line_speed_scale)
     assert p.free.velocity == pytest.approx(speeds["free_m_s"])
     assert (p.transfer_scale, p.carry_scale) == (speeds["transfer_scale"], speeds["carry_scale"])
 
