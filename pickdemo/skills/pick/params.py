@@ -90,6 +90,10 @@ class MachineParams:
     moved_tolerance_m: float = 0.008  # during the descent, a target this far from the plan: back off
     moved_tolerance_rad: float = float(np.radians(8.0))
     moved_views: int = 2  # ... or this many whole views in a row refused that far from the track: back off
+    #: backed off so this often for a move the approach then found the target back from (the hand over
+    #: it hid part of it: its view shifted, the target did not), the descent goes on to the plan it set
+    #: out with, whatever views say on the way down
+    shadow_back_offs: int = 2
     touch_back_offs: int = 2  # a finger touching something during the descent: back off and look again, this often
     #: held, the hand's camera sees the target's centre this far (m, across the table) from where the
     #: grasp should hold it: let go and grasp it again (it would be put down that far off)

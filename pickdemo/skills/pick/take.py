@@ -60,6 +60,7 @@ def enter_look(m: PickMachine, obs: Observation) -> None:
     m.look_frames = 0
     m.looked_from, m.no_aside = [], False
     m.searched, m.search_camera = [], None
+    m.moved_from, m.shadow_moves = None, 0
     m.keep_hold = False
     m.fresh_estimate = False
     if m.look_here:  # the first look, from where the arm is (at rest)
@@ -412,6 +413,10 @@ def enter_descend(m: PickMachine, obs: Observation) -> None:
     assert m.plan is not None
     m.watch.forget_move()
     m.descent_plan = m.plan
+    if m.moved_from is not None:  # backed off for a move: found back where it was, it did not move
+        back = np.linalg.norm(m.plan.grasp.position[:2] - m.moved_from) <= m.p.moved_tolerance_m
+        m.shadow_moves += bool(back)
+        m.moved_from = None
     v = m.intercept.velocity(m.now_s)
     m.descent_ref = (m.plan.grasp.position[:2].copy(), np.zeros(2) if v is None else v, m.planned_at_s)
     if side_line(m, m.plan.grasp, m.p.side_line_scale):
@@ -462,6 +467,8 @@ def tick_descend(m: PickMachine, obs: Observation) -> Transition:
     if moved is not None:
         return moved
     plan = _same_side(m, m.track_plan())
+    if m.shadow_moves >= m.p.shadow_back_offs:
+        plan = None  # (the views on the way down shift with the hand over the target: its plan holds)
     if plan is not None:
         assert m.descent_plan is not None and m.descent_ref is not None
         xy, v, t = m.descent_ref  # where the descent expected the target now
@@ -470,6 +477,7 @@ def tick_descend(m: PickMachine, obs: Observation) -> Transition:
         m.plan = plan
         if off > m.p.moved_tolerance_m or turned > m.p.moved_tolerance_rad:
             m.after_back_off = State.APPROACH
+            m.moved_from = xy.copy()
             return State.BACK_OFF, (
                 f"the target moved {off * 1e3:.0f} mm, {np.degrees(turned):.0f} deg during the descent: "
                 "backing off to approach again"
