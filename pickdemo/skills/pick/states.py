@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from pickdemo.core.interfaces import Observation
-from pickdemo.skills.pick import carry, take
+from pickdemo.skills.pick import carry, close, take
 from pickdemo.skills.pick.params import HAND_OVER_TARGET, State, Transition
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
@@ -46,7 +46,7 @@ STATES: dict[State, StateHandlers] = {
     State.LOOK: StateHandlers(take.enter_look, take.tick_look),
     State.APPROACH: StateHandlers(take.enter_approach, take.tick_approach),
     State.DESCEND: StateHandlers(take.enter_descend, take.tick_descend),
-    State.CLOSE: StateHandlers(take.enter_close, take.tick_close),
+    State.CLOSE: StateHandlers(close.enter_close, close.tick_close),
     State.LIFT: StateHandlers(carry.enter_lift, carry.tick_lift),
     State.TRANSPORT: StateHandlers(carry.enter_transport, carry.tick_transport),
     State.LOWER: StateHandlers(carry.enter_lower, carry.tick_lower),

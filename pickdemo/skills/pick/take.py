@@ -1,10 +1,10 @@
-"""The pick skill's states that take hold of the target: LOOK, APPROACH, DESCEND and CLOSE; each
-state's entry action (run once, when it is entered) and exit test (run every tick), as functions of
-the machine (:mod:`~pickdemo.skills.pick.states` holds the table the machine dispatches from)."""
+"""The pick skill's states that go to the target: LOOK, APPROACH and DESCEND (CLOSE, the hold, is
+:mod:`~pickdemo.skills.pick.close`'s); each state's entry action (run once, when it is entered) and
+exit test (run every tick), as functions of the machine (:mod:`~pickdemo.skills.pick.states` holds
+the table the machine dispatches from)."""
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -382,7 +382,7 @@ def _retarget_clear(m: PickMachine, q: np.ndarray) -> bool:
 
 
 # ---- DESCEND: straight down onto the grasp; backs off if the target moves away.
-def _moved_under_hand(m: PickMachine) -> Transition:
+def moved_under_hand(m: PickMachine) -> Transition:
     """Back off (and approach again) when views refused by the tracker say the target moved under the hand."""
     moved = m.watch.moved()
     if moved is None:
@@ -461,7 +461,7 @@ def _arm_clear(m: PickMachine) -> Callable[[np.ndarray], bool] | None:
 
 
 def tick_descend(m: PickMachine, obs: Observation) -> Transition:
-    moved = _moved_under_hand(m)
+    moved = moved_under_hand(m)
     if moved is None:
         moved = _touched_early(m, obs)
     if moved is not None:
@@ -488,85 +488,3 @@ def tick_descend(m: PickMachine, obs: Observation) -> Transition:
     if arrived and not m.finished:
         return State.CLOSE, "at the grasp pose"
     return None
-
-
-# ---- CLOSE: fingers close with this attempt's force; held or missed.
-def enter_close(m: PickMachine, obs: Observation) -> None:
-    tp = m.belief.predict(obs.time_s)  # how high its centre rests above what it stands on: so at the place
-    m.rest_height_m = float(tp.position[2]) - m.belief.surface_z(*(float(v) for v in tp.position))
-    m.grip.close(m.close_force_n)
-    m.grip.watch()
-    m.watch.start_hold()
-
-
-def _held_across_another_side(m: PickMachine, obs: Observation) -> None:
-    """Closed on a described box across its other side (its yaw was seen a quarter turn off): held all
-    the same. The plan takes the width held (the checks of the hold while carried go by it)."""
-    assert m.plan is not None
-    width = m.plan.object_width_m
-    if not m.plan.width_known or m.grip.holding(obs, width):
-        return
-    for other in m.model.geometry.top_extents_m:
-        if abs(other - width) > 1e-6 and m.grip.holding(obs, other) and not m.grip.too_wide(obs, other):
-            m.note(f"fingers at {obs.opening_m * 1e3:.1f} mm: held across its {other * 1e3:.0f} mm side, "
-                   f"not its {width * 1e3:.0f} mm one")  # fmt: skip
-            m.plan = dataclasses.replace(m.plan, object_width_m=float(other))
-            return
-
-
-def _pushed_harder(m: PickMachine, obs: Observation) -> bool:
-    """A jaw that stalled on the object before the object reached the fixed jaw (one finger touching):
-    closes harder, doubling its force up to the hand's most. The moving jaw's arc presses the object
-    into the table as it pushes it, and the table's friction can hold it; a real servo gripper pushes
-    on at a higher current. (Two fingers closing about the middle do not push the object across.)"""
-    left, right = obs.finger_contacts
-    if m.kin.robot.gripper.coupled or (left > 0) == (right > 0) or m.grip.force_n >= m.grip.max_force_n:
-        return False
-    force = min(2.0 * m.grip.force_n, m.grip.max_force_n)
-    m.note(f"the jaw stopped at {obs.opening_m * 1e3:.1f} mm on the object alone: closing at {force:.0f} N")
-    m.grip.close(force)
-    m.grip.watch()
-    return True
-
-
-def tick_close(m: PickMachine, obs: Observation) -> Transition:
-    assert m.plan is not None
-    stalled = m.grip.stopped(obs)
-    if stalled and not m.grip.holding(obs, m.plan.object_width_m) and _pushed_harder(m, obs):
-        return None
-    if stalled:
-        _held_across_another_side(m, obs)
-    width = m.plan.object_width_m
-    if not stalled and not m.grip.holding(obs, width):
-        moved = _moved_under_hand(m)
-        if moved is not None:
-            return moved
-    if not stalled and obs.time_s - m.since_s < m.p.close_timeout_s:
-        return None
-    if m.grip.holding(obs, width):
-        if m.plan.width_known and m.grip.too_wide(obs, width):
-            reason = (
-                f"fingers stopped at {obs.opening_m * 1e3:.1f} mm "
-                f"(expected {width * 1e3:.0f} mm): held askew, or not it alone"
-            )
-            if m.attempt < m.max_attempts:
-                return m.retry(Stage.GRASP, "missed", reason)
-            m.note(f"{reason}: no attempt left to grasp it better, carried as it is held")
-        off_centre = m.watch.held_off_centre(obs, m.plan)
-        if off_centre is False:
-            return None  # (waiting for the hand's camera to see the hold)
-        if off_centre is not None:
-            return m.retry(Stage.GRASP, "held off centre", off_centre)
-        m.grasp_width_m = obs.opening_m
-        if m.grip.force_n > m.close_force_n:  # (pushed harder to the fixed jaw: held with the grip's force)
-            m.grip.close(m.close_force_n)
-        return State.LIFT, f"holding: {m.grip.hold_text(obs)}"
-    reason = (
-        f"fingers closed to {obs.opening_m * 1e3:.1f} mm (expected {width * 1e3:.0f} mm): nothing held"
-        if not m.grip.vacuum
-        else f"no seal ({m.grip.reading(obs)}): nothing held"
-    )
-    return m.retry(Stage.GRASP, "missed", reason)
-
-
-# ---- LIFT, TRANSPORT, LOWER: carry it, watching the hold.
