@@ -119,3 +119,37 @@ def test_a_tilted_cup_seals_at_any_turn_about_the_vertical() -> None:
             leaked.append(yaw)
         c.disconnect()
     assert not leaked
+
+
+def test_a_bump_inside_the_rim_does_not_hold_the_lip_off_the_face() -> None:
+    """A bellows cup is hollow: a bump on the face narrower than the lip goes into it, and the lip meets
+    the face all round it (the cup's collision shape was a solid cylinder, and a bump 3 mm high held the
+    rim 3 mm off a flat face: no seal, as on the dome of a convex part)."""
+    c = BulletClient(connection_mode=p.DIRECT)
+    c.setGravity(0, 0, -GRAVITY_M_S2)
+    c.setTimeStep(1 / 240)
+    c.createMultiBody(0, c.createCollisionShape(p.GEOM_PLANE))
+    half, bump = 0.02, 0.003
+    shape = c.createCollisionShapeArray(
+        [p.GEOM_BOX, p.GEOM_BOX], halfExtents=[[half] * 3, [0.002, 0.002, bump / 2]],
+        collisionFramePositions=[[0, 0, 0], [0, 0, half + bump / 2]],
+    )  # fmt: skip
+    c.createMultiBody(0.05, shape, basePosition=[0, 0, half])
+    down = p.getQuaternionFromEuler([np.pi, 0, 0])
+    z0 = 2 * half + 0.35 + bump + 0.002  # (the lip 2 mm over the bump)
+    tool = c.loadURDF(TOOL, basePosition=[0, 0, z0 + 0.01], baseOrientation=down)
+    hand = c.createConstraint(
+        tool, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 0, z0], childFrameOrientation=down
+    )
+    joints = [c.getJointInfo(tool, j) for j in range(c.getNumJoints(tool))]
+    links = {info[12].decode(): info[0] for info in joints}
+    bellows = next(info[0] for info in joints if info[2] == p.JOINT_PRISMATIC)
+    c.setJointMotorControl2(tool, bellows, p.POSITION_CONTROL, targetPosition=0.0, force=CUP.bellows_force_n)
+    cup = VacuumCup(c, tool, links["suction_tcp"], links["suction_cup"], CUP)
+    cup.set(True)
+    for i in range(120):  # down 7 mm over half a second: the lip 2 mm past the face
+        c.changeConstraint(hand, [0, 0, z0 - 0.007 * min(1.0, i / 100)], maxForce=5000)
+        c.stepSimulation()
+        cup.after_step(i / 240)
+    assert cup.state is Seal.SEALED, cup.state
+    c.disconnect()

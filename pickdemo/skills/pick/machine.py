@@ -196,6 +196,7 @@ class PickMachine(MachineReadout):
         self.descent_ref: tuple[np.ndarray, np.ndarray, float] | None = None  # (grasp xy, velocity, time)
         self.moved_from: np.ndarray | None = None  # where the last descent backed off from for a move (grasp xy)
         self.shadow_moves = 0  # this attempt's moves the approach then found the target back from
+        self.searched_on = False  # a cup at its grasp touching nothing went on along its approach
         self.hover_since: float | None = None  # above the target, waiting to be sure enough of it
         self.verify_asked = False  # the last look is over (settled, or out of frames)
         self.verify_frames = 0
