@@ -36,8 +36,9 @@ from pickdemo.robot.suction import Cup, hanging_load
 DENSITY_KG_M3 = 1000.0
 #: The rim's sectors (seen from above) under each of which the face must reach.
 SECTORS = 8
-#: The best seals offered to the skill (it takes the first the arm reaches).
-BEST_SEALS = 5
+#: The best seals offered to the skill (it takes the first the arm reaches): the best few of a small
+#: part in a bin may all face away from the arm (its wrist then out of reach)
+BEST_SEALS = 10
 #: At most so many of the rim's sectors may be hidden from the camera (and the seal's cost for each).
 UNSEEN_SECTORS = 3
 UNSEEN_COST = 0.5

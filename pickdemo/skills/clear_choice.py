@@ -19,7 +19,7 @@ import numpy as np
 from pickdemo.core.geometry import Pose
 from pickdemo.grasping.antipodal import sample_antipodal
 from pickdemo.grasping.cloud import sample_grasps
-from pickdemo.grasping.suction import SuctionGrasp, SuctionParams, sample_suction, suction_plan
+from pickdemo.grasping.suction import BEST_SEALS, SuctionGrasp, SuctionParams, sample_suction, suction_plan
 from pickdemo.grasping.top_down import GraspParams, top_down
 from pickdemo.motion.ik_goals import GoalParams, line_speed_scale
 from pickdemo.perception.unknown import SeenObject, Survey
@@ -31,7 +31,8 @@ TRIED_RADIUS_M = 0.03
 TRIED_PENALTY = 10.0
 #: A fixture's points this near an object (m, horizontally) are obstacles to its grasps
 FIXTURES_NEAR_M = 0.2
-#: An object's best grasps tried for reach, best first, before it is passed over
+#: An object's best grasps from above tried for reach, best first, before it is passed over (a suction
+#: cup's: as many as the pick is offered, :data:`~pickdemo.grasping.suction.BEST_SEALS`)
 REACH_TRIES = 3
 
 
@@ -95,10 +96,11 @@ class ObjectChooser:
         suction cup's seal judged leniently, as the survey's sparse points allow (any of the rim's
         sectors short of the face counted as unseen): the pick looks closer and judges again."""
         best: Choice | None = None
+        tries = BEST_SEALS if self.kin.robot.gripper.cup is not None else REACH_TRIES
         for seen in survey.objects:
             was_tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
             # the best few: the first the arm reaches
-            for g in self._grasps(seen, glimpsed)[:REACH_TRIES]:
+            for g in self._grasps(seen, glimpsed)[:tries]:
                 cost = g.cost + (TRIED_PENALTY if was_tried else 0.0)
                 if best is not None and cost >= best.cost:
                     break

@@ -365,6 +365,16 @@ class GraspChooser:
             return True
         return any(lifts(c.q) for c in goal_candidates(self.kin, [plan.grasp], q_grasp, self.rng, self.p.goals))
 
+    def _descent_followed(self, plan: GraspPlan, q_grasp: np.ndarray) -> bool:
+        """Whether the per-tick IK follows the descent from the grasp's IK solution ``q_grasp`` up, or from
+        the one found from home (the approach chooses its goal among several, ``ArmDriver.goal``: the
+        arm's branch where it happens to be may pass a singular posture that another does not)."""
+        g = self.p.goals
+        if line_speed_scale(self.kin, q_grasp, plan.grasp, plan.pregrasp, g) >= g.min_line_speed_scale:
+            return True
+        res = self.kin.solve(plan.grasp, self.kin.robot.home_q, self.rng, IKParams())
+        return res.success and line_speed_scale(self.kin, res.q, plan.grasp, plan.pregrasp, g) >= g.min_line_speed_scale
+
     def unreachable(self, plan: GraspPlan, now_s: float) -> str | Failure:
         """Why the arm cannot do this plan's pick and place ("" if it can; a failure to end the episode
         at once: a moving target that cannot be met at all)."""
@@ -385,7 +395,7 @@ class GraspChooser:
                     return meets
                 if plan.withdraw is not None and not self.takes_out(plan, res.q):
                     return WAY_OUT_NOT_FOLLOWED
-            if name == "grasp" and line_speed_scale(self.kin, res.q, plan.grasp, plan.pregrasp, self.p.goals) < floor:
+            if name == "grasp" and not self._descent_followed(plan, res.q):
                 # The descent follows the vertical line from the pregrasp (a small arm's hand points down
                 # only low near its base, and a jaw's TCP is beside the object, on the side its angle
                 # puts it); the lift goes up it as far as the arm follows (:meth:`ArmDriver.lift_in_reach`).
