@@ -28,6 +28,7 @@ def test_a_done_pick_is_at_rest_only_once_the_commands_sent_have_stopped() -> No
 def test_a_failed_pick_is_at_rest_braked_or_with_the_commands_stopped() -> None:
     assert not _machine(State.FAILED, [0.3, 0.0]).at_rest
     assert _machine(State.FAILED, [0.0, 0.0], braked=True).at_rest
+    assert not _machine(State.FAILED, [0.3, 0.0], braked=True).at_rest  # (braked, the commands still catching up)
     assert not _machine(State.FAILED, [0.3, 0.0], end_at_rest=False).at_rest
     assert _machine(State.FAILED, [0.0, 0.0], end_at_rest=False).at_rest
     assert not _machine(State.LIFT, [0.0, 0.0]).at_rest

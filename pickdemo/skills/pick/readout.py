@@ -27,7 +27,7 @@ class MachineReadout:
         caught_up = not np.any(self.arm.limiter.dq)
         if self.state is State.DONE:
             return caught_up
-        return self.state is State.FAILED and (self.arm.braked or (not self.p.end_at_rest and caught_up))
+        return self.state is State.FAILED and (self.arm.braked or not self.p.end_at_rest) and caught_up
 
     @property
     def tracker(self) -> TargetTracker:
