@@ -131,6 +131,12 @@ def line_speed_scale(
     return 1.0 if worst * params.line_speed_m_s <= 1.0 else 1.0 / (worst * params.line_speed_m_s)
 
 
+def line_followed(kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()) -> bool:
+    """Whether the per-tick IK follows the straight line from ``start`` (the arm at ``q``) to ``end`` at
+    ``min_line_speed_scale`` of the near-object speed at least (slower, near a singular posture: refused)."""
+    return line_speed_scale(kin, q, start, end, params) >= params.min_line_speed_scale
+
+
 def line_reach(kin: Kinematics, q: np.ndarray, start: Pose, end: Pose, params: GoalParams = GoalParams()) -> float:
     """How far along the straight line from ``start`` (the arm at ``q``) to ``end`` (a share, 0 to 1) the
     per-tick IK follows it, converging at each of ``line_steps`` points with its joints fast enough for
@@ -174,7 +180,7 @@ def straight_carry_ok(
         if kin.limit_margin(res.q) < params.line_margin_rad:
             return False
         q = res.q
-    return line_speed_scale(kin, q, kin.forward(q), place, params) >= params.min_line_speed_scale
+    return line_followed(kin, q, kin.forward(q), place, params)
 
 
 def path_dip(kin: Kinematics, q_from: np.ndarray, q_to: np.ndarray, params: GoalParams = GoalParams()) -> float:

@@ -21,7 +21,7 @@ from pickdemo.grasping.antipodal import sample_antipodal
 from pickdemo.grasping.cloud import sample_grasps
 from pickdemo.grasping.suction import BEST_SEALS, SuctionGrasp, SuctionParams, sample_suction, suction_plan
 from pickdemo.grasping.top_down import GraspParams, top_down
-from pickdemo.motion.ik_goals import GoalParams, line_speed_scale
+from pickdemo.motion.ik_goals import GoalParams, line_followed
 from pickdemo.perception.unknown import SeenObject, Survey
 from pickdemo.robot.kinematics import IKParams, Kinematics
 
@@ -158,7 +158,7 @@ class ObjectChooser:
         """Whether the per-tick IK follows the straight line between the pregrasp and the grasp fast enough
         (the pick's own test, :meth:`~pickdemo.skills.pick.chooser.GraspChooser.unreachable`)."""
         g = self.goals
-        return g is None or line_speed_scale(self.kin, q_grasp, plan.grasp, plan.pregrasp, g) >= g.min_line_speed_scale
+        return g is None or line_followed(self.kin, q_grasp, plan.grasp, plan.pregrasp, g)
 
     def _reachable(self, position: np.ndarray, hand_yaw: float) -> bool:
         for yaw in (hand_yaw, hand_yaw + np.pi):

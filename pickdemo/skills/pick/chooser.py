@@ -15,7 +15,7 @@ from pickdemo.grasping.clearance import near as boxes_near
 from pickdemo.grasping.selection import GraspRequest, GraspSelector
 from pickdemo.grasping.side_plans import LEAST_LIFT_M
 from pickdemo.grasping.top_down import GraspPlan, GraspPlanningError
-from pickdemo.motion.ik_goals import along_line, goal_candidates, line_reach, line_speed_scale
+from pickdemo.motion.ik_goals import along_line, goal_candidates, line_followed, line_reach, line_speed_scale
 from pickdemo.motion.lines import rise_followed
 from pickdemo.motion.online import pose_to_x4
 from pickdemo.perception import ObjectCloud, TargetModel
@@ -370,10 +370,10 @@ class GraspChooser:
         the one found from home (the approach chooses its goal among several, ``ArmDriver.goal``: the
         arm's branch where it happens to be may pass a singular posture that another does not)."""
         g = self.p.goals
-        if line_speed_scale(self.kin, q_grasp, plan.grasp, plan.pregrasp, g) >= g.min_line_speed_scale:
+        if line_followed(self.kin, q_grasp, plan.grasp, plan.pregrasp, g):
             return True
         res = self.kin.solve(plan.grasp, self.kin.robot.home_q, self.rng, IKParams())
-        return res.success and line_speed_scale(self.kin, res.q, plan.grasp, plan.pregrasp, g) >= g.min_line_speed_scale
+        return res.success and line_followed(self.kin, res.q, plan.grasp, plan.pregrasp, g)
 
     def unreachable(self, plan: GraspPlan, now_s: float) -> str | Failure:
         """Why the arm cannot do this plan's pick and place ("" if it can; a failure to end the episode
