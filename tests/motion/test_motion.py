@@ -163,6 +163,41 @@ def test_a_tilted_hand_keeps_its_tilt_along_a_straight_line_into_the_grasp() -> 
     assert np.allclose(kin.forward(samples[-1].q).position, grasp.position, atol=1e-4)
 
 
+@pytest.mark.parametrize("tilt_deg, new_tilt_deg", [(25.0, None), (9.0, 6.0)])
+def test_a_hand_reseated_in_another_tilt_turns_to_it_within_the_joints_limits(tilt_deg, new_tilt_deg) -> None:
+    """A tilted hand re-seated pointing down (back from a tilted grasp), or in a plan's new tilt (it
+    changed while a transfer went to the old one): the difference is turned out within the joints'
+    velocity limits, not asked of them in one tick, and the hand ends in the new frame at the target."""
+    kin = kinematics_of(ROBOT)
+
+    def tilted(deg: float) -> np.ndarray:
+        t = np.radians(deg)
+        z = np.array([np.sin(t), 0.0, -np.cos(t)])
+        y = np.array([0.0, 1.0, 0.0])
+        return np.column_stack([np.cross(y, z), y, z])
+
+    at = Pose(np.array([0.5, 0.05, 0.15]), tilted(tilt_deg))
+    res = kin.solve(at, ROBOT.home_q, np.random.default_rng(0))
+    assert res.success
+    frame = None if new_tilt_deg is None else hand_frame(tilted(new_tilt_deg))
+    m = OnlineMotion(kin, res.q, DT, CartesianLimits(velocity=0.1, acceleration=0.5, jerk=5.0))
+    m.reset_at(res.q, frame)
+    assert not m.finished  # (the turn is under way)
+    goal = m.setpoint + np.array([0.0, 0.0, 0.02, 0.0])
+    m.set_target(goal)
+    samples = _run(m, 4000)
+    assert samples[-1].finished
+    q = np.array([res.q] + [s.q for s in samples])
+    speed = np.abs(np.diff(q, axis=0)) / DT
+    assert np.all(speed <= ROBOT.limits.max_velocity_rad_s)
+    end = kin.forward(samples[-1].q)
+    if frame is None:
+        np.testing.assert_allclose(end.rotation, top_down_pose(goal).rotation, atol=1e-3)
+    else:
+        assert np.degrees(np.arccos(-end.rotation[2, 2])) == pytest.approx(new_tilt_deg, abs=0.05)
+    np.testing.assert_allclose(end.position, goal[:3], atol=1e-4)
+
+
 def test_a_joint_running_at_its_stop_fails_the_motion_while_a_brake_still_fits() -> None:
     """Turning the hand drives joint 7 at its stop: the motion fails with the joint still short of it by
     what braking from its speed needs (the brake after a failed motion ran a joint past its stop, and
