@@ -9,12 +9,12 @@ geometry, the world model's objects grown by their uncertainty, :class:`Obstacle
 goes with the hand (a box in the TCP's frame). MoveIt's planning scene is the same design.
 
 Which contacts are allowed is written here once: the links that no joint moves (the base) stand on
-the table, so they are not checked against it; a held object touches the fingers, so it is checked
-against the obstacles and the robot's base only (the links that no joint moves: it is carried past
-them), and not against the table: it is lifted straight off it and lowered
-straight onto it at its place (its box, grown by a margin, would meet the table at both), and carried
-above it. Everything else the caller decides by what it passes as obstacles (the
-target is none while the hand goes to it; the place's surface is none at the release).
+the table, so they are not checked against it; a held object touches the hand, so it is checked
+against the obstacles, the robot's base (it is carried past it) and the arm's links but the hand's
+and those it touched where it was taken (MoveIt's touch links), and not against the table: it is
+lifted straight off it and lowered straight onto it at its place (its box, grown by a margin, would
+meet the table at both), and carried above it. Everything else the caller decides by what it passes
+as obstacles (the target is none while the hand goes to it; the place's surface is none at the release).
 """
 
 from __future__ import annotations
@@ -69,6 +69,15 @@ class RobotGeometry:
         self.tcp_frame = link_frame_id(self.model, robot.tcp_frame)
         #: the links no joint moves (the base): they stand on the table
         self.fixed = {i for i, g in enumerate(self.geometry.geometryObjects) if g.parentJoint == 0}
+        #: the hand's links: those the TCP's joint or a joint after it moves (they touch what it holds)
+        tcp_joint = self.model.frames[self.tcp_frame].parentJoint
+
+        def after_tcp(j: int) -> bool:
+            while j > tcp_joint:
+                j = self.model.parents[j]
+            return j == tcp_joint
+
+        self.hand = {i for i, g in enumerate(self.geometry.geometryObjects) if after_tcp(g.parentJoint)}
 
     def q(self, arm_q: np.ndarray, fingers_m: np.ndarray | float) -> np.ndarray:
         """The full model's configuration at these joint states."""
@@ -80,6 +89,24 @@ class RobotGeometry:
 
     def link_name(self, index: int) -> str:
         return self.model.frames[self.geometry.geometryObjects[index].parentFrame].name
+
+
+def _arm_links_against(
+    gm: pin.GeometryModel, geometry: RobotGeometry, held_id: int, links: list[int], at: tuple[np.ndarray, float]
+) -> None:
+    """Pairs of the held object and each of the arm's ``links`` but those it meets at ``at`` (the arm's
+    joints and the fingers' opening where it was taken: a contact it was taken with is no collision). A
+    part hanging from a tilted cup, swung about in joint space, met the forearm and held the wrist back
+    17 cm short of the place (`suction_clear_bin` seed 80)."""
+    pairs = [pin.CollisionPair(i, held_id) for i in links]
+    for pair in pairs:
+        gm.addCollisionPair(pair)
+    data = pin.GeometryData(gm)
+    pin.computeCollisions(geometry.model, geometry.model.createData(), gm, data, geometry.q(*at), False)
+    met = {(p.first, p.second) for k, p in enumerate(gm.collisionPairs) if data.collisionResults[k].isCollision()}
+    for pair in pairs:
+        if (pair.first, pair.second) in met:
+            gm.removeCollisionPair(pair)
 
 
 @functools.cache
@@ -98,8 +125,16 @@ def _placement(box: OrientedBox) -> tuple[pin.SE3, coal.Box]:
 class CollisionScene:
     """The robot among fixed boxes, and a held object's box in the hand (see the module docstring)."""
 
-    def __init__(self, geometry: RobotGeometry, obstacles: Sequence[Obstacle], held: OrientedBox | None = None) -> None:
-        """``held``: the held object's box in the TCP's frame (None: nothing held)."""
+    def __init__(
+        self,
+        geometry: RobotGeometry,
+        obstacles: Sequence[Obstacle],
+        held: OrientedBox | None = None,
+        held_at: tuple[np.ndarray, float] | None = None,
+    ) -> None:
+        """``held``: the held object's box in the TCP's frame (None: nothing held); ``held_at``: the arm's
+        joints and the fingers' opening where it was taken (then it is checked against the arm's links
+        too, but those it meets there)."""
         self.g = geometry
         gm = pin.GeometryModel()
         for obj in geometry.geometry.geometryObjects:
@@ -115,8 +150,10 @@ class CollisionScene:
                 pin.GeometryObject("held", frame.parentJoint, geometry.tcp_frame, frame.placement * M, shape)
             )
             self.names.append("the held object")
-            for i in geometry.fixed:  # (carried past the base: the arm's own links it is near are the hand's)
+            for i in geometry.fixed:  # (carried past the base)
                 gm.addCollisionPair(pin.CollisionPair(i, held_id))
+            if held_at is not None:
+                _arm_links_against(gm, geometry, held_id, [i for i in moving if i not in geometry.hand], held_at)
         for ob in obstacles:
             M, shape = _placement(ob.box)
             j = gm.addGeometryObject(pin.GeometryObject(ob.name, 0, 0, M, shape))

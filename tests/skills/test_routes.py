@@ -4,10 +4,11 @@ world model's objects and the task's fixtures as the robot knows them, the shipp
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 
 from pickdemo.core.geometry import OrientedBox, Pose
 from pickdemo.robot import robot_named
-from pickdemo.robot.collision import TABLE, Obstacle
+from pickdemo.robot.collision import TABLE, Obstacle, robot_geometry
 from pickdemo.robot.kinematics import kinematics_of
 from pickdemo.skills.pick.routes import MARGIN_M, STRAIGHT, Router, held_box, nearest_turn, rise_over
 from pickdemo.worldmodel import WorldModel
@@ -118,7 +119,7 @@ def test_a_path_under_way_is_stopped_once_the_world_shows_something_in_it_and_no
     qa, qb = _q(kin, (0.3, -0.25, 0.25)), _q(kin, (0.3, 0.25, 0.25))
     arm = SimpleNamespace(ahead=lambda: [qb], finished=False, q=qa)
     m = SimpleNamespace(
-        p=MachineParams(), state=State.APPROACH, world=world, attempt=1, arm=arm, held=None, plan=None,
+        p=MachineParams(), state=State.APPROACH, world=world, attempt=1, arm=arm, held=None, held_at=None, plan=None,
         grip=SimpleNamespace(finger_max_m=0.04), router=router, grasp_width_m=None,
     )  # fmt: skip
     obs = SimpleNamespace(opening_m=0.08)
@@ -188,3 +189,29 @@ def test_a_part_taken_from_a_bin_rises_over_its_walls_and_one_on_the_table_not_o
     wall = Obstacle("fixtures.wall", _box((0.5, 0.155, 0.1), (0.3, 0.01, 0.2)))
     on_table = _box((0.5, 0.1, 0.02), (0.04, 0.04, 0.04))
     assert rise_over(on_table, [TABLE_BOX, wall], 0.05) == 0.0
+
+
+def test_a_held_object_swung_into_the_forearm_meets_it_but_not_what_it_was_taken_touching() -> None:
+    """The held object is checked against the arm's own links too (a part hanging from a tilted cup,
+    carried in joint space, met the forearm and held the wrist back 17 cm short of the place), but not
+    against the hand's, nor a link it touched where it was taken."""
+    router, kin = _router("ur5_suction")
+    g = robot_geometry(kin.robot)
+    forearm = next(i for i, o in enumerate(g.geometry.geometryObjects) if o.name.startswith("forearm"))
+    q_taken, q_swung = kin.robot.home_q, kin.robot.home_q + np.array([0.0, 0.0, 0.0, 1.2, 0.8, 0.0])
+    # a 3 cm cube where the forearm's middle is, seen from the TCP, with the wrist swung
+    data, gdata = g.model.createData(), pin.GeometryData(g.geometry)
+    pin.updateGeometryPlacements(g.model, data, g.geometry, gdata, g.q(q_swung, 0.0))
+    pin.updateFramePlacements(g.model, data)
+    at = data.oMf[g.tcp_frame].actInv(gdata.oMg[forearm])
+    held = OrientedBox(Pose(at.translation, np.eye(3)), np.full(3, -0.015), np.full(3, 0.015))
+    world = WorldModel()
+    assert router.scene(world, held=held).contact(q_swung, 0.0) is None  # (the arm's links unchecked)
+    hit = router.scene(world, held=held, held_at=(q_taken, 0.0)).contact(q_swung, 0.0)
+    assert hit is not None and hit[0].startswith("forearm") and hit[1] == "the held object"
+    assert router.scene(world, held=held, held_at=(q_taken, 0.0)).free(q_taken, 0.0)
+    # taken touching the forearm: that contact is allowed
+    assert router.scene(world, held=held, held_at=(q_swung, 0.0)).contact(q_swung, 0.0) is None
+    # the hand's links are never checked against it
+    assert all(o.parentJoint != 0 for i, o in enumerate(g.geometry.geometryObjects) if i in g.hand)
+    assert {g.geometry.geometryObjects[i].name.split("_")[0] for i in g.hand} == {"suction"}

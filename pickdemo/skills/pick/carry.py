@@ -61,6 +61,7 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
     # (its box where it stood, as the hand holds it now)
     tcp = m.kin.forward(obs.arm_q)
     m.held = held_box(m.world, tcp, m.router.solids)
+    m.held_at = (obs.arm_q.copy(), 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m))
     if m.held is not None and m.plan.withdraw is None:  # (a shelf's way out is its own)
         # high enough that what it holds clears the walls of the bin it was taken from before it is carried off
         rise = rise_over(OrientedBox(tcp @ m.held.pose, m.held.lo, m.held.hi), m.router.named, RISE_REACH_M)
@@ -77,7 +78,7 @@ def enter_lift(m: PickMachine, obs: Observation) -> None:
         m.plan = lower
     if m.p.plan_around and m.plan.withdraw is None:  # (a shelf's way out is its own)
         fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
-        scene = m.router.scene(m.world, held=m.held)
+        scene = m.router.scene(m.world, held=m.held, held_at=m.held_at)
         share = m.router.free_share(scene, m.arm.motion.q, m.plan.lift, fingers, m.arm.motion.posture)
         if share < 1.0:  # lifted only as high as it keeps clear (the carry then goes around)
             z = m.plan.grasp.position[2] + share * (m.plan.lift.position[2] - m.plan.grasp.position[2])
@@ -143,7 +144,7 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     p = m.p
     straight = not (p.joint_transfers and p.carry_in_joint_space)
     fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
-    scene = m.router.scene(m.world, held=m.held) if p.plan_around else None
+    scene = m.router.scene(m.world, held=m.held, held_at=m.held_at) if p.plan_around else None
     if scene is not None and p.joint_transfers and hand_frame(m.plan.place.rotation) is not None:
         if _carried_upright(m, scene, fingers):
             return

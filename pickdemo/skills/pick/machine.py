@@ -128,6 +128,7 @@ class PickMachine(MachineReadout):
         self.arm = ArmDriver(kin, q0, dt_s, p, rng)
         self.router = Router(kin, cell, plan_rng or np.random.default_rng(0), max_checks=p.plan_max_checks)
         self.held: OrientedBox | None = None  # the held object's box in the TCP's frame (from the close)
+        self.held_at: tuple[np.ndarray, float] | None = None  # ... and the arm's joints and fingers then
         self.grip = grip_for(p.grip, dt_s, kin.robot.gripper)
         self.scale = Scale(p.payload)
         # The wrist's sensor reads in its joint's frame; where that is turned from the TCP's (the SO-101's

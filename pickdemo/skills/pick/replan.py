@@ -50,7 +50,7 @@ class PathWatch:
             fingers = 0.5 * (m.grasp_width_m if m.grasp_width_m is not None else obs.opening_m)
         elif m.state is State.APPROACH and m.plan is not None and m.plan.open_m is not None:
             fingers = m.plan.open_m
-        scene = m.router.scene(m.world, held=held, margin_m=TIGHT_MARGIN_M)
+        scene = m.router.scene(m.world, held=held, held_at=m.held_at, margin_m=TIGHT_MARGIN_M)
         hit = m.router.path_contact(scene, m.arm.q, ahead, fingers)
         if hit is None:
             return None

@@ -139,11 +139,17 @@ class Router:
         self.path: np.ndarray | None = None  # (N, 3) the TCP along the last path planned, for drawing
 
     def scene(
-        self, world: WorldModel, *, held: OrientedBox | None = None, margin_m: float = MARGIN_M
+        self,
+        world: WorldModel,
+        *,
+        held: OrientedBox | None = None,
+        held_at: tuple[np.ndarray, float] | None = None,
+        margin_m: float = MARGIN_M,
     ) -> CollisionScene:
         """The robot among the fixtures and the world's objects but the target (the hand goes to it,
-        or holds it: then ``held``, its box in the TCP's frame), each grown by ``margin_m`` (an object's
-        by two of its standard deviations besides). Its ``tighter``: the same at :data:`TIGHT_MARGIN_M`."""
+        or holds it: then ``held``, its box in the TCP's frame, taken with the arm ``held_at``), each grown
+        by ``margin_m`` (an object's by two of its standard deviations besides). Its ``tighter``: the same
+        at :data:`TIGHT_MARGIN_M`."""
         grow = margin_m - MARGIN_M
         obstacles = [o if o.name == TABLE else Obstacle(o.name, grown(o.box, grow)) for o in self.fixtures]
         for obj in world.objects.values():
@@ -153,9 +159,10 @@ class Router:
             obstacles.append(Obstacle(f"object {obj.id}", grown(obj.box, margin_m + 2.0 * sigma)))
         for box in world.seen_in_part():  # (the newest view showed it only in part: not an object yet)
             obstacles.append(Obstacle("something seen in part", grown(box, margin_m)))
-        scene = CollisionScene(robot_geometry(self.kin.robot), obstacles, held)
+        scene = CollisionScene(robot_geometry(self.kin.robot), obstacles, held, held_at)
         tighter = margin_m > TIGHT_MARGIN_M
-        scene.tighter = (lambda: self.scene(world, held=held, margin_m=TIGHT_MARGIN_M)) if tighter else None
+        tight = TIGHT_MARGIN_M
+        scene.tighter = (lambda: self.scene(world, held=held, held_at=held_at, margin_m=tight)) if tighter else None
         return scene
 
     def joint(self, scene: CollisionScene, q_from: np.ndarray, q_goal: np.ndarray, fingers_m: float) -> Route:
