@@ -26,7 +26,15 @@ from pickdemo.motion.ik_goals import (
     path_low_z,
     straight_carry_ok,
 )
-from pickdemo.motion.online import CartesianLimits, JointMotion, MotionError, MotionSample, OnlineMotion, pose_to_x4
+from pickdemo.motion.online import (
+    CartesianLimits,
+    JointMotion,
+    MotionError,
+    MotionSample,
+    OnlineMotion,
+    hand_frame,
+    pose_to_x4,
+)
 from pickdemo.robot.kinematics import Kinematics
 from pickdemo.robot.rate_limit import RateLimiter
 from pickdemo.skills.actions import Grip, Move
@@ -173,9 +181,10 @@ class ArmDriver:
         self.joint = True
 
     def cartesian(self) -> None:
-        """The Cartesian motion takes over, at rest where a transfer left the arm."""
+        """The Cartesian motion takes over, at rest where a transfer left the arm, in the hand's frame
+        there (the next target's, if tilted otherwise, is turned to from it)."""
         if self.joint:
-            self.motion.reset_at(self.joints.q)
+            self.motion.reset_at(self.joints.q, hand_frame(self.kin.forward(self.joints.q).rotation))
             self.joint = False
 
     def home(self, clear: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> str | None:
