@@ -452,6 +452,8 @@ class ClearReferee(_WorldScoring):
                 "attempts": self.tried.get(name, 0) + (by is not None),
                 "pick": None if by is None else by[0],
                 "cleared_at_s": None if by is None else round(by[1], 4),
+                # (where it came to lie: a part left outside the region the robot looks at is told apart)
+                "at_m": [round(float(v), 4) for v in self.world.true_position(name)],
             })  # fmt: skip
         cleared = sum(1 for o in objects if o["outcome"] == "cleared")
         total = len(self.in_round)
