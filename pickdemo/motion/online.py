@@ -453,8 +453,10 @@ class OnlineMotion:
         return res.q.copy(), dq
 
 
-#: A re-seated arm turned otherwise than its frame by at most this takes it in its first tick (rad)
-TILT_KEPT_RAD = float(np.radians(0.2))
+#: A re-seated arm turned otherwise than its frame by at most this takes it in its first tick (rad): the
+#: per-tick IK's tolerance (:data:`LOST_RAD`); a turn of 0.4 deg out at a near-singular posture lost
+#: the IK (`pick_shelf` seed 3), taken at once it does not
+TILT_KEPT_RAD = float(np.radians(0.5))
 #: ... beyond it, turned with each joint within this share of its speed limit, checked at this many points
 TURN_SPEED_SHARE = 0.5
 TURN_CHECKS = 8
