@@ -4,13 +4,13 @@ Pure: no simulator. Dex-Net 3.0's ring model (Mahler et al. 2018) on the points.
 of the target's cloud. The face the cup meets there: the plane through the cloud's points within 1.1 cup
 radii of it (its least principal axis, facing up), tilted at most 45 deg, and the points within the
 depth's noise of that plane; a few points above it are a bump in the cup's way. It seals where that face
-reaches under the rim all round: each of 16 points round the rim lies within the convex hull of the
-face's points, or at most 1.5 mm past it (the last point seen short of an edge). (Eight sectors, each
-reaching the radius less 1.5 mm somewhere, let a 16 mm cup overhang a straight edge by up to 3.4 mm: of
-the leaks in `suction_clear_bin`, the rim touched the face but for one or two of its 16 rays.) A rim point
-short of it is over an edge (it leaks) where the camera saw past it, and may be on a face the camera
-could not see where it did not: up to 6 such points are offered, after the seals seen all round. It
-holds where the weight, hanging from the cup at the cloud's centroid, asks less than the vacuum gives
+reaches under the rim all round: in each of 8 sectors, to the cup's radius less 1.5 mm (the last point
+seen short of an edge). As a sector's farthest point may lie off its middle, a 16 mm cup may still
+overhang a straight edge by up to 3.4 mm (r - (r - 1.5 mm) cos 45 deg): the simulator's rim, 1 mm inside
+the cup's edge, then leaks, and the pick tries elsewhere. A sector short of it is an edge (it leaks)
+where the camera saw past the rim's point there, and may be a face the camera could not see where it did
+not: up to 3 such sectors are offered, after the seals seen all round. It holds where the weight,
+hanging from the cup at the cloud's centroid, asks less than the vacuum gives
 (:func:`pickdemo.robot.suction.hanging_load`), the mass estimated from what was seen (its footprint
 times its height, at :data:`DENSITY_KG_M3`). The cup and its tube must go in clear: no point of anything
 else, or of the target itself, within the cup's radius of its axis up the tool's length. Ranked by the
@@ -24,7 +24,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from pickdemo.core.geometry import Pose, about_vertical, wrap_angle
@@ -35,18 +34,14 @@ from pickdemo.robot.suction import Cup, hanging_load
 #: What an object nobody described is taken to weigh per volume seen (kg/m^3): water's, more than most
 #: of what is picked from bins (cartons, plastics), so that a seal judged to hold holds the real one.
 DENSITY_KG_M3 = 1000.0
-#: The rim's points (evenly round it) each of which the face must reach under, to within the slack
-RIM_POINTS = 16
-_RING = np.column_stack([np.cos(np.arange(RIM_POINTS) * 2 * np.pi / RIM_POINTS),
-                         np.sin(np.arange(RIM_POINTS) * 2 * np.pi / RIM_POINTS)])  # fmt: skip
+#: The rim's sectors (seen from above) under each of which the face must reach.
+SECTORS = 8
 #: The best seals offered to the skill (it takes the first the arm reaches): the best few of a small
 #: part in a bin may all face away from the arm (its wrist then out of reach)
 BEST_SEALS = 10
-#: At most so many of the rim's points may be hidden from the camera (the seal's cost: so much for each
-#: eighth of the rim)
-UNSEEN_RIM_POINTS = 6
+#: At most so many of the rim's sectors may be hidden from the camera (and the seal's cost for each).
+UNSEEN_SECTORS = 3
 UNSEEN_COST = 0.5
-SHORT_SHARE = 8 / RIM_POINTS
 #: A seal this near one that failed is tried after the others (m).
 AVOID_RADIUS_M = 0.02
 #: So many points in the cup's way at least are something there (fewer: a speck of the depth's noise).
@@ -103,21 +98,6 @@ def _basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, np.cross(n, e1)
 
 
-def _outside_hull(uv: np.ndarray, ring: np.ndarray) -> np.ndarray:
-    """How far (m) each point of ``ring`` (K, 2) lies outside the convex hull of the face's points ``uv``
-    (N, 2), by the farthest of its edges' lines (<= 0: inside; inf: no hull)."""
-    hull = cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(float)
-    if len(hull) < 3:
-        return np.full(len(ring), np.inf)
-    edge = np.roll(hull, -1, axis=0) - hull
-    length = np.linalg.norm(edge, axis=1)
-    keep = length > 1e-9
-    hull, edge, length = hull[keep], edge[keep], length[keep]
-    out = np.column_stack([edge[:, 1], -edge[:, 0]]) / length[:, None]
-    out[np.einsum("ij,ij->i", hull.mean(axis=0) - hull, out) > 0.0] *= -1.0  # (pointing away from the inside)
-    return np.max(np.einsum("kij,ij->ki", ring[:, None, :] - hull[None], out), axis=1)
-
-
 def sample_suction(
     points: np.ndarray,
     obstacles: np.ndarray,
@@ -130,7 +110,7 @@ def sample_suction(
     points the camera did not see to be free (:meth:`~pickdemo.perception.model.ObjectCloud.unknown`):
     where the face is not seen to reach under the rim and the rim's point there is hidden, the face may
     go on (a side the camera could not see): such a seal is offered, after those seen all round, with
-    at most :data:`UNSEEN_RIM_POINTS` rim points so; where the camera saw past the rim, it leaks."""
+    at most :data:`UNSEEN_SECTORS` sectors so; where the camera saw past the rim, it leaks."""
     pts = np.asarray(points, dtype=float)
     if len(pts) < 10:
         return []
@@ -144,7 +124,7 @@ def sample_suction(
     out = []
     for c in _thin(pts[np.argsort(-pts[:, 2], kind="stable")], params.candidates):
         patch = pts[np.linalg.norm(pts - c, axis=1) <= params.ring_outer * r]
-        if len(patch) < 8:
+        if len(patch) < SECTORS:
             continue
         # the face: the plane through the patch (its least principal axis, facing up), and the points
         # within the depth's noise of it; a point farther, above it, is a bump in the cup's way
@@ -160,12 +140,16 @@ def sample_suction(
         if np.count_nonzero(res > params.noise_m) >= STRAY_POINTS:
             continue  # something of the target stands up within the rim
         e1, e2 = _basis(n)
-        uv = np.column_stack([(face - lip) @ e1, (face - lip) @ e2])
-        short = np.flatnonzero(_outside_hull(uv, r * _RING) > params.rim_slack_m)
+        u, v = (face - lip) @ e1, (face - lip) @ e2
+        sector = ((np.arctan2(v, u) + np.pi) / (2 * np.pi) * SECTORS).astype(int) % SECTORS
+        reach = np.zeros(SECTORS)
+        np.maximum.at(reach, sector, np.hypot(u, v))
+        short = np.flatnonzero(reach < r - params.rim_slack_m)
         if len(short):  # the face not seen under the rim there: hidden from the camera, or past an edge
-            if unknown is None or len(short) > UNSEEN_RIM_POINTS:
+            if unknown is None or len(short) > UNSEEN_SECTORS:
                 continue
-            rim = lip + r * (np.outer(_RING[short, 0], e1) + np.outer(_RING[short, 1], e2))
+            angle = (short + 0.5) * (2 * np.pi / SECTORS) - np.pi
+            rim = lip + r * (np.outer(np.cos(angle), e1) + np.outer(np.sin(angle), e2))
             if not np.all(unknown(rim)):
                 continue  # seen past the rim: over an edge, it leaks
         # the cup's and the tube's way in along the normal: nothing within the radius of its axis
@@ -179,7 +163,7 @@ def sample_suction(
         if not held.holds:
             continue
         lever = float(np.linalg.norm(np.cross(centroid - lip, n)))  # the weight's arm about the cup's axis
-        cost = lever / r + tilt / params.max_tilt_rad + 0.5 * held.worst + UNSEEN_COST * len(short) * SHORT_SHARE
+        cost = lever / r + tilt / params.max_tilt_rad + 0.5 * held.worst + UNSEEN_COST * len(short)
         out.append(SuctionGrasp(lip, n, cost, tilt, held.worst))
     out.sort(key=lambda g: g.cost)
     return out
