@@ -277,7 +277,14 @@ class OnlineMotion:
 
     @property
     def finished(self) -> bool:
-        return self._finished and self._tilt is None
+        """At the target (a tilt being turned out goes on meanwhile: :attr:`turning`; what comes next
+        as before, the turn under it, or a transfer from where it has got to)."""
+        return self._finished
+
+    @property
+    def turning(self) -> bool:
+        """A re-seat's tilt is still being turned out."""
+        return self._tilt is not None
 
     @property
     def velocity(self) -> np.ndarray:
@@ -360,19 +367,25 @@ class OnlineMotion:
     def _turn_out_tilt(self, x0: np.ndarray) -> None:
         """Where the arm, re-seated, is turned otherwise than its frame at any yaw (a plan's tilt changed
         while a transfer went to its last one; pointing down again after a tilted grasp), the difference
-        is turned out over a jerk-limited profile of its own, at the yaw's limits. Taken as the first
-        setpoint, it asked the wrist for 2 to 25 degrees in one tick (`suction_clear_tote`: 17 picks)."""
+        is turned out over a jerk-limited profile of its own, at the yaw's limits, where the joints could
+        not take it in one tick. Taken as the first setpoint, it asked the wrist for 2 to 25 degrees in
+        one tick (`suction_clear_tote`: 17 picks stopped). Where they can, it is, as it always was."""
         self._tilt, self._tilt_s = None, 0.0
-        off = self.kin.forward_se3(self.q).rotation @ hand_se3(x0, self.frame).rotation.T
-        axis = pin.log3(off)
+        rest = hand_se3(x0, self.frame)
+        axis = pin.log3(self.kin.forward_se3(self.q).rotation @ rest.rotation.T)
         angle = float(np.linalg.norm(axis))
         if angle <= TILT_KEPT_RAD:
+            return
+        v_max = self.kin.robot.limits.max_velocity_rad_s
+        snap = self.kin.track(rest, self.q, posture=self.posture)  # (the first tick's solve, as it would be)
+        if (snap.success or (snap.position_error_m <= LOST_M and snap.rotation_error_rad <= LOST_RAD)) and np.all(
+            np.abs(snap.q - self.q) / self.dt_s <= v_max
+        ):
             return
         axis = axis / angle
         # As fast as the yaw may turn, slower where the joints turn fast for it (near a singular posture):
         # each joint within TURN_SPEED_SHARE of its limit, the rate taken from the IK along the turn.
-        rest, q, rate = hand_se3(x0, self.frame), self.q, 0.0
-        v_max = self.kin.robot.limits.max_velocity_rad_s
+        q, rate = self.q, 0.0
         for k in range(1, TURN_CHECKS + 1):
             left = angle * (1.0 - k / TURN_CHECKS)
             res = self.kin.track(pin.SE3(pin.exp3(axis * left) @ rest.rotation, rest.translation), q, max_iterations=20)
@@ -395,7 +408,7 @@ class OnlineMotion:
         sample = self._step()
         if self._tilt is not None and self._tilt_s >= self._tilt[1].duration:
             self._tilt = None
-        return dataclasses.replace(sample, finished=self.finished) if self._tilt is not None else sample
+        return sample
 
     def _step(self) -> MotionSample:
         if self._finished:
