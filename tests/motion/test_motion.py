@@ -200,6 +200,22 @@ def test_a_hand_reseated_in_another_tilt_turns_to_it_within_the_joints_limits(ti
     np.testing.assert_allclose(end.position, goal[:3], atol=1e-4)
 
 
+def test_a_tilt_the_joints_can_take_at_once_is_taken_at_once() -> None:
+    """Re-seated within the per-tick IK's tolerance of its frame, the hand takes the difference in its
+    first tick, as it always did: nothing is turned out."""
+    kin = kinematics_of(ROBOT)
+    t = np.radians(30.3)
+    z = np.array([np.sin(t), 0.0, -np.cos(t)])
+    y = np.array([0.0, 1.0, 0.0])
+    res = kin.solve(Pose(np.array([0.45, 0.0, 0.3]), np.column_stack([np.cross(y, z), y, z])), ROBOT.home_q,
+                    np.random.default_rng(0))  # fmt: skip
+    t = np.radians(30.0)
+    z = np.array([np.sin(t), 0.0, -np.cos(t)])
+    m = OnlineMotion(kin, res.q, DT, CartesianLimits())
+    m.reset_at(res.q, hand_frame(np.column_stack([np.cross(y, z), y, z])))
+    assert not m.turning and m.finished
+
+
 def test_a_joint_running_at_its_stop_fails_the_motion_while_a_brake_still_fits() -> None:
     """Turning the hand drives joint 7 at its stop: the motion fails with the joint still short of it by
     what braking from its speed needs (the brake after a failed motion ran a joint past its stop, and
