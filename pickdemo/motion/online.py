@@ -39,7 +39,7 @@ from ruckig import (
 )
 
 from pickdemo.core.geometry import Pose, about_vertical
-from pickdemo.robot.kinematics import Kinematics
+from pickdemo.robot.kinematics import IKResult, Kinematics
 
 #: A target closer than this to the current one is not written (Ruckig would recompute for nothing).
 RETARGET_EPS = np.array([2e-4, 2e-4, 2e-4, np.radians(0.1)])
@@ -376,12 +376,9 @@ class OnlineMotion:
         angle = float(np.linalg.norm(axis))
         if angle <= TILT_KEPT_RAD:
             return
+        if self._unfollowed(self.kin.track(rest, self.q, posture=self.posture)) is None:
+            return  # (the first tick's solve, as it would be, can be taken)
         v_max = self.kin.robot.limits.max_velocity_rad_s
-        snap = self.kin.track(rest, self.q, posture=self.posture)  # (the first tick's solve, as it would be)
-        if (snap.success or (snap.position_error_m <= LOST_M and snap.rotation_error_rad <= LOST_RAD)) and np.all(
-            np.abs(snap.q - self.q) / self.dt_s <= v_max
-        ):
-            return
         axis = axis / angle
         # As fast as the yaw may turn, slower where the joints turn fast for it (near a singular posture):
         # each joint within TURN_SPEED_SHARE of its limit, the rate taken from the IK along the turn.
@@ -444,13 +441,10 @@ class OnlineMotion:
             angle = profile.at_time(min(self._tilt_s, profile.duration))[0][0]
             goal = pin.SE3(pin.exp3(axis * angle) @ goal.rotation, goal.translation)
         res = self.kin.track(goal, self.q, posture=self.posture)
-        if not res.success and (res.position_error_m > LOST_M or res.rotation_error_rad > LOST_RAD):
-            raise MotionError(f"IK lost the Cartesian setpoint {np.round(x4, 4).tolist()}: {res.reason}")
+        failed = self._unfollowed(res)
+        if failed is not None:
+            raise MotionError(failed.replace("the setpoint", f"the Cartesian setpoint {np.round(x4, 4).tolist()}"))
         dq = (res.q - self.q) / self.dt_s
-        v_max = self.kin.robot.limits.max_velocity_rad_s
-        if np.any(np.abs(dq) > v_max):
-            j = int(np.argmax(np.abs(dq) / v_max))
-            raise MotionError(f"joint {j + 1} would move at {abs(dq[j]):.2f} rad/s, beyond its limit (a singularity?)")
         # A joint heading for its stop keeps the room to brake before it (the brake after a failed motion
         # ran joint 5 past its stop, and the robot's reflex stopped the arm: pick_shelf seed 10).
         room = np.where(dq > 0.0, self.kin.upper - res.q, res.q - self.kin.lower)
@@ -464,6 +458,18 @@ class OnlineMotion:
             )
         self.q = res.q
         return res.q.copy(), dq
+
+    def _unfollowed(self, res: IKResult) -> str | None:
+        """Why the arm cannot take a tick's solve ``res`` from where it is: the IK lost the setpoint, or a
+        joint would move beyond its speed limit (None: it can)."""
+        if not res.success and (res.position_error_m > LOST_M or res.rotation_error_rad > LOST_RAD):
+            return f"IK lost the setpoint: {res.reason}"
+        dq = np.abs(res.q - self.q) / self.dt_s
+        v_max = self.kin.robot.limits.max_velocity_rad_s
+        if np.any(dq > v_max):
+            j = int(np.argmax(dq / v_max))
+            return f"joint {j + 1} would move at {dq[j]:.2f} rad/s, beyond its limit (a singularity?)"
+        return None
 
 
 #: A re-seated arm turned otherwise than its frame by at most this takes it in its first tick (rad): the
