@@ -14,7 +14,14 @@ from pickdemo.grasping.cloud import CloudGrasps, sample_grasps
 from pickdemo.grasping.selection import GraspRequest
 from pickdemo.grasping.top_down import GraspParams, GraspPlanningError
 from pickdemo.perception import ObjectCloud, PerceptionError, PerceptionParams, TargetModel
-from pickdemo.perception.unknown import estimate_unknown, hidden_in_part, principal_yaw, segment_objects
+from pickdemo.perception.unknown import (
+    Clusters,
+    choose_cluster,
+    estimate_unknown,
+    hidden_in_part,
+    principal_yaw,
+    segment_objects,
+)
 from pickdemo.robot import robot_named
 
 ROBOT = robot_named()
@@ -68,6 +75,23 @@ def test_a_size_named_by_the_task_is_a_cue_among_clusters() -> None:
     assert estimate_unknown(frame, MODEL).pose.position[1] == pytest.approx(-0.1, abs=0.01)  # no cue: the largest
     cued = TargetModel(Unknown(size_cue_m=(0.03, 0.03, 0.02)), None)
     assert estimate_unknown(frame, cued).pose.position[1] == pytest.approx(0.1, abs=0.01)
+
+
+def test_a_sliver_at_the_centre_too_small_to_measure_is_passed_over_for_the_part_beside_it() -> None:
+    # A heap's split left a sliver of a part nearest the region's centre: 54 pixels, 24 of them off its
+    # silhouette, too few to measure a pose from; the part beside it is what the robot came to look at.
+    labels = np.zeros((100, 100), dtype=np.int32)
+    labels[60:84, 40:64] = 1  # the part, 576 pixels
+    labels[48:54, 48:57] = 2  # the sliver, 54 pixels, over the centre (50, 50)
+    clusters = Clusters(labels, np.bincount(labels.ravel())[1:])
+    off_edges = labels == 1
+    off_edges[49:53, 49:55] = True  # 24 of the sliver's pixels
+    frame, centre = render([]), np.array([50.0, 50.0])
+    assert choose_cluster(frame, clusters, MODEL, 30, centre_uv=centre) == 2  # (nearest the centre, as before)
+    assert choose_cluster(frame, clusters, MODEL, 30, centre_uv=centre, measurable=off_edges) == 1
+    # nothing else measurable: the sliver is still the one (its estimate then fails, naming why)
+    off_edges[labels == 1] = False
+    assert choose_cluster(frame, clusters, MODEL, 30, centre_uv=centre, measurable=off_edges) == 2
 
 
 def test_a_part_hidden_by_something_nearer_is_a_partial_view() -> None:
