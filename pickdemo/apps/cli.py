@@ -467,7 +467,7 @@ def _cmd_demos(args: argparse.Namespace) -> int:
         r = demos.run_demos(
             args.scenario, seeds, args.out, fmt=args.format, fps=args.fps, only_success=args.only_success,
             resume=args.resume, progress=not args.no_progress, robot=args.robot, image_width=args.image_width,
-            task=args.task,
+            task=args.task, features=args.features,
         )  # fmt: skip
     except (DatasetError, bench.BenchError, ValueError) as exc:
         raise UsageError(str(exc)) from None

@@ -105,6 +105,7 @@ def finalize_hdf5(out: Path, records: dict[int, dict], meta: dict, *, only_succe
         env_kwargs = {"scenario": meta["scenario"], "robot": meta["robot"],
                       "obs_mode": "rgbd" if meta["cameras"] else "state", "control_mode": "joint_pos",
                       "agent_rate_hz": meta["fps"], "gripper": "opening_force", "image_width": meta["image_width"],
+                      "image_height": meta.get("image_height"),
                       "unit_actions": True}  # fmt: skip
         data.attrs["env_args"] = json.dumps(
             {"env_name": meta["env_id"], "type": ROBOMIMIC_GYM_TYPE, "env_kwargs": env_kwargs}
@@ -160,10 +161,13 @@ def read_hdf5(out: Path, episode: int) -> tuple[dict, dict, np.ndarray, np.ndarr
 
 
 # ================================================================================ by format
-def open_episode(fmt: str, out: Path, seed: int, stride: int, meta: dict) -> Hdf5Episode | LeRobotEpisode:
+def open_episode(
+    fmt: str, out: Path, seed: int, stride: int, meta: dict, follower: Any = None
+) -> Hdf5Episode | LeRobotEpisode:
+    """An episode's sink; ``follower``: a LeRobot follower's channels (:mod:`pickdemo.envs.follower`)."""
     if fmt == "hdf5":
         return Hdf5Episode(out, seed, stride, meta.get("far_m"))
-    return LeRobotEpisode(out, seed, stride, meta["fps"])
+    return LeRobotEpisode(out, seed, stride, meta["fps"], meta.get("codec", "h264"), follower)
 
 
 def finalize(fmt: str, out: Path, records: dict[int, dict], meta: dict, *, only_success: bool) -> int:

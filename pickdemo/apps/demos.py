@@ -19,6 +19,7 @@ from pickdemo.apps import datasets
 from pickdemo.apps.bench import parse_seeds
 from pickdemo.apps.datasets import STAGING, DatasetError
 from pickdemo.apps.files import write_atomic
+from pickdemo.envs.follower import FollowerChannels
 from pickdemo.envs.record import (
     action_bounds,
     action_names,
@@ -30,6 +31,9 @@ from pickdemo.envs.record import (
 )
 from pickdemo.scenario.instruction import instruction
 from pickdemo.scenario.load import list_scenarios, resolve_scenario_path
+
+#: The cameras' width where neither the command nor a follower says (px)
+DEFAULT_IMAGE_WIDTH = 224
 
 
 def run_demos(
@@ -43,16 +47,32 @@ def run_demos(
     resume: bool,
     progress: bool,
     robot: str | None = None,
-    image_width: int = 224,
+    image_width: int | None = None,
     task: str | None = None,
+    features: str | None = None,
 ) -> dict:
     """Record the seeds not staged yet and make the dataset; the run's figures. ``task``: the episodes'
-    task string (None: the scenario's instruction)."""
+    task string (None: the scenario's instruction); ``image_width``: None for the follower's or 224;
+    ``features`` (LeRobot's format): "follower", a robot file's ``[lerobot]`` follower's (the default
+    where it has one), or "pickdemo", the environment's own state and action."""
     from tqdm import tqdm
 
     if fmt == "lerobot" and fps != int(fps):
         raise DatasetError(f"--fps {fps:g}: LeRobot datasets have a whole number of frames per second")
-    env = make_env(scenario, robot, image_width=image_width)
+    env = make_env(scenario, robot)
+    profile = env.robot.lerobot if fmt == "lerobot" and features != "pickdemo" else None
+    if features == "follower" and profile is None:
+        env.close()
+        raise DatasetError(
+            f"--features follower: the {env.robot.label}'s robot file has no [lerobot] table"
+            if fmt == "lerobot" else "--features: LeRobot's format only (--format lerobot)"
+        )  # fmt: skip
+    image_height = None
+    if image_width is None and profile is not None:  # the follower's own cameras' size
+        image_width, image_height = profile.image_size
+    image_width = image_width or DEFAULT_IMAGE_WIDTH
+    env.close()
+    env = make_env(scenario, robot, image_width=image_width, image_height=image_height)
     stride = stride_for(env, fps)
     meta = {
         "format": fmt,
@@ -67,11 +87,20 @@ def run_demos(
         "action_names": action_names(env),
         "action_bounds": list(action_bounds(env)),
         "image_width": image_width,
+        "image_height": image_height,
         "cameras": {name: list(size) for name, size in env._camera_sizes().items()},
         "far_m": {name: float(spec.far_m) for name, spec in env.camera_specs().items()},
         "task": task or instruction(env.scenario),
         "env_id": "pickdemo/Clear-v0" if env.scenario.task == "clear" else "pickdemo/Pick-v0",
     }
+    if fmt == "lerobot":
+        meta["codec"] = profile.video_codec if profile is not None else "h264"
+    follower = None
+    if profile is not None:
+        follower = FollowerChannels(profile, env.robot, meta["state_names"])
+        cams = dict(profile.cameras)
+        meta["follower"] = {"robot_type": profile.robot_type, "names": follower.names,
+                            "cameras": {c: cams.get(c, c) for c in meta["cameras"]}}  # fmt: skip
     meta_path = out / STAGING / "meta.json"
     done = datasets.staged(out)
     if meta_path.is_file():
@@ -89,7 +118,7 @@ def run_demos(
     bar = tqdm(total=len(seeds), initial=len(seeds) - len(todo), disable=not progress, unit="ep", dynamic_ncols=True)
     try:
         for seed in todo:
-            sink = datasets.open_episode(fmt, out, seed, stride, meta)
+            sink = datasets.open_episode(fmt, out, seed, stride, meta, follower)
             try:
                 recorded = record_episode(env, seed, stride, sink)
             except BaseException:

@@ -1,11 +1,20 @@
 """LeRobot's v3 format: ``data/chunk-000/file-K.parquet`` and ``videos/observation.images.<camera>/chunk-000/
-file-K.mp4`` per episode (H.264), ``meta/info.json``, ``meta/stats.json``, ``meta/tasks.parquet``,
-``meta/episodes/chunk-000/file-000.parquet``; pickdemo's own columns beside LeRobot's, outside its
-``observation.*`` and ``action*`` names, which its policies take as inputs and outputs
-(``pickdemo.sim_state``, ``pickdemo.action_ticks``, ``pickdemo.tick_count``), ``next.reward`` and
-``next.success``, each episode's statistics in its row of ``meta/episodes/`` (LeRobot's writer's
+file-K.mp4`` per episode, ``meta/info.json``, ``meta/stats.json``, ``meta/tasks.parquet``,
+``meta/episodes/chunk-000/file-000.parquet`` (each episode's statistics in its row, LeRobot's writer's
 ``stats/<feature>/<stat>``), and ``meta/pickdemo.json``. Written episode by episode into the staging
-(:mod:`pickdemo.apps.staging`), made from it, and read back for replay.
+(:mod:`pickdemo.apps.staging`), made from it, and read back for replay. Two layouts:
+
+- **pickdemo's** (H.264): ``observation.state`` the environment's state, ``action`` its action;
+  pickdemo's own columns beside them, outside LeRobot's ``observation.*`` and ``action*`` names, which
+  its policies take as inputs and outputs (``pickdemo.sim_state``, ``pickdemo.action_ticks``,
+  ``pickdemo.tick_count``), ``next.reward``, ``next.done`` and ``next.success``; the episodes' seeds and
+  outcomes in ``meta/episodes/`` (``pickdemo/seed`` ...).
+- **a follower's** (a robot file's ``[lerobot]``, :mod:`pickdemo.envs.follower`): the features a real
+  recording of that arm has and nothing else (its channels, its cameras' names, its codec, its
+  ``robot_type``), so that LeRobot's tools take both together (its ``merge_datasets`` asks for the same
+  features); what pickdemo keeps for replay (the environment's state and action, the simulator's state,
+  every tick's action, the rewards, the seeds) lies beside them in ``pickdemo/``, which LeRobot does not
+  read.
 """
 
 from __future__ import annotations
@@ -56,17 +65,33 @@ POSITIONAL = (
 )
 
 
-class LeRobotEpisode:
-    """One episode into ``.staging/seed-N/``: its rows' table and an H.264 MP4 per camera."""
+#: Each codec's encoder and options. A key frame every other (LeRobot seeks by time), one thread (the
+#: same bytes on any number of cores; for H.264, also faster for frames this small: evidence in
+#: docs/decisions.md#gymnasium-and-demonstrations). AV1: LeRobot's recorder's own encoder and settings
+#: (``encode_video_frames``: libsvtav1, g 2, crf 30).
+CODECS = {
+    "h264": ("libx264", {"crf": "23", "g": "2", "bf": "0", "preset": "veryfast", "threads": "1"}),
+    "av1": ("libsvtav1", {"g": "2", "crf": "30", "svtav1-params": "lp=1"}),
+}
+#: The staged columns of a follower's channels (:class:`~pickdemo.envs.follower.FollowerChannels`)
+FOLLOWER_STATE, FOLLOWER_ACTION = "follower.state", "follower.action"
 
-    def __init__(self, out: Path, seed: int, stride: int, fps: float) -> None:
+
+class LeRobotEpisode:
+    """One episode into ``.staging/seed-N/``: its rows' table and an MP4 per camera (``codec``);
+    ``follower``: the follower's channels, staged beside the environment's state and action."""
+
+    def __init__(
+        self, out: Path, seed: int, stride: int, fps: float, codec: str = "h264", follower: Any = None
+    ) -> None:
         self.dir = out / STAGING / f"seed-{seed}"
         self.tmp = out / STAGING / f"seed-{seed}.tmp"
         if self.tmp.exists():
             remove_tree(self.tmp)
         self.tmp.mkdir(parents=True)
-        self.stride, self.fps = stride, fps
+        self.stride, self.fps, self.codec, self.follower = stride, fps, codec, follower
         self.rows: dict[str, list] = {"state": [], "action": [], "ticks": [], "counts": [], "sim_state": []}
+        self.rows |= {FOLLOWER_STATE: [], FOLLOWER_ACTION: []} if follower is not None else {}
         self.videos: dict[str, Any] = {}
         self.pixels: dict[str, list[np.ndarray]] = {}  # every fourth frame's every 16th pixel, for the statistics
 
@@ -74,13 +99,13 @@ class LeRobotEpisode:
         if cam not in self.videos:
             import av  # the demos extra (PyAV)
 
+            if self.codec == "av1":  # (SVT-AV1 prints its settings to stderr at every video; errors only)
+                os.environ.setdefault("SVT_LOG", "1")
+            encoder, options = CODECS[self.codec]
             container = av.open(str(self.tmp / f"{cam}.mp4"), "w")
-            stream = container.add_stream("libx264", rate=int(round(self.fps)))
+            stream = container.add_stream(encoder, rate=int(round(self.fps)), options=dict(options))
             stream.width, stream.height = rgb.shape[1], rgb.shape[0]
             stream.pix_fmt = "yuv420p"
-            # A key frame every other (LeRobot seeks by time). One thread: the same bytes on any number of
-            # cores, and faster for frames this small (evidence: docs/decisions.md#gymnasium-and-demonstrations).
-            stream.options = {"crf": "23", "g": "2", "bf": "0", "preset": "veryfast", "threads": "1"}
             self.videos[cam] = (container, stream)
         return self.videos[cam]
 
@@ -92,6 +117,9 @@ class LeRobotEpisode:
         self.rows["ticks"].append(hold_ticks(row.ticks, self.stride).ravel())
         self.rows["counts"].append(len(row.ticks))
         self.rows["sim_state"].append(row.sim_state)
+        if self.follower is not None:
+            self.rows[FOLLOWER_STATE].append(self.follower.state(row.state).astype(np.float32))
+            self.rows[FOLLOWER_ACTION].append(self.follower.action(row.action).astype(np.float32))
         for cam, (rgb, _depth) in row.images.items():
             if (len(self.rows["state"]) - 1) % 4 == 0:
                 self.pixels.setdefault(cam, []).append(rgb.reshape(-1, 3)[::16] / 255.0)
@@ -125,6 +153,7 @@ class LeRobotEpisode:
                     TICK_COUNTS: pa.array(self.rows["counts"], type=pa.int64()),
                     "frame_index": pa.array(np.arange(n), type=pa.int64()),
                 }
+                | {k: vectors(self.rows[k], pa.float32()) for k in (FOLLOWER_STATE, FOLLOWER_ACTION) if k in self.rows}
             )
             pq.write_table(table, self.tmp / "frames.parquet")
             # the episode's own statistics, once (the dataset's are made of them: LeRobot's way)
@@ -182,47 +211,82 @@ def aggregate_stats(episodes: list[dict[str, dict]]) -> dict[str, dict]:
     return out
 
 
+#: A follower's layout: pickdemo's own per-frame columns and its episodes, beside LeRobot's (which it does not read)
+OWN_DIR = "pickdemo"
+#: ... the environment's own state and action there
+OWN_STATE, OWN_ACTION = "pickdemo.state", "pickdemo.action"
+
+
 def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_success: bool) -> int:
     """LeRobot v3's layout in ``out`` from the staged episodes (its tables and meta rewritten, each
-    episode's MP4 linked in); how many episodes it holds."""
+    episode's MP4 linked in); how many episodes it holds. ``meta["follower"]``: a follower's layout."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     kept = [r for _, r in sorted(records.items()) if r["kept"] and (r["success"] or not only_success)]
     fps = meta["fps"]
-    cams = list(meta["cameras"])
+    follower = meta.get("follower")
+    names = {cam: cam for cam in meta["cameras"]} | (follower["cameras"] if follower else {})
+    for sub in ("data", OWN_DIR):
+        for old in (out / sub / CHUNK).glob("file-*.parquet"):
+            old.unlink()
     (out / "meta" / "episodes" / CHUNK).mkdir(parents=True, exist_ok=True)
-    (out / "data" / CHUNK).mkdir(parents=True, exist_ok=True)
-    for old in (out / "data" / CHUNK).glob("file-*.parquet"):
-        old.unlink()
+    for sub in ("data",) + ((OWN_DIR,) if follower else ()):
+        (out / sub / CHUNK).mkdir(parents=True, exist_ok=True)
     episodes: list[dict] = []
+    own_episodes: list[dict] = []
     per_episode: list[dict[str, dict]] = []
     index = 0
     sim_size = 0
     for k, r in enumerate(kept):
         src = out / STAGING / f"seed-{r['seed']}"
-        table = pq.read_table(src / "frames.parquet")
-        n = table.num_rows
+        staged_table = pq.read_table(src / "frames.parquet")
+        n = staged_table.num_rows
         frame_index = np.arange(n, dtype=np.int64)
         done = np.zeros(n, dtype=bool)
         done[-1] = True
         success = done & bool(r["success"])
-        table = (
-            table.drop_columns(["frame_index"])
-            .append_column("timestamp", pa.array((frame_index / fps).astype(np.float32)))
-            .append_column("frame_index", pa.array(frame_index))
-            .append_column("episode_index", pa.array(np.full(n, k, dtype=np.int64)))
-            .append_column("index", pa.array(np.arange(index, index + n, dtype=np.int64)))
-            .append_column("task_index", pa.array(np.zeros(n, dtype=np.int64)))
-            .append_column("next.reward", pa.array(success.astype(np.float32)))
-            .append_column("next.done", pa.array(done))
-            .append_column("next.success", pa.array(success))
-        )
+        place = {
+            "timestamp": pa.array((frame_index / fps).astype(np.float32)),
+            "frame_index": pa.array(frame_index),
+            "episode_index": pa.array(np.full(n, k, dtype=np.int64)),
+            "index": pa.array(np.arange(index, index + n, dtype=np.int64)),
+            "task_index": pa.array(np.zeros(n, dtype=np.int64)),
+        }
+        outcome = {
+            "next.reward": pa.array(success.astype(np.float32)),
+            "next.done": pa.array(done),
+            "next.success": pa.array(success),
+        }
+        own = {c: staged_table.column(c) for c in (SIM_STATE, ACTION_TICKS, TICK_COUNTS)}
+        if follower:  # LeRobot's features only; the rest beside them
+            table = pa.table(
+                {
+                    "observation.state": staged_table.column(FOLLOWER_STATE),
+                    "action": staged_table.column(FOLLOWER_ACTION),
+                }
+                | place
+            )
+            mine = {OWN_STATE: staged_table.column("observation.state"), OWN_ACTION: staged_table.column("action")}
+            mine |= own | outcome | {"frame_index": place["frame_index"], "episode_index": place["episode_index"]}
+            pq.write_table(pa.table(mine), out / OWN_DIR / CHUNK / f"file-{k:03d}.parquet")
+        else:
+            table = pa.table(
+                {"observation.state": staged_table.column("observation.state"), "action": staged_table.column("action")}
+                | own
+                | place
+                | outcome
+            )
         pq.write_table(table, out / "data" / CHUNK / f"file-{k:03d}.parquet")
-        sim_size = len(table.column(SIM_STATE)[0])
+        sim_size = len(staged_table.column(SIM_STATE)[0])
         # the episode's statistics: those made as it was recorded, and its place in the dataset's columns
-        stats = json.loads((src / "stats.json").read_text())
-        stats |= {name: _stats(_column(table, name)) for name in POSITIONAL}
+        made = json.loads((src / "stats.json").read_text())
+        if follower:
+            made["observation.state"], made["action"] = made.pop(FOLLOWER_STATE), made.pop(FOLLOWER_ACTION)
+        made = {IMAGE_KEY.format(names[key[len(IMAGE_KEY) - 2 :]]) if key.startswith(IMAGE_KEY[:-2]) else key: v
+                for key, v in made.items()}  # fmt: skip
+        stats = {name: st for name, st in made.items() if name in table.column_names or name.startswith(IMAGE_KEY[:-2])}
+        stats |= {name: _stats(_column(table, name)) for name in POSITIONAL if name in table.column_names}
         per_episode.append(stats)
         ep = {
             "episode_index": k,
@@ -234,12 +298,18 @@ def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_su
             "dataset_to_index": index + n,
             "meta/episodes/chunk_index": 0,
             "meta/episodes/file_index": 0,
+        }
+        mine_ep = {
             "pickdemo/seed": r["seed"],
             "pickdemo/success": bool(r["success"]),
             "pickdemo/failure": r["failure"] or "",
         }
-        for cam in cams:
-            key = IMAGE_KEY.format(cam)
+        if follower:
+            own_episodes.append({"episode_index": k} | mine_ep)
+        else:
+            ep |= mine_ep
+        for cam in meta["cameras"]:
+            key = IMAGE_KEY.format(names[cam])
             dst = out / "videos" / key / CHUNK / f"file-{k:03d}.mp4"
             dst.parent.mkdir(parents=True, exist_ok=True)
             if dst.exists():
@@ -253,6 +323,8 @@ def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_su
         episodes.append(ep)
         index += n
     pq.write_table(pa.Table.from_pylist(episodes), out / "meta" / "episodes" / CHUNK / "file-000.parquet")
+    if follower:
+        pq.write_table(pa.Table.from_pylist(own_episodes), out / OWN_DIR / "episodes.parquet")
     tasks = pa.table({"task_index": pa.array([0], pa.int64()), "task": pa.array([meta["task"]], pa.string())})
     pq.write_table(tasks.replace_schema_metadata({"pandas": json.dumps(TASKS_PANDAS)}), out / "meta" / "tasks.parquet")
     write_atomic(out / "meta" / "stats.json", json.dumps(aggregate_stats(per_episode), indent=1) + "\n")
@@ -263,31 +335,40 @@ def finalize_lerobot(out: Path, records: dict[int, dict], meta: dict, *, only_su
 
 def _info(meta: dict, episodes: int, frames: int, sim_size: int) -> dict:
     fps = int(round(meta["fps"]))
-    S, A = len(meta["state_names"]), len(meta["action_names"])
+    follower = meta.get("follower")
+    state_names = follower["names"] if follower else meta["state_names"]
+    action_names = follower["names"] if follower else meta["action_names"]
     features: dict[str, Any] = {
-        "observation.state": {"dtype": "float32", "shape": [S], "names": meta["state_names"]},
-        "action": {"dtype": "float32", "shape": [A], "names": meta["action_names"]},
-        SIM_STATE: {"dtype": "float64", "shape": [sim_size], "names": None},
-        ACTION_TICKS: {"dtype": "float64", "shape": [meta["stride"] * A], "names": None},
-        TICK_COUNTS: {"dtype": "int64", "shape": [1], "names": None},
+        "observation.state": {"dtype": "float32", "shape": [len(state_names)], "names": state_names},
+        "action": {"dtype": "float32", "shape": [len(action_names)], "names": action_names},
     }
+    if not follower:
+        features |= {
+            SIM_STATE: {"dtype": "float64", "shape": [sim_size], "names": None},
+            ACTION_TICKS: {"dtype": "float64", "shape": [meta["stride"] * len(action_names)], "names": None},
+            TICK_COUNTS: {"dtype": "int64", "shape": [1], "names": None},
+        }
+    names = follower["cameras"] if follower else {}
     for cam, (w, h) in meta["cameras"].items():
-        features[IMAGE_KEY.format(cam)] = {
+        features[IMAGE_KEY.format(names.get(cam, cam))] = {
             "dtype": "video",
             "shape": [h, w, 3],
             "names": ["height", "width", "channels"],
-            "info": {"video.height": h, "video.width": w, "video.codec": "h264", "video.pix_fmt": "yuv420p",
-                     "video.fps": fps, "video.channels": 3, "has_audio": False, "is_depth_map": False},
+            # (as LeRobot's get_video_info describes a video)
+            "info": {"video.height": h, "video.width": w, "video.codec": meta.get("codec", "h264"),
+                     "video.pix_fmt": "yuv420p", "video.is_depth_map": False, "video.fps": fps,
+                     "video.channels": 3, "has_audio": False},
         }  # fmt: skip
     for name, dtype in (("timestamp", "float32"), ("frame_index", "int64"), ("episode_index", "int64"),
                         ("index", "int64"), ("task_index", "int64")):  # fmt: skip
         features[name] = {"dtype": dtype, "shape": [1], "names": None}
-    features["next.reward"] = {"dtype": "float32", "shape": [1], "names": None}
-    features["next.done"] = {"dtype": "bool", "shape": [1], "names": None}
-    features["next.success"] = {"dtype": "bool", "shape": [1], "names": None}
+    if not follower:
+        features["next.reward"] = {"dtype": "float32", "shape": [1], "names": None}
+        features["next.done"] = {"dtype": "bool", "shape": [1], "names": None}
+        features["next.success"] = {"dtype": "bool", "shape": [1], "names": None}
     return {
         "codebase_version": "v3.0",
-        "robot_type": meta["robot_name"],
+        "robot_type": follower["robot_type"] if follower else meta["robot_name"],
         "total_episodes": episodes,
         "total_frames": frames,
         "total_tasks": 1,
@@ -305,17 +386,21 @@ def _info(meta: dict, episodes: int, frames: int, sim_size: int) -> dict:
 def read_lerobot(out: Path, episode: int) -> tuple[dict, np.ndarray, np.ndarray | None, np.ndarray]:
     """(the episode's attributes, every tick's action (T, stride x A), how many each frame acted (None:
     written before the counts), the states (T, Z)) from its table, as written (float64: LeRobot's loader
-    gives float32)."""
+    gives float32), or from pickdemo's own beside a follower's."""
     import pyarrow.parquet as pq
 
-    eps_path = out / "meta" / "episodes" / CHUNK / "file-000.parquet"
+    own = (out / OWN_DIR / "episodes.parquet").is_file()
+    eps_path = out / OWN_DIR / "episodes.parquet" if own else out / "meta" / "episodes" / CHUNK / "file-000.parquet"
     if not eps_path.is_file():
         raise DatasetError(f"{eps_path}: no such file (record with `pickdemo demos ... --format lerobot`)")
     eps = pq.read_table(eps_path).to_pylist()
     if not 0 <= episode < len(eps):
         raise DatasetError(f"{eps_path}: no episode {episode} (it has {len(eps)})")
     ep = eps[episode]
-    table = pq.read_table(out / "data" / CHUNK / f"file-{ep['data/file_index']:03d}.parquet")
+    if own:
+        table = pq.read_table(out / OWN_DIR / CHUNK / f"file-{episode:03d}.parquet")
+    else:
+        table = pq.read_table(out / "data" / CHUNK / f"file-{ep['data/file_index']:03d}.parquet")
     old = "action.ticks" in table.column_names  # (written before the simulator's columns left LeRobot's names)
     ticks = _column(table, "action.ticks" if old else ACTION_TICKS)
     states = _column(table, "observation.sim_state" if old else SIM_STATE)

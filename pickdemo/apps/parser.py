@@ -161,8 +161,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="dataset frames per second (default 30: LeRobot's own recordings', whose datasets a merge must match)",
     )  # fmt: skip
     demos.add_argument(
-        "--image-width", type=int, default=224, help="the cameras' images' width in pixels (default 224; same view)"
-    )
+        "--image-width", type=int,
+        help="the cameras' images' width in pixels (default 224, or a LeRobot follower's own; same view)",
+    )  # fmt: skip
+    demos.add_argument(
+        "--features", choices=("follower", "pickdemo"),
+        help="LeRobot's format: a robot with a [lerobot] table in its file records its follower's features, as a real "
+        "recording of that arm has them (default); pickdemo: the environment's own state and action",
+    )  # fmt: skip
     demos.add_argument("--robot", help="another robot than the scenario's (a shipped robot's name or a robot file)")
     demos.add_argument(
         "--task", help="the episodes' task string (default: the scenario's instruction, or one made from its target)"

@@ -72,6 +72,7 @@ class PickEnv(gym.Env):
         options: EpisodeOptions | None = None,
         image_width: int | None = None,
         gripper: str = "opening",
+        image_height: int | None = None,
         perception: bool = True,
         unit_actions: bool = False,
     ) -> None:
@@ -79,7 +80,9 @@ class PickEnv(gym.Env):
         its own (a shipped one's name or a robot file); ``agent_rate_hz`` None: every control tick;
         ``task``: the task the scenario must have (the id's: ``pick`` or ``clear``); ``image_width``: the
         ``rgbd`` images' width in pixels (the same field of view, both sides rounded to even; default: each
-        camera's own); ``gripper``: ``"opening"`` (one number) or ``"opening_force"`` (and the force);
+        camera's own); ``image_height`` (with ``image_width``): each camera's images exactly so large,
+        rendered at its own aspect over the whole of it and cut to it about the middle (as a real camera's
+        narrower mode is); ``gripper``: ``"opening"`` (one number) or ``"opening_force"`` (and the force);
         ``perception`` False: no camera frames and no estimates in the loop (``target_pose`` stays zeros;
         faster: a replay, an agent on ``privileged`` observations); ``unit_actions``: each action in [-1, 1],
         mapped linearly onto the control mode's own bounds (robomimic's policies act so)."""
@@ -104,7 +107,9 @@ class PickEnv(gym.Env):
         self.robot = sc.robot_description
         if image_width is not None and not 16 <= image_width <= 4096:
             raise ValueError(f"image_width={image_width}: 16 to 4096 pixels")
-        self.image_width = image_width
+        if image_height is not None and (image_width is None or not 16 <= image_height <= 4096):
+            raise ValueError(f"image_height={image_height}: 16 to 4096 pixels, with an image_width")
+        self.image_width, self.image_height = image_width, image_height
         control_hz = sc.control.control_rate_hz
         rate = control_hz if agent_rate_hz is None else float(agent_rate_hz)
         ticks = control_hz / rate
@@ -186,7 +191,17 @@ class PickEnv(gym.Env):
         sizes = {}
         for name, spec in self.camera_specs().items():  # (even: a video's chroma is half the size)
             w = 2 * max(1, (self.image_width or spec.width) // 2)
-            sizes[name] = (w, 2 * max(1, round(w * spec.height / spec.width / 2)))
+            h = self.image_height or round(w * spec.height / spec.width)
+            sizes[name] = (w, 2 * max(1, round(h / 2)))
+        return sizes
+
+    def _rendered_sizes(self) -> dict[str, tuple[int, int]]:
+        """Each camera's size rendered at its own aspect, over the whole of its images' (then cut to them)."""
+        sizes = {}
+        for name, (w, h) in self._camera_sizes().items():
+            spec = self.camera_specs()[name]
+            scale = max(w / spec.width, h / spec.height)
+            sizes[name] = (max(w, round(spec.width * scale)), max(h, round(spec.height * scale)))
         return sizes
 
     # ================================================================================ episodes
@@ -335,10 +350,13 @@ class PickEnv(gym.Env):
         ep = self.episode
         if ep.done or ep.world is None or ep.world.scene is None:  # (the scene is closed: the last again)
             return self._last_images
-        sizes = self._camera_sizes()
-        self._last_images = {
-            name: rig.snapshot(ep.world.scene, *sizes[name], self._image_rng) for name, rig in ep.world.cameras.items()
-        }
+        sizes, rendered = self._camera_sizes(), self._rendered_sizes()
+        self._last_images = {}
+        for name, rig in ep.world.cameras.items():
+            rgb, depth = rig.snapshot(ep.world.scene, *rendered[name], self._image_rng)
+            (w, h), (rw, rh) = sizes[name], rendered[name]
+            x0, y0 = (rw - w) // 2, (rh - h) // 2  # (the middle: the same when nothing is cut)
+            self._last_images[name] = (rgb[y0 : y0 + h, x0 : x0 + w], depth[y0 : y0 + h, x0 : x0 + w])
         return self._last_images
 
     def _images(self) -> dict[str, np.ndarray]:

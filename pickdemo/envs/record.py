@@ -92,14 +92,20 @@ class Recorded:
 
 
 def make_env(
-    scenario: str, robot: str | None = None, *, image_width: int | None = None, perception: bool = True
+    scenario: str,
+    robot: str | None = None,
+    *,
+    image_width: int | None = None,
+    image_height: int | None = None,
+    perception: bool = True,
 ) -> PickEnv:
-    """The environment demonstrations are recorded and replayed in (its images ``image_width`` across): the
+    """The environment demonstrations are recorded and replayed in (its images ``image_width`` across, or
+    ``image_width`` x ``image_height``: :class:`~pickdemo.envs.pick_env.PickEnv`'s): the
     gripper's opening and force in each action, so that the skill's own force is recorded and replayed;
     ``perception`` False for a replay (what perception sees never moves the robot there)."""
     return PickEnv(
         scenario, robot=robot, obs_mode="state", control_mode="joint_pos", agent_rate_hz=None,
-        image_width=image_width, gripper="opening_force", perception=perception,
+        image_width=image_width, image_height=image_height, gripper="opening_force", perception=perception,
     )  # fmt: skip
 
 

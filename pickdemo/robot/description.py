@@ -157,6 +157,31 @@ class Gripper:
         return 0.0 if self.kind != "jaw" else -width_m / 2.0
 
 
+@dataclass(frozen=True)
+class LeRobotChannel:
+    """A LeRobot follower's channel (``<motor>.pos``): the joint it reads and drives, and its unit
+    ("degrees" from the joint's zero, or "range_0_100" over the joint's range ``low``..``high``, rad)."""
+
+    name: str
+    joint: str
+    unit: str
+    low: float
+    high: float
+
+
+@dataclass(frozen=True)
+class LeRobotProfile:
+    """How LeRobot's own follower of the arm records it (a robot file's ``[lerobot]``): its recorder's
+    ``robot_type``, its channels in order, its cameras' names (the scenario's camera -> the follower's),
+    their images' size (width, height; px), and the video codec."""
+
+    robot_type: str
+    channels: tuple[LeRobotChannel, ...]
+    cameras: tuple[tuple[str, str], ...]
+    image_size: tuple[int, int]
+    video_codec: str
+
+
 @dataclass(frozen=True, eq=False)
 class RobotDescription:
     """A robot arm and its hand, as a value (compared, and cached, by identity)."""
@@ -182,6 +207,7 @@ class RobotDescription:
     #: a pick's speeds where the robot file sets its own (``[speeds]``: near_m_s, free_m_s, transfer_scale,
     #: carry_scale)
     speeds: tuple[tuple[str, float], ...] = ()
+    lerobot: LeRobotProfile | None = None  # how LeRobot's own follower of the arm records it (None: not one)
     home_proposed: bool = False  # its file gave no home: ``home_q`` is :mod:`pickdemo.robot.model_check`'s proposal
 
     @property

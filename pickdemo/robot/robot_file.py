@@ -20,7 +20,14 @@ import numpy as np
 import tomllib
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from pickdemo.robot.description import Gripper, JointLimits, RobotDescription, RobotFiles
+from pickdemo.robot.description import (
+    Gripper,
+    JointLimits,
+    LeRobotChannel,
+    LeRobotProfile,
+    RobotDescription,
+    RobotFiles,
+)
 from pickdemo.robot.stl import MESH_SUFFIXES
 from pickdemo.robot.suction import GRAVITY_M_S2, Cup
 from pickdemo.robot.urdf_files import ERD_PREFIX, found_mesh, joined, lean_urdf_path, locate, not_one_of
@@ -151,6 +158,28 @@ class _Speeds(_Model):
     carry_scale: Annotated[float, Field(gt=0.0, le=1.0)] | None = None  # ... holding a part
 
 
+class _LeRobotChannel(_Model):
+    """One of a LeRobot follower's channels: ``<motor>.pos``, the URDF joint it reads and drives, and the
+    unit LeRobot normalises that motor's position to (its ``MotorNormMode``)."""
+
+    motor: str = Field(pattern=r"^[A-Za-z0-9_]+$")
+    joint: str  # an arm joint, or the jaw's finger joint
+    #: "degrees": from the joint's zero (the URDF's zero at the calibrated range's middle); "range_0_100":
+    #: 0 at the joint's lower limit (the URDF's), 100 at its upper
+    unit: Literal["degrees", "range_0_100"]
+
+
+class _LeRobot(_Model):
+    """How LeRobot's own follower of this arm records it: a dataset recorded with it in LeRobot's format
+    has a real recording's features (their names, units, cameras and video codec)."""
+
+    robot_type: str = Field(min_length=1)  # what its recorder writes as the dataset's robot_type
+    channels: list[_LeRobotChannel] = Field(min_length=1)  # in the order of its state and action
+    cameras: dict[str, str] = {}  # the scenario's camera ("camera", "wrist_camera") -> the follower's name
+    image_size: list[Annotated[int, Field(ge=16, le=4096)]] = Field([640, 480], min_length=2, max_length=2)  # px: w, h
+    video_codec: Literal["av1", "h264"] = "av1"
+
+
 class _RobotFile(_Model):
     name: str = Field(pattern=r"^[A-Za-z0-9_.+-]+$")
     label: str
@@ -160,6 +189,7 @@ class _RobotFile(_Model):
     gripper: Annotated[_Gripper | _Suction, Field(discriminator="kind")]
     grasp: _Grasp = _Grasp()
     speeds: _Speeds = _Speeds()
+    lerobot: _LeRobot | None = None
 
 
 #: The file's sections as docs/robot-file.md documents them, each with the model that reads it.
@@ -173,6 +203,8 @@ SECTIONS: dict[str, type[BaseModel]] = {
     '[gripper] kind = "suction"': _Suction,
     "[grasp]": _Grasp,
     "[speeds]": _Speeds,
+    "[lerobot]": _LeRobot,
+    "[[lerobot.channels]]": _LeRobotChannel,
 }
 
 
@@ -208,6 +240,7 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         hand = None if spec.hand is None else locate(spec.hand.urdf, path.parent, fail, "hand.urdf")
         files = joined(files, hand, spec, fail)
     _check(spec, files, fail, label)
+    lerobot = None if spec.lerobot is None else _lerobot(spec, files, fail)
 
     def mesh_files(key: str, table: dict[str, str]) -> tuple[tuple[str, str], ...]:
         """(a URDF mesh's file name, the file beside the robot file taking its place), each there."""
@@ -269,6 +302,7 @@ def load_robot_file(path: str | Path) -> RobotDescription:
         render_urdf=functools.partial(lean_urdf_path, files, spec.name, meshes, renders),
         grasp_heights=tuple((k, v) for k, v in spec.grasp.model_dump().items() if v is not None),
         speeds=tuple((k, v) for k, v in spec.speeds.model_dump().items() if v is not None),
+        lerobot=lerobot,
     )
     from pickdemo.robot.model_check import check_model, with_proposed_home  # (pinocchio: only once a file is read)
 
@@ -278,6 +312,45 @@ def load_robot_file(path: str | Path) -> RobotDescription:
 
 #: The gripper kinds (a discriminated union's tag, left out of a message's key).
 _KINDS = ("parallel", "jaw", "suction")
+
+
+#: The cameras a scenario may have (its keys), which ``[lerobot] cameras`` names for the follower
+SCENARIO_CAMERAS = ("camera", "wrist_camera")
+
+
+def _lerobot(spec: _RobotFile, files: RobotFiles, fail) -> LeRobotProfile:  # noqa: ANN001 - (key, message) -> error
+    """The follower's channels checked against the arm and its URDF: every arm joint once, in degrees;
+    at most the jaw's one finger joint beside them, in 0 to 100 over its URDF range."""
+    lr, g = spec.lerobot, spec.gripper
+    assert lr is not None
+    fingers = [] if isinstance(g, _Suction) or g.kind != "jaw" else g.finger_joints
+    limits = {j.get("name"): j.find("limit") for j in ET.fromstring(files.urdf.read_bytes()).findall("joint")}
+    channels = []
+    for i, c in enumerate(lr.channels):
+        key = f"lerobot.channels[{i}]"
+        if c.joint not in (*spec.arm.joints, *fingers):
+            raise fail(f"{key}.joint", f"{c.joint!r} is none of the arm's joints or a jaw's finger joint "
+                                       f"({', '.join((*spec.arm.joints, *fingers))})")  # fmt: skip
+        if (c.unit == "range_0_100") != (c.joint in fingers):
+            raise fail(f"{key}.unit", "degrees for an arm joint, range_0_100 for the jaw (its opening)")
+        lim = limits.get(c.joint)
+        low, high = (0.0, 0.0) if lim is None else (float(lim.get("lower", 0.0)), float(lim.get("upper", 0.0)))
+        if c.unit == "range_0_100" and not low < high:
+            raise fail(f"{key}.joint", f"{c.joint!r} has no range in the URDF to scale 0 to 100 over")
+        channels.append(LeRobotChannel(f"{c.motor}.pos", c.joint, c.unit, low, high))
+    joints = [c.joint for c in lr.channels]
+    missing = [j for j in spec.arm.joints if j not in joints]
+    if missing or len(set(joints)) != len(joints):
+        raise fail("lerobot.channels", "each arm joint once (a follower's action drives them all)"
+                                       + (f"; missing: {', '.join(missing)}" if missing else ""))  # fmt: skip
+    for cam in lr.cameras:
+        if cam not in SCENARIO_CAMERAS:
+            raise fail(f"lerobot.cameras.{cam}", f"not a scenario's camera ({', '.join(SCENARIO_CAMERAS)})")
+    if len(set(lr.cameras.values())) != len(lr.cameras):
+        raise fail("lerobot.cameras", "two cameras under one name")
+    return LeRobotProfile(
+        lr.robot_type, tuple(channels), tuple(lr.cameras.items()), (lr.image_size[0], lr.image_size[1]), lr.video_codec
+    )
 
 
 def _suction(g: _Suction) -> Gripper:

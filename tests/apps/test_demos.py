@@ -161,3 +161,5 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, capsys: pytest.Capture
     assert "not a pickdemo demos dataset" in capsys.readouterr().err
     assert main(["demos", "pick_cube", "--out", str(tmp_path / "x"), "--fps", "7"]) == 2
     assert "--fps 7" in capsys.readouterr().err
+    assert main(["demos", "pick_cube", "--out", str(tmp_path / "y"), "--features", "follower"]) == 2
+    assert "--features follower: the Panda's robot file has no [lerobot] table" in capsys.readouterr().err

@@ -77,6 +77,19 @@ def test_the_so101_has_a_jaw_and_a_tcp_of_its_own() -> None:
     assert robot_named("panda").gripper.tcp_offset_m(0.025) == 0.0
 
 
+def test_the_so101_records_as_lerobots_own_follower_does() -> None:
+    """Its file's ``[lerobot]``: LeRobot 0.4.4's SO follower (robots/so_follower): six ``<motor>.pos``, the
+    arm's in degrees, the gripper 0 to 100; its recorder's robot_type; front and wrist cameras, 640 x 480, AV1."""
+    lr = robot_named("so101").lerobot
+    assert lr is not None and lr.robot_type == "so_follower"
+    motors = ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"]
+    assert [c.name for c in lr.channels] == [f"{m}.pos" for m in motors]
+    assert [c.unit for c in lr.channels] == ["degrees"] * 5 + ["range_0_100"]
+    assert (lr.channels[-1].low, lr.channels[-1].high) == (-0.174533, 1.74533)  # the URDF's range of the jaw
+    assert dict(lr.cameras) == {"camera": "front", "wrist_camera": "wrist"} and lr.image_size == (640, 480)
+    assert lr.video_codec == "av1" and robot_named("panda").lerobot is None
+
+
 def _edit(old: str, new: str, text: str = PANDA_FILE) -> str:
     assert old in text, old
     return text.replace(old, new, 1)
@@ -242,6 +255,31 @@ BAD = [
         "a tool speed past the bound",
         _edit("free_m_s = 0.6", "free_m_s = 3.0", SUCTION_FILE),
         "speeds.free_m_s",
+    ),
+    (
+        "a follower's channel on no joint of the arm",
+        _edit('motor = "wrist_roll", joint = "wrist_roll"', 'motor = "wrist_roll", joint = "wrist_yaw"', SO101_FILE),
+        "lerobot.channels[4].joint: 'wrist_yaw' is none of the arm's joints or a jaw's finger joint",
+    ),
+    (
+        "a follower without one of the arm's joints",
+        _edit('    { motor = "elbow_flex", joint = "elbow_flex", unit = "degrees" },\n', "", SO101_FILE),
+        "lerobot.channels: each arm joint once (a follower's action drives them all); missing: elbow_flex",
+    ),
+    (
+        "a follower's jaw in degrees",
+        _edit('joint = "gripper", unit = "range_0_100"', 'joint = "gripper", unit = "degrees"', SO101_FILE),
+        "lerobot.channels[5].unit: degrees for an arm joint, range_0_100 for the jaw",
+    ),
+    (
+        "a follower's camera no scenario has",
+        _edit('cameras = { camera = "front"', 'cameras = { top = "front"', SO101_FILE),
+        "lerobot.cameras.top: not a scenario's camera (camera, wrist_camera)",
+    ),
+    (
+        "a follower's codec nobody writes",
+        _edit('video_codec = "av1"', 'video_codec = "vp9"', SO101_FILE),
+        "lerobot.video_codec",
     ),
     (
         "pads without friction",
