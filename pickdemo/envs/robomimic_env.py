@@ -6,7 +6,10 @@ robomimic 0.3 builds a ``type: 2`` (Gym) environment with its ``EnvGym``, writte
 API and MuJoCo's simulator, and has no way to register another class: the launcher hands robomimic
 this one for type 2 (in ``robomimic.utils.env_utils.get_env_class``), then runs its ``train.py``.
 Observations as the file holds them: ``state`` (:func:`~pickdemo.envs.record.state_vector`), each
-camera's ``<camera>_rgb`` and ``<camera>_depth`` (H, W, 1) as a share of its far plane. Each episode
+camera's ``<camera>_rgb`` and ``<camera>_depth`` (H, W, 1) as a share of its far plane; those a
+policy takes as images processed for it as robomimic's own environments process them (with
+``postprocess_visual_obs``: (C, H, W) in [0, 1]; measured: without, a BC policy on the images stopped
+its first rollout on their shape). Each episode
 is reset to the next seed from 1,000,000 (none a dataset records by default). Needs robomimic (not a
 dependency of pickdemo: install it beside it)."""
 
@@ -19,6 +22,7 @@ import gymnasium as gym
 import numpy as np
 import robomimic.envs.env_base as env_base
 import robomimic.utils.env_utils as env_utils
+import robomimic.utils.obs_utils as obs_utils
 
 import pickdemo.envs  # noqa: F401 - (registers the environments' ids)
 from pickdemo.envs.record import state_vector
@@ -35,6 +39,7 @@ class PickdemoEnv(env_base.EnvBase):
         postprocess_visual_obs: bool = True, **kwargs,
     ) -> None:  # fmt: skip
         self._env_name, self._kwargs = env_name, dict(kwargs)
+        self.postprocess_visual_obs = postprocess_visual_obs
         self.env = gym.make(env_name, **kwargs).unwrapped
         self.far_m = {name: float(spec.far_m) for name, spec in self.env.camera_specs().items()}
         self._seed = FIRST_SEED - 1
@@ -47,6 +52,12 @@ class PickdemoEnv(env_base.EnvBase):
             if f"{name}_rgb" in obs:
                 out[f"{name}_rgb"] = obs[f"{name}_rgb"]
                 out[f"{name}_depth"] = (np.asarray(obs[f"{name}_depth"], dtype=np.float32) / far)[..., None]
+        if self.postprocess_visual_obs:  # as robomimic's own environments do: a policy's images (C, H, W) in [0, 1]
+            for key in out:
+                if key in (obs_utils.OBS_KEYS_TO_MODALITIES or {}) and any(
+                    obs_utils.key_is_obs_modality(key=key, obs_modality=m) for m in ("rgb", "depth")
+                ):  # fmt: skip
+                    out[key] = obs_utils.process_obs(obs=out[key], obs_key=key)
         return out
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, dict]:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("robomimic")
@@ -39,3 +40,14 @@ def test_robomimic_makes_the_environment_of_the_files_env_args_and_its_actions_s
         if env.is_done():
             break
     assert env.is_success()["task"]
+    # a policy's image inputs (their modalities registered, as train.py registers them): processed as
+    # robomimic's own environments process them, (C, H, W) in [0, 1]
+    import robomimic.utils.obs_utils as obs_utils
+
+    obs_utils.initialize_obs_modality_mapping_from_dict(
+        {"low_dim": ["state"], "rgb": ["camera_rgb"], "depth": ["camera_depth"]}
+    )
+    seen = env.reset()
+    h, w, _ = shapes["camera_rgb"]
+    assert seen["camera_rgb"].shape == (3, h, w) and seen["camera_depth"].shape == (1, h, w)
+    assert seen["camera_rgb"].dtype == np.float32 and 0.0 <= seen["camera_rgb"].min() <= seen["camera_rgb"].max() <= 1.0
