@@ -5,7 +5,8 @@ a face's normal, :func:`~pickdemo.grasping.suction.sample_suction`), an object a
 the last that placed one after the others; for a suction cup where none has a seal seen all round, the
 best glimpsed one (the survey's sparse points: its rim's short sectors counted unseen); where no object
 has one, the best reachable grasp from any side (:func:`~pickdemo.grasping.antipodal.sample_antipodal`),
-if the robot's hand takes them. A part of
+if the robot's hand takes them; for a suction cup with no seal glimpsed on any, the largest object not
+tried since the last place, for the pick's closer look. A part of
 :class:`~pickdemo.skills.clear.ClearSequencer`: it returns a choice, never writes the round's state."""
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ from pickdemo.robot.kinematics import IKParams, Kinematics
 TRIED_RADIUS_M = 0.03
 #: ... comes after the others: its grasp's cost is raised by this
 TRIED_PENALTY = 10.0
+#: The cost of an object chosen for a closer look where the survey showed no seal on any
+UNSEEN_SEAL_COST = 20.0
 #: A fixture's points this near an object (m, horizontally) are obstacles to its grasps
 FIXTURES_NEAR_M = 0.2
 #: An object's best grasps from above tried for reach, best first, before it is passed over (a suction
@@ -89,7 +92,21 @@ class ObjectChooser:
             best = self._best(survey, tried, glimpsed=True)
         if best is None and self.any_side is not None:
             best = self._any_side(survey, tried)
+        if best is None and self.kin.robot.gripper.suction:
+            best = self._closer_look(survey, tried)
         return best
+
+    def _closer_look(self, survey: Survey, tried: list[np.ndarray]) -> Choice | None:
+        """Where no seal shows in the survey's sparse points, the largest object not tried since the last
+        place, for the pick's closer look to judge (measured: ``suction_clear_tote`` seed 33 ended with 4
+        parts of 30-67 points each, none with a seal glimpsed; a face a cup seals on is a few points
+        across at the survey's stride). Its cost: :data:`UNSEEN_SEAL_COST`."""
+        untried = [
+            s for s in survey.objects if not any(np.linalg.norm(s.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
+        ]
+        if not untried:
+            return None
+        return Choice(max(untried, key=lambda s: s.n_px), UNSEEN_SEAL_COST)
 
     def _best(self, survey: Survey, tried: list[np.ndarray], *, glimpsed: bool = False) -> Choice | None:
         """The object with the best reachable grasp from above (None: none has one). ``glimpsed``: a
