@@ -68,8 +68,10 @@ def run_demos(
             if fmt == "lerobot" else "--features: LeRobot's format only (--format lerobot)"
         )  # fmt: skip
     image_height = None
-    if image_width is None and profile is not None:  # the follower's own cameras' size
-        image_width, image_height = profile.image_size
+    if profile is not None:  # the follower's cameras' size; another width keeps their aspect, every camera's
+        w, h = profile.image_size
+        image_width = image_width or w
+        image_height = 2 * max(1, round(image_width * h / w / 2))
     image_width = image_width or DEFAULT_IMAGE_WIDTH
     env.close()
     env = make_env(scenario, robot, image_width=image_width, image_height=image_height)

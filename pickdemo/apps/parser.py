@@ -162,7 +162,7 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     demos.add_argument(
         "--image-width", type=int,
-        help="the cameras' images' width in pixels (default 224, or a LeRobot follower's own; same view)",
+        help="the cameras' images' width in pixels (default 224, or a LeRobot follower's own, whose aspect it keeps)",
     )  # fmt: skip
     demos.add_argument(
         "--features", choices=("follower", "pickdemo"),

@@ -77,3 +77,9 @@ def test_an_so101_dataset_has_a_real_followers_features_and_replays(tmp_path: Pa
     stats = json.loads((out / "meta" / "stats.json").read_text())
     assert sorted(stats) == sorted(expected)
     assert main(["replay", str(out), "--episode", "0"]) == 0
+    # another width keeps the follower's aspect, every camera's (the hand camera's own is wider)
+    small = tmp_path / "small"
+    assert main(["demos", "so101_pick_cube", "--seeds", "0", "--out", str(small), "--image-width", "64",
+                 "--no-progress"]) == 0  # fmt: skip
+    features = json.loads((small / "meta" / "info.json").read_text())["features"]
+    assert [features[f"observation.images.{c}"]["shape"] for c in ("front", "wrist")] == [[48, 64, 3]] * 2
