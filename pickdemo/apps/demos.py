@@ -30,7 +30,7 @@ from pickdemo.envs.record import (
     stride_for,
 )
 from pickdemo.scenario.instruction import instruction
-from pickdemo.scenario.load import list_scenarios, resolve_scenario_path
+from pickdemo.scenario.load import list_scenarios, load_scenario, resolve_scenario_path
 
 #: The cameras' width where neither the command nor a follower says (px)
 DEFAULT_IMAGE_WIDTH = 224
@@ -59,12 +59,11 @@ def run_demos(
 
     if fmt == "lerobot" and fps != int(fps):
         raise DatasetError(f"--fps {fps:g}: LeRobot datasets have a whole number of frames per second")
-    env = make_env(scenario, robot)
-    profile = env.robot.lerobot if fmt == "lerobot" and features != "pickdemo" else None
+    described = load_scenario(scenario, robot=robot).robot_description  # (the follower's sizes: before the env)
+    profile = described.lerobot if fmt == "lerobot" and features != "pickdemo" else None
     if features == "follower" and profile is None:
-        env.close()
         raise DatasetError(
-            f"--features follower: the {env.robot.label}'s robot file has no [lerobot] table"
+            f"--features follower: the {described.label}'s robot file has no [lerobot] table"
             if fmt == "lerobot" else "--features: LeRobot's format only (--format lerobot)"
         )  # fmt: skip
     image_height = None
@@ -73,7 +72,6 @@ def run_demos(
         image_width = image_width or w
         image_height = 2 * max(1, round(image_width * h / w / 2))
     image_width = image_width or DEFAULT_IMAGE_WIDTH
-    env.close()
     env = make_env(scenario, robot, image_width=image_width, image_height=image_height)
     stride = stride_for(env, fps)
     meta = {

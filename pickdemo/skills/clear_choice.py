@@ -101,9 +101,7 @@ class ObjectChooser:
         place, for the pick's closer look to judge (measured: ``suction_clear_tote`` seed 33 ended with 4
         parts of 30-67 points each, none with a seal glimpsed; a face a cup seals on is a few points
         across at the survey's stride). Its cost: :data:`UNSEEN_SEAL_COST`."""
-        untried = [
-            s for s in survey.objects if not any(np.linalg.norm(s.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
-        ]
+        untried = [s for s in survey.objects if not _was_tried(s, tried)]
         if not untried:
             return None
         return Choice(max(untried, key=lambda s: s.n_px), UNSEEN_SEAL_COST)
@@ -115,7 +113,7 @@ class ObjectChooser:
         best: Choice | None = None
         tries = BEST_SEALS if self.kin.robot.gripper.cup is not None else REACH_TRIES
         for seen in survey.objects:
-            was_tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
+            was_tried = _was_tried(seen, tried)
             # the best few: the first the arm reaches
             for g in self._grasps(seen, glimpsed)[:tries]:
                 cost = g.cost + (TRIED_PENALTY if was_tried else 0.0)
@@ -139,7 +137,7 @@ class ObjectChooser:
         """The object with the best reachable grasp from any side."""
         best: Choice | None = None
         for seen in survey.objects:
-            was_tried = any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
+            was_tried = _was_tried(seen, tried)
             cloud = self._cloud(seen)
             found = sample_antipodal(
                 cloud.points, self._surface(seen), self.kin.robot.gripper, self.any_side, obstacles=cloud.obstacles,
@@ -186,3 +184,8 @@ class ObjectChooser:
             else:
                 return True
         return False
+
+
+def _was_tried(seen: SeenObject, tried: list[np.ndarray]) -> bool:
+    """Whether a pick failed where ``seen`` stands since the last that placed an object."""
+    return any(np.linalg.norm(seen.centre[:2] - t) < TRIED_RADIUS_M for t in tried)
