@@ -313,14 +313,15 @@ class ArmDriver:
         half_turned: tuple[Pose, Pose] | None = None,
         accept: Callable[[np.ndarray, int], bool] | None = None,
         near: Callable[[np.ndarray, int], bool] | None = None,
+        fixed: Callable[[np.ndarray, int], bool] | None = None,
     ) -> tuple[np.ndarray | None, int]:
         """The IK goal for a top-down TCP pose, or the same pose turned half a turn (a parallel gripper
         closes the same way) when the pose's own angle will not do: the best of several solutions
         (:mod:`pickdemo.motion.ik_goals`); and 1 if turned. ``seeded``: a re-plan keeps to the solution
         near the goal it had, if there is one. ``accept(q, index)``: whether the straight line that follows
         a goal (of the pose, or the turned one) keeps clear of what is in the way: those that do first; if
-        none does, those ``near`` accepts (the same within tighter margins), then the best of all (the
-        caller's route says what is in the way)."""
+        none does, those ``near`` accepts (the same within tighter margins), then those ``fixed`` accepts
+        (clear of the fixtures alone), then the best of all (the caller's route says what is in the way)."""
         if seeded is not None:
             res = self.kin.solve(pose, seeded, self.rng, self.p.goals.ik)
             if res.success and self.joint and not self.joints.finished:
@@ -369,6 +370,8 @@ class ArmDriver:
                 # within the tight margins, a goal whose line can be followed (in a shelf's bin, the
                 # hand's way in keeps within a centimetre of the boards), before one whose line cannot
                 goal = choose_goal([c for c in found + extras if c.line_ok and near(c.q, c.index)], g)
+            if goal is None and fixed is not None:
+                goal = choose_goal([c for c in found + extras if fixed(c.q, c.index)], g)
             goal = goal or choose_goal(found, g)
         if goal is None:
             return None, 0

@@ -166,9 +166,11 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     ends = [m.plan.place, other.place]
     accept = None if scene is None else m.router.accepting(scene, ends, fingers)
     near = None if scene is None else m.router.accepting_near(scene, ends, fingers)
+    fixed = None if scene is None else m.router.accepting_fixed(ends, fingers)
     q, turned = m.arm.goal(
-        m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place), accept=accept, near=near
-    )
+        m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place), accept=accept, near=near,
+        fixed=fixed,
+    )  # fmt: skip
     if q is None:
         m.fail(Stage.IK, "place pose out of reach: no IK solution for either hand angle")
         return

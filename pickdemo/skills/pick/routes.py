@@ -262,6 +262,18 @@ class Router:
 
         return near
 
+    def accepting_fixed(self, ends: Sequence[Pose], fingers_m: float) -> Callable[[np.ndarray, int], bool] | None:
+        """:meth:`accepting` among the fixtures alone, within the tight margins (the world's objects aside):
+        where no goal keeps clear of everything, one whose posture and line keep off a bin's walls before
+        one that does not (in a heap, every goal of a cup's tilted way in passed near a neighbour, and the
+        goal taken then ended its descent with the upper arm on the bin's wall, 16 mm short of the face:
+        8 of 8 cups that met nothing in ``suction_clear_bin``/``_tote``, measured). None: no fixtures."""
+        if not self.solids:
+            return None
+        shrink = TIGHT_MARGIN_M - MARGIN_M
+        tight = [o if o.name == TABLE else Obstacle(o.name, grown(o.box, shrink)) for o in self.fixtures]
+        return self.accepting(CollisionScene(robot_geometry(self.kin.robot), tight), ends, fingers_m)
+
     def free_share(
         self, scene: CollisionScene, q_from: np.ndarray, end: Pose, fingers_m: float, posture: np.ndarray | None = None
     ) -> float:

@@ -245,7 +245,10 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
         if q is None:
             accept, near = _taking_out(m, accept), _taking_out(m, near)
     if q is None:
-        q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept, near=near)
+        fixed = None if scene is None else m.router.accepting_fixed(grasps, fingers)
+        if m.plan.withdraw is not None:
+            fixed = _taking_out(m, fixed)
+        q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept, near=near, fixed=fixed)
     if q is None:
         m.fail(Stage.IK, "pregrasp pose out of reach: no IK solution for either hand angle")
         return
