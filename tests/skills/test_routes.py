@@ -179,6 +179,49 @@ def test_a_goal_none_keeps_clear_of_by_the_margin_is_one_clear_within_the_tight_
     assert len(seen) >= 3 and q is not None and np.array_equal(q, seen[2])
 
 
+def test_after_the_tight_margins_a_goal_clear_of_the_fixtures_alone_before_the_best_of_all() -> None:
+    from pickdemo.skills.pick import MachineParams
+    from pickdemo.skills.pick.arm import ArmDriver
+
+    kin = kinematics_of(robot_named("panda"))
+    arm = ArmDriver(kin, kin.robot.home_q, 0.1, MachineParams(), np.random.default_rng(0))
+    above, grasp = Pose(np.array([0.5, 0.1, 0.2]), DOWN), Pose(np.array([0.5, 0.1, 0.1]), DOWN)
+    seen: list[np.ndarray] = []
+
+    def fixed(q: np.ndarray, i: int) -> bool:  # (one posture of those offered: the last one asked of)
+        seen.append(q)
+        return len(seen) == 2
+
+    q, _ = arm.goal(above, grasp, accept=lambda q, i: False, near=lambda q, i: False, fixed=fixed)
+    assert len(seen) >= 2 and q is not None and np.array_equal(q, seen[1])
+
+
+def test_a_cups_tilted_way_into_a_bin_is_refused_clear_of_the_fixtures_where_the_upper_arm_ends_on_a_wall() -> None:
+    """``suction_clear_bin`` seed 7: a cup's way in tilted 26 deg towards the arm. From the pregrasp with
+    the elbow low, the descent ends with the upper arm on the bin's near wall (the cup stopped 16 mm short
+    of the face); with the elbow high, clear. The world's objects are not asked of; a task without
+    fixtures has no such test."""
+    from pickdemo.runtime.tasks import cell_obstacles
+    from pickdemo.scenario.load import load_scenario
+
+    router, kin = _router("ur5_suction", cell_obstacles(load_scenario("suction_clear_bin")))
+    approach = np.array([-0.35, -0.25, -0.90])
+    approach /= np.linalg.norm(approach)
+    x = np.cross([0.0, 0.0, 1.0], approach)
+    x /= np.linalg.norm(x)
+    rot = np.column_stack([x, np.cross(approach, x), approach])
+    grasp = Pose(np.array([0.557, -0.0436, 0.0286]), rot)
+    pregrasp = Pose(grasp.position - 0.1 * approach, rot)
+    fixed = router.accepting_fixed([grasp], 0.0)
+    assert fixed is not None
+    rng = np.random.default_rng(0)
+    low = kin.solve(pregrasp, np.array([-0.04, -0.49, -0.25, -0.45, -1.81, 5.74]), rng)
+    high = kin.solve(pregrasp, np.array([-0.04, -0.73, 0.25, -0.71, -1.81, 5.74]), rng)
+    assert low.success and high.success and low.q[2] < 0.0 < high.q[2]  # (two branches: the elbow's sign)
+    assert not fixed(low.q, 0) and fixed(high.q, 0)
+    assert _router("ur5_suction")[0].accepting_fixed([grasp], 0.0) is None
+
+
 def test_a_part_taken_from_a_bin_rises_over_its_walls_and_one_on_the_table_not_over_a_wall_beside_it() -> None:
     """A part held 3 cm from a tote's 12 cm wall (its floor 1 cm thick) must rise until its bottom clears
     the wall's top; the same part on the table beside a wall is the routes' to take around (no rise)."""
