@@ -212,14 +212,14 @@ def test_a_cups_tilted_way_into_a_bin_is_refused_clear_of_the_fixtures_where_the
     rot = np.column_stack([x, np.cross(approach, x), approach])
     grasp = Pose(np.array([0.557, -0.0436, 0.0286]), rot)
     pregrasp = Pose(grasp.position - 0.1 * approach, rot)
-    fixed = router.accepting_fixed([grasp], 0.0)
+    fixed = router.accepting_fixed([grasp], 0.0, lambda q, i: True)
     assert fixed is not None
     rng = np.random.default_rng(0)
     low = kin.solve(pregrasp, np.array([-0.04, -0.49, -0.25, -0.45, -1.81, 5.74]), rng)
     high = kin.solve(pregrasp, np.array([-0.04, -0.73, 0.25, -0.71, -1.81, 5.74]), rng)
     assert low.success and high.success and low.q[2] < 0.0 < high.q[2]  # (two branches: the elbow's sign)
     assert not fixed(low.q, 0) and fixed(high.q, 0)
-    assert _router("ur5_suction")[0].accepting_fixed([grasp], 0.0) is None
+    assert _router("ur5_suction")[0].accepting_fixed([grasp], 0.0, lambda q, i: True) is None
 
 
 def test_a_part_taken_from_a_bin_rises_over_its_walls_and_one_on_the_table_not_over_a_wall_beside_it() -> None:

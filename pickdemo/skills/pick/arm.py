@@ -321,7 +321,8 @@ class ArmDriver:
         near the goal it had, if there is one. ``accept(q, index)``: whether the straight line that follows
         a goal (of the pose, or the turned one) keeps clear of what is in the way: those that do first; if
         none does, those ``near`` accepts (the same within tighter margins), then those ``fixed`` accepts
-        (clear of the fixtures alone), then the best of all (the caller's route says what is in the way)."""
+        (clear of the fixtures alone, the line followed as the arm will make it), then the best of all
+        (the caller's route says what is in the way)."""
         if seeded is not None:
             res = self.kin.solve(pose, seeded, self.rng, self.p.goals.ik)
             if res.success and self.joint and not self.joints.finished:
@@ -371,7 +372,10 @@ class ArmDriver:
                 # hand's way in keeps within a centimetre of the boards), before one whose line cannot
                 goal = choose_goal([c for c in found + extras if c.line_ok and near(c.q, c.index)], g)
             if goal is None and fixed is not None:
-                goal = choose_goal([c for c in found + extras if fixed(c.q, c.index)], g)
+                # (those of the first starts before those of more, as the best of all is theirs)
+                goal = choose_goal([c for c in found if fixed(c.q, c.index)], g) or choose_goal(
+                    [c for c in extras if fixed(c.q, c.index)], g
+                )
             goal = goal or choose_goal(found, g)
         if goal is None:
             return None, 0

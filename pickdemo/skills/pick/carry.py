@@ -19,7 +19,7 @@ from pickdemo.skills.actions import GRAVITY_M_S2
 from pickdemo.skills.pick.params import State, Transition
 from pickdemo.skills.pick.plans import turned_plan
 from pickdemo.skills.pick.routes import held_box, rise_over
-from pickdemo.skills.pick.take import go_home, side_line, wrist_load
+from pickdemo.skills.pick.take import followed, go_home, side_line, wrist_load
 
 if TYPE_CHECKING:  # (the machine imports this table: a type only, for the reader and the checker)
     from pickdemo.grasping.top_down import GraspPlan
@@ -166,7 +166,7 @@ def enter_transport(m: PickMachine, obs: Observation) -> None:
     ends = [m.plan.place, other.place]
     accept = None if scene is None else m.router.accepting(scene, ends, fingers)
     near = None if scene is None else m.router.accepting_near(scene, ends, fingers)
-    fixed = None if scene is None else m.router.accepting_fixed(ends, fingers)
+    fixed = None if scene is None else m.router.accepting_fixed(ends, fingers, followed(m, ends))
     q, turned = m.arm.goal(
         m.plan.place_above, m.plan.place, half_turned=(other.place_above, other.place), accept=accept, near=near,
         fixed=fixed,

@@ -262,17 +262,21 @@ class Router:
 
         return near
 
-    def accepting_fixed(self, ends: Sequence[Pose], fingers_m: float) -> Callable[[np.ndarray, int], bool] | None:
-        """:meth:`accepting` among the fixtures alone, within the tight margins (the world's objects aside):
-        where no goal keeps clear of everything, one whose posture and line keep off a bin's walls before
-        one that does not (in a heap, every goal of a cup's tilted way in passed near a neighbour, and the
-        goal taken then ended its descent with the upper arm on the bin's wall, 16 mm short of the face:
-        8 of 8 cups that met nothing in ``suction_clear_bin``/``_tote``, measured). None: no fixtures."""
+    def accepting_fixed(
+        self, ends: Sequence[Pose], fingers_m: float, followed: Callable[[np.ndarray, int], bool]
+    ) -> Callable[[np.ndarray, int], bool] | None:
+        """:meth:`accepting` among the fixtures alone, as they are (the world's objects aside; as the grasp
+        chooser checks a plan, ``arm_meets_fixture``: a cup's tube passes a bin's wall within millimetres),
+        where ``followed(q, i)`` says the arm follows the line to ``ends[i]`` as it will make it (a check of
+        a line not followed would pass it): where no goal keeps clear of everything, one whose posture and
+        line keep off a bin's walls before one that does not (in a heap, no goal of a cup's tilted way in
+        kept clear of the neighbours, and the goal taken then ended its descent with the upper arm on the
+        bin's wall, 16 mm short of the face: 8 of 8 cups that met nothing in ``suction_clear_bin`` and
+        ``_tote``, measured). None: the task has no fixtures."""
         if not self.solids:
             return None
-        shrink = TIGHT_MARGIN_M - MARGIN_M
-        tight = [o if o.name == TABLE else Obstacle(o.name, grown(o.box, shrink)) for o in self.fixtures]
-        return self.accepting(CollisionScene(robot_geometry(self.kin.robot), tight), ends, fingers_m)
+        clear = self.accepting(CollisionScene(robot_geometry(self.kin.robot), list(self.named)), ends, fingers_m)
+        return lambda q, i: followed(q, i) and clear(q, i)
 
     def free_share(
         self, scene: CollisionScene, q_from: np.ndarray, end: Pose, fingers_m: float, posture: np.ndarray | None = None

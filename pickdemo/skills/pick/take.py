@@ -15,6 +15,7 @@ from pickdemo.core.interfaces import Observation
 from pickdemo.core.result import Stage
 from pickdemo.grasping.side_plans import LEAST_LIFT_M
 from pickdemo.grasping.top_down import GraspPlan
+from pickdemo.motion.ik_goals import line_trackable
 from pickdemo.motion.lines import line_in_joints
 from pickdemo.motion.online import hand_frame
 from pickdemo.skills.pick.params import Event, State, Transition
@@ -245,7 +246,7 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
         if q is None:
             accept, near = _taking_out(m, accept), _taking_out(m, near)
     if q is None:
-        fixed = None if scene is None else m.router.accepting_fixed(grasps, fingers)
+        fixed = None if scene is None else m.router.accepting_fixed(grasps, fingers, followed(m, grasps))
         if m.plan.withdraw is not None:
             fixed = _taking_out(m, fixed)
         q, turned = m.arm.goal(m.plan.pregrasp, m.plan.grasp, accept=accept, near=near, fixed=fixed)
@@ -277,6 +278,18 @@ def enter_approach(m: PickMachine, obs: Observation) -> None:
     m.note(note)
     if note is None:
         m.arm.transfer_to(q, m.p.transfer_scale)
+
+
+def followed(m: PickMachine, ends: list[Pose]) -> Callable[[np.ndarray, int], bool]:
+    """``followed(q, i)``: whether the arm at ``q`` follows the line to ``ends[i]`` as it will make it: a
+    tilted hand's as joint transfers (:func:`side_line`), a hand pointing down's by the per-tick IK."""
+
+    def follows(q: np.ndarray, i: int) -> bool:
+        if hand_frame(ends[i].rotation) is not None:  # (its own seeds: a check does not move the pick's)
+            return line_in_joints(m.kin, q, ends[i], np.random.default_rng(0), m.p.goals.ik) is not None
+        return line_trackable(m.kin, q, m.kin.forward(q), ends[i], m.p.goals)
+
+    return follows
 
 
 def _taking_out(m: PickMachine, accept: Accept | None, *, all_out: bool = False) -> Accept | None:
