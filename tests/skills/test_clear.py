@@ -74,6 +74,18 @@ def test_a_packed_round_stands_apart_in_its_region_and_a_pile_rests_on_what_it_f
     assert all(np.array_equal(a.pose.position, b.pose.position) for a, b in zip(objs, again, strict=True))
 
 
+@pytest.mark.parametrize("name", ["suction_clear_tote", "clear_bin"])
+def test_a_pile_drawn_into_a_bin_starts_on_its_floor_not_in_it(name: str) -> None:
+    """A part drawn first into a bin falls from its floor's top (it had been put on the table's, 1 cm into
+    the floor, and a plate pushed through it fell into the table)."""
+    sc = load_scenario(name, check=False)
+    for seed in range(4):
+        for a in sample_round(sc, spawn_rngs(seed)["clear"]):
+            bottom = a.pose.position[2] - a.geometry.resting_height_m(a.pose.rotation)
+            floor = sc.surface_z(float(a.pose.position[0]), float(a.pose.position[1]))
+            assert floor > 0.0 and bottom >= floor - 1e-9
+
+
 def test_the_tray_is_its_urdf_at_its_scale_and_its_spots_lie_in_it() -> None:
     tray = Tray.of(load_scenario("clear_pile", check=False))
     assert tray is not None
