@@ -253,7 +253,7 @@ def sample_round(
                 f"({name} found no free spot in {MAX_DRAWS} draws): a larger region or fewer objects"
             )
         # (at least on what stands there: a bin's floor; on the table's top, a part drawn first sat 1 cm
-        # into the floor, and a plate pushed through it fell into the table: 4 of 150 rounds' parts)
+        # into the floor, and a plate pushed through it fell into the table: 4 parts in 150 rounds)
         ground = scenario.surface_z(float(xy[0]), float(xy[1]))
         base = max([ground, *under]) + (spec.drop_height_m if under else 0.0)
         z = base + rest
