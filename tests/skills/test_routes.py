@@ -219,6 +219,8 @@ def test_a_cups_tilted_way_into_a_bin_is_refused_clear_of_the_fixtures_where_the
     high = kin.solve(pregrasp, np.array([-0.04, -0.73, 0.25, -0.71, -1.81, 5.74]), rng)
     assert low.success and high.success and low.q[2] < 0.0 < high.q[2]  # (two branches: the elbow's sign)
     assert not fixed(low.q, 0) and fixed(high.q, 0)
+    # (a line the arm would not follow as it makes it is no line checked: refused however clear)
+    assert not router.accepting_fixed([grasp], 0.0, lambda q, i: False)(high.q, 0)
     assert _router("ur5_suction")[0].accepting_fixed([grasp], 0.0, lambda q, i: True) is None
 
 
